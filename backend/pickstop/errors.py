@@ -1,0 +1,49 @@
+"""Typed errors. Every failure PickStop reports derives from :class:`PickStopError`.
+
+Only the edges translate them: the CLI into exit codes, the API into problem details.
+"""
+
+from __future__ import annotations
+
+
+class PickStopError(Exception):
+    """Root of every error PickStop raises on purpose."""
+
+    #: Exit code the CLI uses for this error.
+    exit_code = 1
+
+    def __init__(self, message: str, *, field: str | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        #: The offending input field, dotted (``"arm_joints[2]"``), when one is to blame.
+        self.field = field
+
+
+class InputError(PickStopError):
+    """The caller gave something invalid (a bad argument, file or value)."""
+
+    exit_code = 2
+
+
+class RobotConfigError(InputError):
+    """A robot config, URDF, SRDF or mesh cannot be used."""
+
+
+class DatabaseError(PickStopError):
+    """A reachability database cannot be built, found or trusted."""
+
+
+class DatabaseNotFoundError(DatabaseError):
+    """No complete database matches the request."""
+
+
+class DatabaseMismatchError(DatabaseError):
+    """A database was built for another robot or robot config than the one given."""
+
+
+class CorruptShardError(DatabaseError):
+    """A shard file is missing, truncated or does not match its recorded checksum."""
+
+
+class QueryError(InputError):
+    """A pose query is malformed (shape, NaN, non-unit quaternion)."""

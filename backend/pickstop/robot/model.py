@@ -1,0 +1,319 @@
+"""Load a mobile manipulator: pinocchio kinematics reduced to the arm, coal collision geometry.
+
+The base frame is the URDF root link (for TIAGo ``base_footprint``). The model is a fixed-base
+model of the robot standing at the base frame origin; the mobile base pose enters later as
+``T_world_base``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import warnings
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pinocchio as pin
+
+from pickstop.errors import RobotConfigError
+from pickstop.robot.config import RobotConfig, example_robot_data_share, resolve_robot
+
+JointKind = Literal["revolute", "prismatic", "continuous"]
+
+_KIND_BY_SHORTNAME: dict[str, JointKind] = {
+    "JointModelRX": "revolute",
+    "JointModelRY": "revolute",
+    "JointModelRZ": "revolute",
+    "JointModelRevoluteUnaligned": "revolute",
+    "JointModelPX": "prismatic",
+    "JointModelPY": "prismatic",
+    "JointModelPZ": "prismatic",
+    "JointModelPrismaticUnaligned": "prismatic",
+    "JointModelRUBX": "continuous",
+    "JointModelRUBY": "continuous",
+    "JointModelRUBZ": "continuous",
+    "JointModelRevoluteUnboundedUnaligned": "continuous",
+}
+
+
+@dataclass(frozen=True)
+class ArmJoint:
+    """One sampled joint of the arm (torso included)."""
+
+    name: str
+    kind: JointKind
+    axis: tuple[float, float, float]  # unit axis in the joint frame
+    lower: float  # [rad or m]
+    upper: float  # [rad or m]
+    idx_q: int  # first coordinate in the reduced pinocchio q
+    nq: int  # 1, or 2 for continuous joints (cos, sin)
+
+
+@dataclass(eq=False)
+class RobotModel:
+    """A loaded robot. ``model`` is immutable; make a ``model.createData()`` per thread."""
+
+    config: RobotConfig
+    urdf_path: Path
+    srdf_path: Path | None
+    package_dirs: list[str]
+    full_model: Any  # pin.Model, every joint
+    q_full: np.ndarray  # (full_model.nq,) locked values, arm at zero
+    model: Any  # pin.Model reduced to the arm joints
+    geom_model: Any  # pin.GeometryModel (collision) of the reduced model
+    tool_frame_id: int
+    joints: tuple[ArmJoint, ...]
+    robot_hash: str
+    mesh_files: tuple[Path, ...] = field(default=())
+
+    @property
+    def name(self) -> str:
+        return self.config.name
+
+    @property
+    def dof(self) -> int:
+        """Number of sampled joints (one angle or length each)."""
+        return len(self.joints)
+
+    @property
+    def lower(self) -> np.ndarray:
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper(self) -> np.ndarray:
+        return np.array([j.upper for j in self.joints])
+
+    @property
+    def base_frame(self) -> str:
+        return str(self.full_model.frames[1].name)
+
+    def angles_to_q(self, thetas: np.ndarray) -> np.ndarray:
+        """``thetas: (..., dof)`` joint values [rad or m] -> pinocchio ``q: (..., nq)``."""
+        thetas = np.asarray(thetas, dtype=float)
+        assert thetas.shape[-1] == self.dof, thetas.shape
+        q = np.empty((*thetas.shape[:-1], self.model.nq))
+        for i, j in enumerate(self.joints):
+            if j.nq == 2:
+                q[..., j.idx_q] = np.cos(thetas[..., i])
+                q[..., j.idx_q + 1] = np.sin(thetas[..., i])
+            else:
+                q[..., j.idx_q] = thetas[..., i]
+        return q
+
+    def q_to_angles(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio ``q: (..., nq)`` -> ``thetas: (..., dof)``."""
+        q = np.asarray(q, dtype=float)
+        out = np.empty((*q.shape[:-1], self.dof))
+        for i, j in enumerate(self.joints):
+            if j.nq == 2:
+                out[..., i] = np.arctan2(q[..., j.idx_q + 1], q[..., j.idx_q])
+            else:
+                out[..., i] = q[..., j.idx_q]
+        return out
+
+    def full_q(self, theta: np.ndarray) -> np.ndarray:
+        """Full-model configuration (for display) with the arm at ``theta: (dof,)``."""
+        q = self.q_full.copy()
+        for value, j in zip(theta, self.joints, strict=True):
+            jid = self.full_model.getJointId(j.name)
+            iq = self.full_model.idx_qs[jid]
+            if j.nq == 2:
+                q[iq : iq + 2] = (math.cos(value), math.sin(value))
+            else:
+                q[iq] = value
+        return q
+
+
+def resolve_path(ref: str, root: Path, package_dirs: list[str], what: str) -> Path:
+    """A config path: ``package://pkg/rel``, absolute, or relative to ``root``."""
+    if ref.startswith("package://"):
+        rel = ref[len("package://") :]
+        for d in package_dirs:
+            cand = Path(d) / rel
+            if cand.is_file():
+                return cand
+        raise RobotConfigError(
+            f"{what} {ref!r} not found in package dirs {package_dirs}", field=what.replace(" ", "_")
+        )
+    p = Path(ref)
+    if not p.is_absolute():
+        p = root / p
+    if not p.is_file():
+        raise RobotConfigError(f"{what} file not found: {p}", field=what.replace(" ", "_"))
+    return p
+
+
+def _mesh_refs(urdf_path: Path, package_dirs: list[str]) -> tuple[ET.Element, list[Path]]:
+    """Parse the URDF as XML and resolve every collision mesh (pinocchio's errors name neither)."""
+    try:
+        root = ET.parse(urdf_path).getroot()
+    except ET.ParseError as e:
+        raise RobotConfigError(f"{urdf_path}: broken URDF (not well-formed XML: {e})") from None
+    if root.tag != "robot":
+        raise RobotConfigError(f"{urdf_path}: broken URDF (root element is <{root.tag}>, not <robot>)")
+    meshes: list[Path] = []
+    for link in root.iter("link"):
+        for coll in link.iter("collision"):
+            for mesh in coll.iter("mesh"):
+                ref = mesh.get("filename", "")
+                try:
+                    meshes.append(resolve_path(ref, urdf_path.parent, package_dirs, "mesh"))
+                except RobotConfigError:
+                    raise RobotConfigError(
+                        f"{urdf_path}: collision mesh of link {link.get('name')!r} not found: {ref}"
+                    ) from None
+    return root, meshes
+
+
+def _hash(config: RobotConfig, files: list[Path]) -> str:
+    h = hashlib.sha256()
+    h.update(json.dumps(config.model_dump(mode="json"), sort_keys=True).encode())
+    for f in files:
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def _joint_axis(jm: Any, shortname: str) -> tuple[float, float, float]:
+    if shortname[-1] in "XYZ" and not shortname.endswith("Unaligned"):
+        axis = [0.0, 0.0, 0.0]
+        axis["XYZ".index(shortname[-1])] = 1.0
+        return (axis[0], axis[1], axis[2])
+    a = np.asarray(jm.extract().axis, dtype=float)
+    a /= np.linalg.norm(a)
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+def load_robot(config: RobotConfig, root: Path) -> RobotModel:
+    """Build the reduced kinematic and collision model of ``config`` (paths relative to ``root``)."""
+    package_dirs = [str((root / d).resolve()) for d in config.package_dirs]
+    package_dirs.append(str(example_robot_data_share()))
+    urdf_path = resolve_path(config.urdf, root, package_dirs, "urdf")
+    srdf_path = (
+        resolve_path(config.srdf, root, package_dirs, "srdf") if config.srdf is not None else None
+    )
+    _, meshes = _mesh_refs(urdf_path, package_dirs)
+
+    try:
+        full = pin.buildModelFromUrdf(str(urdf_path))
+    except (ValueError, RuntimeError) as e:
+        raise RobotConfigError(f"{urdf_path}: broken URDF: {e}") from None
+
+    names = list(full.names)
+    for i, jn in enumerate(config.arm_joints):
+        if jn not in names:
+            raise RobotConfigError(
+                f"{urdf_path}: unknown arm joint {jn!r} (movable joints: {', '.join(names[1:])})",
+                field=f"arm_joints[{i}]",
+            )
+    for jn in config.locked_joints:
+        if jn not in names:
+            raise RobotConfigError(
+                f"{urdf_path}: unknown locked joint {jn!r}", field=f"locked_joints.{jn}"
+            )
+    if not full.existFrame(config.tool_frame):
+        raise RobotConfigError(
+            f"{urdf_path}: unknown tool frame {config.tool_frame!r}", field="tool_frame"
+        )
+
+    # Locked configuration: given values, else 0 clipped into the joint limits.
+    q_full = pin.neutral(full)
+    for jid in range(1, full.njoints):
+        jn, iq, nq = full.names[jid], full.idx_qs[jid], full.nqs[jid]
+        value = config.locked_joints.get(jn)
+        if nq == 2:
+            angle = float(value) if isinstance(value, int | float) else 0.0
+            q_full[iq : iq + 2] = (math.cos(angle), math.sin(angle))
+        elif nq == 1:
+            v = float(value) if isinstance(value, int | float) else 0.0
+            lo, hi = full.lowerPositionLimit[iq], full.upperPositionLimit[iq]
+            if value is not None and not (lo - 1e-9 <= v <= hi + 1e-9):
+                raise RobotConfigError(
+                    f"locked joint {jn!r} value {v} is outside its limits [{lo}, {hi}]",
+                    field=f"locked_joints.{jn}",
+                )
+            q_full[iq] = min(max(v, lo), hi)
+        elif value is not None:
+            raise RobotConfigError(
+                f"joint {jn!r} has {nq} coordinates; give its value as a list",
+                field=f"locked_joints.{jn}",
+            )
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            geom_full = pin.buildGeomFromUrdf(
+                full, str(urdf_path), pin.GeometryType.COLLISION, package_dirs
+            )
+        except (ValueError, RuntimeError) as e:
+            raise RobotConfigError(f"{urdf_path}: cannot load collision geometry: {e}") from None
+
+    arm_ids = [full.getJointId(j) for j in config.arm_joints]
+    lock_ids = [j for j in range(1, full.njoints) if j not in arm_ids]
+    model, geom_model = pin.buildReducedModel(full, geom_full, lock_ids, q_full)
+
+    # The arm must be a serial chain root -> tip that carries the tool frame.
+    joints: list[ArmJoint] = []
+    for i, jn in enumerate(config.arm_joints):
+        jid = model.getJointId(jn)
+        if jid != i + 1 or model.parents[jid] != i:
+            raise RobotConfigError(
+                f"{urdf_path}: arm joint {jn!r} does not follow "
+                f"{config.arm_joints[i - 1] if i else 'the root'!r} on one serial chain; list the "
+                "arm joints root to tip along the chain that carries the tool frame",
+                field=f"arm_joints[{i}]",
+            )
+        jm = model.joints[jid]
+        short = jm.shortname()
+        kind = _KIND_BY_SHORTNAME.get(short)
+        if kind is None:
+            raise RobotConfigError(
+                f"{urdf_path}: arm joint {jn!r} is of type {short}; only revolute, prismatic and "
+                "continuous joints can be sampled",
+                field=f"arm_joints[{i}]",
+            )
+        iq = model.idx_qs[jid]
+        if kind == "continuous":
+            lo, hi = config.continuous_limits
+        else:
+            lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise RobotConfigError(
+                    f"{urdf_path}: arm joint {jn!r} has no usable limits ({lo}, {hi})",
+                    field=f"arm_joints[{i}]",
+                )
+        joints.append(ArmJoint(jn, kind, _joint_axis(jm, short), lo, hi, iq, model.nqs[jid]))
+
+    tool_id = model.getFrameId(config.tool_frame)
+    if model.frames[tool_id].parentJoint != len(joints):
+        raise RobotConfigError(
+            f"{urdf_path}: tool frame {config.tool_frame!r} is not carried by the last arm joint "
+            f"{config.arm_joints[-1]!r}",
+            field="tool_frame",
+        )
+
+    files = [urdf_path, *([srdf_path] if srdf_path else []), *sorted(set(meshes))]
+    return RobotModel(
+        config=config,
+        urdf_path=urdf_path,
+        srdf_path=srdf_path,
+        package_dirs=package_dirs,
+        full_model=full,
+        q_full=q_full,
+        model=model,
+        geom_model=geom_model,
+        tool_frame_id=tool_id,
+        joints=tuple(joints),
+        robot_hash=_hash(config, files),
+        mesh_files=tuple(sorted(set(meshes))),
+    )
+
+
+def load(robot: str) -> RobotModel:
+    """Load a preset by name or a robot config file by path."""
+    config, root = resolve_robot(robot)
+    return load_robot(config, root)
