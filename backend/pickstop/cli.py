@@ -1,0 +1,293 @@
+"""The ``pickstop`` command. Errors print one line on stderr and exit non-zero (2: bad input)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pickstop.errors import PickStopError
+
+DEFAULT_SAMPLES = 2_000_000
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(float(text)) if "e" in text.lower() else int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {v}")
+    return v
+
+
+def _finite_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not np.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return v
+
+
+def _emit(obj: Any) -> None:
+    json.dump(obj, sys.stdout, indent=2, default=_json_default)
+    sys.stdout.write("\n")
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.integer | np.floating):
+        return o.item()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(type(o).__name__)
+
+
+class _Progress:
+    """tqdm bar over samples, with rate and ETA, on stderr."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self.bar: Any = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(
+                total=total, initial=done, unit="sample", unit_scale=True, file=sys.stderr,
+                desc="reach build", smoothing=0.1,
+            )
+        else:
+            self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
+    keep = [
+        "id", "robot", "robot_hash", "state", "samples", "stored", "resolution", "orientation",
+        "seed", "chunk_size", "thinning", "code_version", "created", "completed",
+        "build_seconds", "rejected_self_collision", "rejected_thinning",
+    ]
+    out = {k: row.get(k) for k in keep}
+    shards = row.get("shards")
+    if shards is not None:
+        out["shards"] = len(shards)
+        out["bytes"] = sum(s["bytes"] for s in shards)
+    return out
+
+
+def cmd_reach_build(args: argparse.Namespace) -> int:
+    from pickstop.reach.build import BuildParams, build
+    from pickstop.reach.database import list_databases
+    from pickstop.robot.model import load
+    from pickstop.settings import data_dir
+
+    params = BuildParams(
+        samples=args.samples,
+        resolution=args.resolution,
+        orientation=args.orientation,
+        seed=args.seed,
+        chunk_size=args.chunk_size,
+        thinning=args.thinning,
+    )
+    params.validate()
+    robot = load(args.robot)
+    folder = data_dir(args.data_dir)
+    bar = _Progress(not args.quiet)
+    t0 = time.perf_counter()
+    try:
+        row = build(robot, params, folder, workers=args.workers, progress=bar)
+    finally:
+        bar.close()
+    elapsed = time.perf_counter() - t0
+    info = next(r for r in list_databases(folder) if r["id"] == row["id"])
+    out = _db_summary(info)
+    out["seconds_this_run"] = round(elapsed, 2)
+    _emit(out)
+    return 0
+
+
+def cmd_reach_info(args: argparse.Namespace) -> int:
+    from pickstop.reach.database import list_databases
+    from pickstop.settings import data_dir
+
+    rows = list_databases(data_dir(args.data_dir), args.robot)
+    if args.id:
+        rows = [r for r in rows if r["id"].startswith(args.id)]
+        if not rows:
+            raise PickStopError(f"no reachability database with id {args.id!r}")
+    _emit([r if args.shards else _db_summary(r) for r in rows])
+    return 0
+
+
+def cmd_reach_query(args: argparse.Namespace) -> int:
+    from pickstop.reach.database import check_poses, open_database
+    from pickstop.robot.model import load
+    from pickstop.settings import data_dir
+
+    x, y, z, qw, qx, qy, qz = args.pose
+    ps, qs = check_poses([[x, y, z]], [[qw, qx, qy, qz]])
+    robot = load(args.robot)
+    db = open_database(data_dir(args.data_dir), robot, args.id)
+    t0 = time.perf_counter()
+    cands = db.query(ps[0], qs[0], neighbours=args.neighbours)
+    query_ms = (time.perf_counter() - t0) * 1e3
+    cells, orient = db.voxel.decode(np.array([db.voxel.key_one(tuple(ps[0]), tuple(qs[0]))]))
+    out: dict[str, Any] = {
+        "database": db.id,
+        "robot": robot.name,
+        "pose": {"position": ps[0], "quaternion_wxyz": qs[0]},
+        "voxel": {
+            "key": int(db.voxel.key_one(tuple(ps[0]), tuple(qs[0]))),
+            "position_cell": cells[0],
+            "orientation_cell": int(orient[0]),
+            "resolution_m": db.voxel.resolution,
+            "orientation_cell_deg": float(np.degrees(db.voxel.so3.cell_angle)),
+        },
+        "neighbours": args.neighbours,
+        "query_ms": round(query_ms, 3),
+        "count": len(cands.rows),
+        "joints": [j.name for j in robot.joints],
+        "candidates": [
+            {"theta": t, "pos_err_m": round(float(pe), 5), "rot_err_deg": round(float(np.degrees(re)), 3)}
+            for t, pe, re in zip(
+                cands.thetas[: args.limit], cands.pos_err, cands.rot_err, strict=False
+            )
+        ],
+    }
+    if args.refine:
+        from pickstop.reach.ik import refine_many
+        from pickstop.reach.so3 import quats_to_matrices
+
+        R = quats_to_matrices(qs[0])
+        if len(cands.rows):
+            res = refine_many(robot, cands.thetas[: args.refine_seeds], R, ps[0])
+            out["refined"] = {
+                "success": res.success,
+                "theta": res.theta,
+                "pos_err_m": res.pos_err,
+                "rot_err_deg": float(np.degrees(res.rot_err)),
+                "iterations": res.iterations,
+                "reason": res.reason,
+            }
+        else:
+            out["refined"] = {"success": False, "reason": "no candidates in the voxel"}
+    _emit(out)
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """The embedded default: the bundled TIAGo, its database (built once), a top-down query."""
+    from pickstop.reach.build import BuildParams, build
+    from pickstop.reach.database import open_database
+    from pickstop.reach.ik import refine_many
+    from pickstop.reach.so3 import quats_to_matrices
+    from pickstop.robot.model import load
+    from pickstop.settings import data_dir
+
+    folder = data_dir(args.data_dir)
+    robot = load("tiago")
+    bar = _Progress(True)
+    try:
+        row = build(robot, BuildParams(samples=args.samples), folder, progress=bar)
+    finally:
+        bar.close()
+    db = open_database(folder, robot, row["id"])
+    p = np.array([0.65, -0.15, 0.75])
+    q = np.array([0.70710678, 0.0, 0.70710678, 0.0])  # top-down grasp (approach +x points down)
+    cands = db.query(p, q, neighbours=True)
+    res = refine_many(robot, cands.thetas[:20], quats_to_matrices(q), p)
+    _emit(
+        {
+            "database": _db_summary(row),
+            "loaded_configurations": len(db),
+            "voxels": db.n_voxels,
+            "top_down_grasp": {
+                "position": p,
+                "quaternion_wxyz": q,
+                "candidates": len(cands.rows),
+                "refined": {"success": res.success, "theta": res.theta, "pos_err_m": res.pos_err},
+            },
+        }
+    )
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="pickstop", description="Plan where a mobile manipulator stops to pick every part."
+    )
+    parser.add_argument("--data-dir", help="data folder (default: $PICKSTOP_DATA_DIR or database/data)")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    demo = sub.add_parser("demo", help="the embedded default: bundled TIAGo and example scene")
+    demo.add_argument("--samples", type=_positive_int, default=DEFAULT_SAMPLES)
+    demo.set_defaults(func=cmd_demo)
+
+    reach = sub.add_parser("reach", help="reachability databases").add_subparsers(
+        dest="reach_command", required=True
+    )
+    b = reach.add_parser("build", help="build (or resume) a reachability database")
+    b.add_argument("--robot", default="tiago", help="preset name or robot config file")
+    b.add_argument("--samples", type=_positive_int, default=DEFAULT_SAMPLES)
+    b.add_argument("--resolution", type=_finite_float, default=0.05, help="position voxel [m]")
+    b.add_argument("--orientation", type=_positive_int, default=6, help="SO(3) cells per face edge")
+    b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--chunk-size", type=_positive_int, default=250_000)
+    b.add_argument("--thinning", type=_finite_float, default=0.0,
+                   help="manipulability reference w_ref: keep prob. min(1, w/w_ref); 0 = off")
+    b.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1)
+    b.add_argument("--quiet", action="store_true", help="no progress bar")
+    b.set_defaults(func=cmd_reach_build)
+
+    i = reach.add_parser("info", help="list databases as JSON")
+    i.add_argument("--robot", help="only this robot's")
+    i.add_argument("--id", help="only this database (id or prefix)")
+    i.add_argument("--shards", action="store_true", help="include every shard")
+    i.set_defaults(func=cmd_reach_info)
+
+    q = reach.add_parser("query", help="approximate IK solutions of a tool pose, as JSON")
+    q.add_argument("--robot", default="tiago")
+    q.add_argument("--id", help="database id (default: newest complete one for the robot)")
+    q.add_argument("--pose", nargs=7, type=_finite_float, required=True,
+                   metavar=("X", "Y", "Z", "QW", "QX", "QY", "QZ"),
+                   help="T_base_tool: position [m] and unit quaternion wxyz")
+    q.add_argument("--neighbours", action="store_true", help="include adjacent voxels")
+    q.add_argument("--limit", type=_positive_int, default=10, help="candidates to print")
+    q.add_argument("--refine", action="store_true", help="refine to an exact IK solution")
+    q.add_argument("--refine-seeds", type=_positive_int, default=20)
+    q.set_defaults(func=cmd_reach_query)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except PickStopError as e:
+        print(f"pickstop: error: {e.message}", file=sys.stderr)
+        return e.exit_code
+    except KeyboardInterrupt:
+        print("pickstop: interrupted (a build resumes where it stopped)", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,371 @@
+"""Build a reachability database: sample joints, FK, self-collision screen, bin, shard.
+
+The samples are cut into chunks; chunk ``c`` draws from ``default_rng([seed, c])`` and becomes
+one shard, so a chunk's content depends on nothing but its index: an interrupted build resumes
+with the missing chunks and ends byte-identical to an uninterrupted one, and chunks can run in
+any process (or on any cluster worker) in any order.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import pickstop
+from pickstop.errors import DatabaseError, InputError
+from pickstop.reach.so3 import matrices_to_quats
+from pickstop.reach.voxels import VoxelGrid
+from pickstop.robot.kinematics import BLOCK, Chain, fk_soa, manipulability_soa
+from pickstop.robot.model import RobotModel
+from pickstop.store.catalog import Catalog
+from pickstop.store.shards import ShardData, write_shard
+
+#: Bumped whenever a change alters what a build stores for the same inputs.
+FORMAT_VERSION = 1
+QUANT_LEVELS = 65535  # uint16 joint quantisation: theta = lower + u * (upper - lower) / 65535
+
+
+@dataclass(frozen=True)
+class BuildParams:
+    """What a build stores; two builds with equal params and robot hash are identical."""
+
+    samples: int
+    resolution: float = 0.05  # position voxel edge [m]
+    orientation: int = 6  # SO(3) cells per cube-face edge (4 n^3 cells)
+    seed: int = 0
+    chunk_size: int = 250_000
+    thinning: float = 0.0  # manipulability reference w_ref; keep prob. min(1, w / w_ref); 0 = off
+
+    def validate(self) -> None:
+        if not (1_000 <= self.samples <= 2_000_000_000):
+            raise InputError(f"samples must be in [1000, 2e9], got {self.samples}", field="samples")
+        if not (0.005 <= self.resolution <= 0.5):
+            raise InputError(
+                f"resolution must be in [0.005, 0.5] m, got {self.resolution}", field="resolution"
+            )
+        if not (1 <= self.orientation <= 32):
+            raise InputError(
+                f"orientation must be in [1, 32] cells per face edge, got {self.orientation}",
+                field="orientation",
+            )
+        if not (1_000 <= self.chunk_size <= 5_000_000):
+            raise InputError(
+                f"chunk_size must be in [1000, 5e6], got {self.chunk_size}", field="chunk_size"
+            )
+        if not (0 <= self.seed < 2**63):
+            raise InputError(f"seed must be in [0, 2^63), got {self.seed}", field="seed")
+        if not (0.0 <= self.thinning < 10.0) or not math.isfinite(self.thinning):
+            raise InputError(f"thinning must be in [0, 10), got {self.thinning}", field="thinning")
+
+    @property
+    def n_chunks(self) -> int:
+        return -(-self.samples // self.chunk_size)
+
+    def chunk_samples(self, chunk: int) -> int:
+        return min(self.chunk_size, self.samples - chunk * self.chunk_size)
+
+
+def database_id(robot_hash: str, params: BuildParams) -> str:
+    """Deterministic id of the database ``params`` builds for the robot with ``robot_hash``."""
+    blob = json.dumps(
+        {"robot": robot_hash, "format": FORMAT_VERSION, **params.__dict__}, sort_keys=True
+    )
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class BuildKernel:
+    """Everything a worker needs to compute a chunk: plain arrays, cheap to pickle."""
+
+    chain: Chain
+    spheres: Any  # selfcollision.SphereModel, or None for no self-collision filter
+    voxel: VoxelGrid
+    lower: np.ndarray  # (dof,) quantisation range [rad or m]
+    upper: np.ndarray  # (dof,)
+    params: BuildParams
+
+    @property
+    def scale(self) -> np.ndarray:
+        return (self.upper - self.lower) / QUANT_LEVELS
+
+
+@dataclass(frozen=True)
+class ChunkResult:
+    chunk: int
+    sha256: str
+    bytes: int
+    rows: int
+    samples: int
+    rejected_self_collision: int
+    rejected_thinning: int
+    seconds: float
+
+
+def dequantise(joints: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """uint16 joints ``(m, dof)`` -> joint values ``(m, dof)`` float64 [rad or m]."""
+    return lower + joints.astype(np.float64) * ((upper - lower) / QUANT_LEVELS)
+
+
+def compute_chunk_data(kernel: BuildKernel, chunk: int) -> tuple[ShardData, int, int]:
+    """Samples of one chunk -> (sorted shard data, rejected by self-collision, by thinning)."""
+    p = kernel.params
+    m = p.chunk_samples(chunk)
+    dof = kernel.chain.dof
+    rng = np.random.default_rng([p.seed, chunk])
+    u = rng.integers(0, QUANT_LEVELS + 1, size=(m, dof), dtype=np.uint16)
+    draws = rng.random(m) if p.thinning > 0 else None
+    u_t = np.ascontiguousarray(u.T)
+    scale = kernel.scale[:, None]
+    lower = kernel.lower[:, None]
+
+    keys_parts, idx_parts, manip_parts = [], [], []
+    rej_self = rej_thin = 0
+    for s in range(0, m, BLOCK):
+        th = lower + u_t[:, s : s + BLOCK] * scale
+        R, pos, frames = fk_soa(kernel.chain, th, frames=True)
+        B = th.shape[1]
+        if kernel.spheres is not None:
+            from pickstop.robot.selfcollision import screen
+
+            free = ~screen(kernel.spheres, frames)
+            rej_self += int(B - free.sum())
+            sel = np.flatnonzero(free)
+        else:
+            sel = np.arange(B)
+        if len(sel) < B:
+            frames = [(Rj[:, :, sel], pj[:, sel]) for Rj, pj in frames]
+            R, pos = R[:, :, sel], pos[:, sel]
+        w = manipulability_soa(kernel.chain, frames, pos)
+        if draws is not None:
+            keep = draws[s + sel] < w / p.thinning
+            rej_thin += int(len(sel) - keep.sum())
+            sel, R, pos, w = sel[keep], R[:, :, keep], pos[:, keep], w[keep]
+        keys = kernel.voxel.keys(pos.T, matrices_to_quats(R.transpose(2, 0, 1)))
+        ok = keys >= 0
+        keys_parts.append(keys[ok])
+        idx_parts.append(s + sel[ok])
+        manip_parts.append(w[ok])
+    keys = np.concatenate(keys_parts)
+    idx = np.concatenate(idx_parts)
+    manip = np.concatenate(manip_parts)
+    order = np.argsort(keys, kind="stable")
+    data = ShardData(joints=u[idx[order]], manip=manip[order].astype(np.float16))
+    return data, rej_self, rej_thin
+
+
+def shard_relpath(db_id: str, chunk: int) -> str:
+    return f"reach/{db_id}/chunk-{chunk:06d}.parquet"
+
+
+def compute_chunk(kernel: BuildKernel, chunk: int, data_dir: Path, db_id: str) -> ChunkResult:
+    """Compute chunk ``chunk`` and write its shard atomically; safe to run anywhere, retried."""
+    t0 = time.perf_counter()
+    data, rej_self, rej_thin = compute_chunk_data(kernel, chunk)
+    sha, nbytes = write_shard(data_dir / shard_relpath(db_id, chunk), data)
+    return ChunkResult(
+        chunk=chunk,
+        sha256=sha,
+        bytes=nbytes,
+        rows=len(data.manip),
+        samples=kernel.params.chunk_samples(chunk),
+        rejected_self_collision=rej_self,
+        rejected_thinning=rej_thin,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+_WORKER_KERNEL: BuildKernel | None = None
+
+
+def _init_worker(kernel: BuildKernel) -> None:
+    global _WORKER_KERNEL
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    _WORKER_KERNEL = kernel
+
+
+def _run_chunk(chunk: int, data_dir: Path, db_id: str) -> ChunkResult:
+    assert _WORKER_KERNEL is not None
+    return compute_chunk(_WORKER_KERNEL, chunk, data_dir, db_id)
+
+
+def make_kernel(robot: RobotModel, params: BuildParams, data_dir: Path) -> BuildKernel:
+    """The build kernel of ``robot``: its chain, self-collision spheres and voxel grid."""
+    from pickstop.robot.selfcollision import SphereModel, disabled_pairs
+
+    disabled = disabled_pairs(robot, cache_dir=data_dir / "robots")
+    return BuildKernel(
+        chain=Chain.from_robot(robot),
+        spheres=SphereModel.from_robot(robot, disabled),
+        voxel=VoxelGrid(params.resolution, params.orientation),
+        lower=robot.lower,
+        upper=robot.upper,
+        params=params,
+    )
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def _register(catalog: Catalog, db_id: str, robot: RobotModel, params: BuildParams) -> dict:
+    rows = catalog.query("SELECT * FROM reach_databases WHERE id = ?", [db_id])
+    if rows:
+        return rows[0]
+    row = {
+        "id": db_id,
+        "robot": robot.name,
+        "robot_hash": robot.robot_hash,
+        "dof": robot.dof,
+        "resolution": params.resolution,
+        "orientation": params.orientation,
+        "samples": params.samples,
+        "seed": params.seed,
+        "chunk_size": params.chunk_size,
+        "thinning": params.thinning,
+        "code_version": f"{pickstop.__version__}+format{FORMAT_VERSION}",
+        "joint_lower": json.dumps(robot.lower.tolist()),
+        "joint_upper": json.dumps(robot.upper.tolist()),
+        "state": "building",
+        "created": _now(),
+    }
+    catalog.db["reach_databases"].insert(row)
+    return row
+
+
+def _chunks_done(catalog: Catalog, db_id: str, data_dir: Path) -> set[int]:
+    """Chunks whose shard is recorded and present with the recorded size."""
+    done = set()
+    for r in catalog.query("SELECT chunk, path, bytes FROM reach_shards WHERE db_id = ?", [db_id]):
+        f = data_dir / r["path"]
+        if f.is_file() and f.stat().st_size == r["bytes"]:
+            done.add(r["chunk"])
+        else:  # a vanished or altered shard is computed again
+            catalog.db.execute(
+                "DELETE FROM reach_shards WHERE db_id = ? AND chunk = ?", [db_id, r["chunk"]]
+            )
+    return done
+
+
+def _record(catalog: Catalog, db_id: str, res: ChunkResult) -> None:
+    catalog.db["reach_shards"].insert(
+        {
+            "db_id": db_id,
+            "chunk": res.chunk,
+            "path": shard_relpath(db_id, res.chunk),
+            "sha256": res.sha256,
+            "bytes": res.bytes,
+            "rows": res.rows,
+            "samples": res.samples,
+            "rejected_self_collision": res.rejected_self_collision,
+            "rejected_thinning": res.rejected_thinning,
+            "seconds": res.seconds,
+        },
+        replace=True,
+    )
+
+
+ChunkRunner = Callable[[BuildKernel, list[int], Path, str], Iterable[ChunkResult]]
+
+
+def run_local(
+    kernel: BuildKernel, chunks: list[int], data_dir: Path, db_id: str, workers: int
+) -> Iterable[ChunkResult]:
+    """Compute ``chunks`` in this process (``workers == 1``) or a pool of processes."""
+    if workers <= 1:
+        for c in chunks:
+            yield compute_chunk(kernel, c, data_dir, db_id)
+        return
+    ctx = get_context("spawn")
+    with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker, initargs=(kernel,)) as ex:
+        pending: set[Future[ChunkResult]] = set()
+        todo = list(chunks)
+        try:
+            while todo or pending:
+                while todo and len(pending) < 2 * workers:  # bounded queue: results stream back
+                    pending.add(ex.submit(_run_chunk, todo.pop(0), data_dir, db_id))
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    yield f.result()
+        finally:
+            for f in pending:
+                f.cancel()
+
+
+def build(
+    robot: RobotModel,
+    params: BuildParams,
+    data_dir: Path,
+    *,
+    workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    max_chunks: int | None = None,
+    runner: ChunkRunner | None = None,
+) -> dict[str, Any]:
+    """Build (or resume) the database of ``robot`` with ``params``; return its catalog row.
+
+    progress: called with (samples done, samples total). max_chunks: stop after computing that
+    many chunks (the database stays 'building' and resumes on the next call).
+    """
+    params.validate()
+    data_dir = Path(data_dir)
+    catalog = Catalog(data_dir)
+    db_id = database_id(robot.robot_hash, params)
+    row = _register(catalog, db_id, robot, params)
+    if row["state"] == "complete":
+        return row
+    t0 = time.perf_counter()
+    done = _chunks_done(catalog, db_id, data_dir)
+    todo = [c for c in range(params.n_chunks) if c not in done]
+    if max_chunks is not None:
+        todo = todo[:max_chunks]
+    samples_done = sum(params.chunk_samples(c) for c in done)
+    if progress:
+        progress(samples_done, params.samples)
+    kernel = make_kernel(robot, params, data_dir)
+    workers = workers or os.cpu_count() or 1
+    run = runner or (lambda k, c, d, i: run_local(k, c, d, i, min(workers, max(len(c), 1))))
+    try:
+        for res in run(kernel, todo, data_dir, db_id):
+            _record(catalog, db_id, res)
+            samples_done += res.samples
+            if progress:
+                progress(samples_done, params.samples)
+    finally:
+        elapsed = time.perf_counter() - t0
+        catalog.db.execute(
+            "UPDATE reach_databases SET build_seconds = build_seconds + ? WHERE id = ?",
+            [elapsed, db_id],
+        )
+    if len(_chunks_done(catalog, db_id, data_dir)) == params.n_chunks:
+        totals = catalog.query(
+            "SELECT SUM(rows) s, SUM(rejected_self_collision) c, SUM(rejected_thinning) t "
+            "FROM reach_shards WHERE db_id = ?",
+            [db_id],
+        )[0]
+        catalog.db["reach_databases"].update(
+            db_id,
+            {
+                "state": "complete",
+                "completed": _now(),
+                "stored": totals["s"],
+                "rejected_self_collision": totals["c"],
+                "rejected_thinning": totals["t"],
+            },
+        )
+    out = catalog.query("SELECT * FROM reach_databases WHERE id = ?", [db_id])[0]
+    catalog.close()
+    if out["state"] != "complete" and max_chunks is None:
+        raise DatabaseError(f"database {db_id}: build ended with missing chunks")
+    return out

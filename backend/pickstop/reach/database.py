@@ -1,0 +1,269 @@
+"""A loaded reachability database: IK by query.
+
+Rows are sorted by voxel key; ``unique_keys[i]`` owns rows ``offsets[i]:offsets[i + 1]``. The
+tool pose of every row is recomputed from its stored joints at load time, so candidates can
+be ranked by how close their pose is to a target.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pickstop.errors import (
+    DatabaseError,
+    DatabaseMismatchError,
+    DatabaseNotFoundError,
+    QueryError,
+)
+from pickstop.reach.build import dequantise
+from pickstop.reach.so3 import matrices_to_quats
+from pickstop.reach.voxels import VoxelGrid
+from pickstop.robot.kinematics import Chain, fk
+from pickstop.robot.model import RobotModel
+from pickstop.store.catalog import Catalog
+from pickstop.store.shards import read_shard
+
+#: Length that turns a rotation error into a distance when ranking candidates [m/rad].
+RANK_LENGTH = 0.1
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Approximate IK solutions of one target, best first."""
+
+    rows: np.ndarray  # (k,) database rows
+    thetas: np.ndarray  # (k, dof) joint values [rad or m]
+    pos_err: np.ndarray  # (k,) distance of the stored tool position to the target [m]
+    rot_err: np.ndarray  # (k,) rotation angle between stored and target orientation [rad]
+    keys: np.ndarray  # (k,) voxel keys
+
+
+@dataclass(frozen=True)
+class CandidateSet:
+    """Candidates of many targets in CSR form: target i owns ``rows[offsets[i]:offsets[i+1]]``."""
+
+    offsets: np.ndarray  # (M + 1,) int64
+    rows: np.ndarray  # (total,) int64
+
+
+def check_poses(ps: Any, qs: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Validate target positions ``(M, 3)`` [m] and quaternions ``(M, 4)`` wxyz; normalise q."""
+    ps = np.asarray(ps, dtype=np.float64)
+    qs = np.asarray(qs, dtype=np.float64)
+    if ps.ndim != 2 or ps.shape[1] != 3:
+        raise QueryError(f"positions must have shape (M, 3), got {ps.shape}", field="positions")
+    if qs.shape != (ps.shape[0], 4):
+        raise QueryError(
+            f"quaternions must have shape ({ps.shape[0]}, 4) wxyz, got {qs.shape}",
+            field="quaternions",
+        )
+    if not np.isfinite(ps).all():
+        raise QueryError("positions contain NaN or infinity", field="positions")
+    if not np.isfinite(qs).all():
+        raise QueryError("quaternions contain NaN or infinity", field="quaternions")
+    norms = np.linalg.norm(qs, axis=1)
+    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-3)
+    if len(bad):
+        raise QueryError(
+            f"quaternion {bad[0]} has norm {norms[bad[0]]:.6f}; give a unit quaternion wxyz",
+            field="quaternions",
+        )
+    return ps, qs / norms[:, None]
+
+
+class ReachDatabase:
+    """Read-only after construction: safe to share between threads."""
+
+    def __init__(
+        self, info: dict[str, Any], joints: np.ndarray, manip: np.ndarray, chain: Chain
+    ) -> None:
+        """joints: (N, dof) uint16 quantised; manip: (N,); rows of shards concatenated."""
+        self.info = info
+        self.id: str = info["id"]
+        self.voxel = VoxelGrid(info["resolution"], info["orientation"])
+        self.lower = np.asarray(json.loads(info["joint_lower"]))
+        self.upper = np.asarray(json.loads(info["joint_upper"]))
+        # Tool pose and voxel of every row, recomputed from the stored (quantised) joints.
+        n = len(joints)
+        positions = np.empty((n, 3), np.float32)
+        quats = np.empty((n, 4), np.float32)
+        keys = np.empty(n, np.int64)
+        step = 1 << 18
+        for s in range(0, n, step):
+            th = dequantise(joints[s : s + step], self.lower, self.upper)
+            R, p = fk(chain, th)
+            q = matrices_to_quats(R)
+            positions[s : s + step] = p
+            quats[s : s + step] = q
+            keys[s : s + step] = self.voxel.keys(p, q)
+        order = np.argsort(keys, kind="stable")  # shards are sorted runs: a cheap merge
+        self.keys = keys[order]
+        self.joints = joints[order]
+        self.manip = manip[order].astype(np.float32)
+        self.positions = positions[order]
+        self.quats = quats[order]
+        self.unique_keys, first = np.unique(self.keys, return_index=True)
+        self.offsets = np.append(first, n).astype(np.int64)
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    @property
+    def n_voxels(self) -> int:
+        return len(self.unique_keys)
+
+    def thetas(self, rows: np.ndarray) -> np.ndarray:
+        """Joint values ``(k, dof)`` [rad or m] of database rows."""
+        return dequantise(self.joints[rows], self.lower, self.upper)
+
+    def _rows_of_keys(self, keys: np.ndarray) -> np.ndarray:
+        pos = np.searchsorted(self.unique_keys, keys)
+        pos = np.minimum(pos, len(self.unique_keys) - 1)
+        found = self.unique_keys[pos] == keys
+        pos = pos[found]
+        if len(pos) == 0:
+            return np.empty(0, np.int64)
+        return np.concatenate([np.arange(self.offsets[i], self.offsets[i + 1]) for i in pos])
+
+    def _rank(self, rows: np.ndarray, p: np.ndarray, q: np.ndarray, limit: int | None) -> Candidates:
+        pos_err = np.linalg.norm(self.positions[rows] - p, axis=1)
+        dot = np.abs(self.quats[rows] @ q)
+        rot_err = 2.0 * np.arccos(np.minimum(dot, 1.0))
+        order = np.argsort(pos_err + RANK_LENGTH * rot_err, kind="stable")
+        if limit is not None:
+            order = order[:limit]
+        rows = rows[order]
+        return Candidates(
+            rows=rows,
+            thetas=self.thetas(rows),
+            pos_err=pos_err[order],
+            rot_err=rot_err[order],
+            keys=self.keys[rows],
+        )
+
+    def query(
+        self, p: Any, q: Any, *, neighbours: bool = False, limit: int | None = None
+    ) -> Candidates:
+        """Candidates for one target pose ``T_base_tool`` (``p: (3,)`` [m], ``q: (4,)`` wxyz).
+
+        neighbours: also the adjacent voxels (the paper's vicinity of the target).
+        """
+        ps, qs = check_poses(np.reshape(p, (1, -1)) if np.size(p) == 3 else p, np.reshape(q, (1, -1)) if np.size(q) == 4 else q)
+        pv, qv = ps[0], qs[0]
+        if neighbours:
+            rows = self._rows_of_keys(self.voxel.neighbour_keys(pv, qv))
+        else:
+            key = self.voxel.key_one(tuple(pv), tuple(qv))  # type: ignore[arg-type]
+            i = int(np.searchsorted(self.unique_keys, key))
+            if i < len(self.unique_keys) and self.unique_keys[i] == key:
+                rows = np.arange(self.offsets[i], self.offsets[i + 1])
+            else:
+                rows = np.empty(0, np.int64)
+        return self._rank(rows, pv, qv, limit)
+
+    def lookup(self, ps: np.ndarray, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Row ranges of many targets' own voxels: ``starts, ends: (M,)`` (empty if equal).
+
+        The hot path of region computation; inputs are trusted (use :func:`check_poses`).
+        """
+        keys = self.voxel.keys(ps, qs)
+        pos = np.searchsorted(self.unique_keys, keys)
+        np.minimum(pos, len(self.unique_keys) - 1, out=pos)
+        found = self.unique_keys[pos] == keys
+        starts = np.where(found, self.offsets[pos], 0)
+        ends = np.where(found, self.offsets[pos + 1], 0)
+        return starts, ends
+
+    def query_many(self, ps: Any, qs: Any, *, order: bool = True) -> CandidateSet:
+        """Candidates of many targets (own voxel), each target's ranked best first if ``order``."""
+        ps, qs = check_poses(ps, qs)
+        starts, ends = self.lookup(ps, qs)
+        counts = ends - starts
+        offsets = np.zeros(len(ps) + 1, np.int64)
+        np.cumsum(counts, out=offsets[1:])
+        total = int(offsets[-1])
+        owner = np.repeat(np.arange(len(ps)), counts)
+        rows = np.arange(total) - np.repeat(offsets[:-1], counts) + np.repeat(starts, counts)
+        if order and total:
+            pos_err = np.linalg.norm(self.positions[rows] - ps[owner], axis=1)
+            dot = np.abs(np.einsum("ij,ij->i", self.quats[rows], qs[owner]))
+            score = pos_err + RANK_LENGTH * 2.0 * np.arccos(np.minimum(dot, 1.0))
+            rows = rows[np.lexsort((score, owner))]
+        return CandidateSet(offsets=offsets, rows=rows.astype(np.int64))
+
+
+def list_databases(data_dir: Path, robot: str | None = None) -> list[dict[str, Any]]:
+    """Catalog rows of every database (of ``robot`` if given), newest first."""
+    cat = Catalog(data_dir)
+    try:
+        sql = "SELECT * FROM reach_databases"
+        args: list[Any] = []
+        if robot:
+            sql += " WHERE robot = ?"
+            args.append(robot)
+        rows = cat.query(sql + " ORDER BY created DESC, id", args)
+        for r in rows:
+            r["shards"] = cat.query(
+                "SELECT chunk, path, sha256, bytes, rows FROM reach_shards WHERE db_id = ? "
+                "ORDER BY chunk",
+                [r["id"]],
+            )
+        return rows
+    finally:
+        cat.close()
+
+
+def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -> dict[str, Any]:
+    """The catalog row to use for ``robot``: ``db_id`` if given (checked), else the newest."""
+    rows = list_databases(data_dir)
+    if db_id is not None:
+        match = [r for r in rows if r["id"] == db_id or r["id"].startswith(db_id)]
+        if not match:
+            raise DatabaseNotFoundError(f"no reachability database with id {db_id!r} in {data_dir}")
+        if len(match) > 1:
+            raise DatabaseNotFoundError(f"database id prefix {db_id!r} is ambiguous")
+        row = match[0]
+        if row["robot_hash"] != robot.robot_hash:
+            raise DatabaseMismatchError(
+                f"database {row['id']} was built for robot {row['robot']!r} (config hash "
+                f"{row['robot_hash'][:12]}), not for {robot.name!r} (config hash "
+                f"{robot.robot_hash[:12]}); build one with `pickstop reach build --robot ...`"
+            )
+        if row["state"] != "complete":
+            raise DatabaseError(
+                f"database {row['id']} is still {row['state']}: run the same "
+                "`pickstop reach build` again to resume it"
+            )
+        return row
+    ok = [r for r in rows if r["robot_hash"] == robot.robot_hash and r["state"] == "complete"]
+    if not ok:
+        same_name = [r["id"] for r in rows if r["robot"] == robot.name]
+        hint = (
+            f" (databases {', '.join(same_name)} are named {robot.name!r} but were built for "
+            "another config or are incomplete)"
+            if same_name
+            else ""
+        )
+        raise DatabaseNotFoundError(
+            f"no complete reachability database for robot {robot.name!r} in {data_dir}{hint}; "
+            f"build one with `pickstop reach build --robot {robot.name}`"
+        )
+    return ok[0]
+
+
+def open_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -> ReachDatabase:
+    """Load a complete database of ``robot``, verifying every shard's checksum."""
+    data_dir = Path(data_dir)
+    row = find_database(data_dir, robot, db_id)
+    parts = [read_shard(data_dir / s["path"], s["sha256"], row["dof"]) for s in row["shards"]]
+    if len(parts) != math.ceil(row["samples"] / row["chunk_size"]):
+        raise DatabaseError(f"database {row['id']}: catalog lists {len(parts)} shards, expected more")
+    joints = np.concatenate([p.joints for p in parts])
+    manip = np.concatenate([p.manip for p in parts])
+    return ReachDatabase(row, joints, manip, Chain.from_robot(robot))

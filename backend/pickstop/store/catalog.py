@@ -1,0 +1,73 @@
+"""The SQLite catalog (sqlite-utils, WAL mode) with numbered SQL migrations."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+import sqlite_utils
+
+from pickstop.errors import DatabaseError
+
+MIGRATIONS = Path(__file__).parent / "migrations"
+
+
+def migrations() -> list[tuple[int, Path]]:
+    """Numbered migration files ``NNNN_name.sql`` in order."""
+    out = []
+    for f in sorted(MIGRATIONS.glob("*.sql")):
+        out.append((int(f.name.split("_", 1)[0]), f))
+    return out
+
+
+class Catalog:
+    """``catalog.sqlite`` in the data folder; one connection per instance (one per thread)."""
+
+    def __init__(self, data_dir: Path) -> None:
+        self.data_dir = Path(data_dir)
+        self.path = self.data_dir / "catalog.sqlite"
+        try:
+            conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
+        except sqlite3.Error as e:
+            raise DatabaseError(f"{self.path}: cannot open catalog: {e}") from None
+        conn.execute("PRAGMA journal_mode=WAL")
+        conn.execute("PRAGMA foreign_keys=ON")
+        conn.execute("PRAGMA busy_timeout=30000")
+        self.db = sqlite_utils.Database(conn)
+        self._migrate()
+
+    @property
+    def schema_version(self) -> int:
+        return int(self.db.execute("PRAGMA user_version").fetchone()[0])
+
+    def _migrate(self) -> None:
+        current = self.schema_version
+        known = migrations()
+        latest = known[-1][0] if known else 0
+        if current > latest:
+            raise DatabaseError(
+                f"{self.path}: catalog schema version {current} is newer than this PickStop "
+                f"understands ({latest}); upgrade PickStop"
+            )
+        for version, path in known:
+            if version <= current:
+                continue
+            conn = self.db.conn
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                if self.schema_version < version:  # another process may have migrated meanwhile
+                    for stmt in path.read_text().split(";\n"):
+                        if stmt.strip():
+                            conn.execute(stmt)
+                    conn.execute(f"PRAGMA user_version={version}")
+                conn.execute("COMMIT")
+            except Exception:
+                conn.execute("ROLLBACK")
+                raise
+
+    def query(self, sql: str, params: Any = ()) -> list[dict[str, Any]]:
+        return [dict(r) for r in self.db.query(sql, params)]
+
+    def close(self) -> None:
+        self.db.conn.close()

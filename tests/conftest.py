@@ -1,0 +1,32 @@
+"""Shared fixtures: robots load once per session; small databases build once per session."""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import pytest
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+warnings.filterwarnings("ignore", message="You passed package dir")
+
+PR2_CONFIG = os.path.join(os.path.dirname(__file__), "..", "examples", "robots", "pr2.yaml")
+
+
+@pytest.fixture(scope="session")
+def tiago():
+    from pickstop.robot.model import load
+
+    return load("tiago")
+
+
+@pytest.fixture(scope="session")
+def pr2():
+    from pickstop.robot.model import load
+
+    return load(PR2_CONFIG)
+
+
+@pytest.fixture(scope="session", params=["tiago", "pr2"])
+def robot(request, tiago, pr2):
+    return tiago if request.param == "tiago" else pr2
