@@ -67,8 +67,13 @@ class _Progress:
             from tqdm import tqdm
 
             self.bar = tqdm(
-                total=total, initial=done, unit="sample", unit_scale=True, file=sys.stderr,
-                desc="reach build", smoothing=0.1,
+                total=total,
+                initial=done,
+                unit="sample",
+                unit_scale=True,
+                file=sys.stderr,
+                desc="reach build",
+                smoothing=0.1,
             )
         else:
             self.bar.update(done - self.bar.n)
@@ -80,9 +85,23 @@ class _Progress:
 
 def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
     keep = [
-        "id", "robot", "robot_hash", "state", "samples", "stored", "resolution", "orientation",
-        "seed", "chunk_size", "thinning", "code_version", "created", "completed",
-        "build_seconds", "rejected_self_collision", "rejected_thinning",
+        "id",
+        "robot",
+        "robot_hash",
+        "state",
+        "samples",
+        "stored",
+        "resolution",
+        "orientation",
+        "seed",
+        "chunk_size",
+        "thinning",
+        "code_version",
+        "created",
+        "completed",
+        "build_seconds",
+        "rejected_self_collision",
+        "rejected_thinning",
     ]
     out = {k: row.get(k) for k in keep}
     shards = row.get("shards")
@@ -165,7 +184,11 @@ def cmd_reach_query(args: argparse.Namespace) -> int:
         "count": len(cands.rows),
         "joints": [j.name for j in robot.joints],
         "candidates": [
-            {"theta": t, "pos_err_m": round(float(pe), 5), "rot_err_deg": round(float(np.degrees(re)), 3)}
+            {
+                "theta": t,
+                "pos_err_m": round(float(pe), 5),
+                "rot_err_deg": round(float(np.degrees(re)), 3),
+            }
             for t, pe, re in zip(
                 cands.thetas[: args.limit], cands.pos_err, cands.rot_err, strict=False
             )
@@ -233,7 +256,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pickstop", description="Plan where a mobile manipulator stops to pick every part."
     )
-    parser.add_argument("--data-dir", help="data folder (default: $PICKSTOP_DATA_DIR or database/data)")
+    parser.add_argument(
+        "--data-dir", help="data folder (default: $PICKSTOP_DATA_DIR or database/data)"
+    )
     sub = parser.add_subparsers(dest="command", required=True)
 
     demo = sub.add_parser("demo", help="the embedded default: bundled TIAGo and example scene")
@@ -250,8 +275,12 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--orientation", type=_positive_int, default=6, help="SO(3) cells per face edge")
     b.add_argument("--seed", type=int, default=0)
     b.add_argument("--chunk-size", type=_positive_int, default=250_000)
-    b.add_argument("--thinning", type=_finite_float, default=0.0,
-                   help="manipulability reference w_ref: keep prob. min(1, w/w_ref); 0 = off")
+    b.add_argument(
+        "--thinning",
+        type=_finite_float,
+        default=0.0,
+        help="manipulability reference w_ref: keep prob. min(1, w/w_ref); 0 = off",
+    )
     b.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1)
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.set_defaults(func=cmd_reach_build)
@@ -265,9 +294,14 @@ def build_parser() -> argparse.ArgumentParser:
     q = reach.add_parser("query", help="approximate IK solutions of a tool pose, as JSON")
     q.add_argument("--robot", default="tiago")
     q.add_argument("--id", help="database id (default: newest complete one for the robot)")
-    q.add_argument("--pose", nargs=7, type=_finite_float, required=True,
-                   metavar=("X", "Y", "Z", "QW", "QX", "QY", "QZ"),
-                   help="T_base_tool: position [m] and unit quaternion wxyz")
+    q.add_argument(
+        "--pose",
+        nargs=7,
+        type=_finite_float,
+        required=True,
+        metavar=("X", "Y", "Z", "QW", "QX", "QY", "QZ"),
+        help="T_base_tool: position [m] and unit quaternion wxyz",
+    )
     q.add_argument("--neighbours", action="store_true", help="include adjacent voxels")
     q.add_argument("--limit", type=_positive_int, default=10, help="candidates to print")
     q.add_argument("--refine", action="store_true", help="refine to an exact IK solution")

@@ -25,7 +25,7 @@ class Settings(BaseSettings):
 
 
 def data_dir(override: str | Path | None = None) -> Path:
-    """The data folder (created if missing): ``override``, else ``$PICKSTOP_DATA_DIR``, else default."""
+    """The data folder (created if missing): ``override``, ``$PICKSTOP_DATA_DIR``, or default."""
     path = Path(override) if override is not None else Settings().data_dir
     path.mkdir(parents=True, exist_ok=True)
     return path

@@ -105,5 +105,5 @@ def test_voxel_keys_decode_and_bounds():
 def test_invalid_grid_parameters():
     with pytest.raises(ValueError, match="resolution"):
         VoxelGrid(0.0, 6)
-    with pytest.raises(ValueError, match="SO3Grid.n"):
+    with pytest.raises(ValueError, match=r"SO3Grid\.n"):
         SO3Grid(0)

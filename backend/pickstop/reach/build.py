@@ -240,7 +240,7 @@ def _register(catalog: Catalog, db_id: str, robot: RobotModel, params: BuildPara
         "state": "building",
         "created": _now(),
     }
-    catalog.db["reach_databases"].insert(row)
+    catalog.table("reach_databases").insert(row)
     return row
 
 
@@ -259,7 +259,7 @@ def _chunks_done(catalog: Catalog, db_id: str, data_dir: Path) -> set[int]:
 
 
 def _record(catalog: Catalog, db_id: str, res: ChunkResult) -> None:
-    catalog.db["reach_shards"].insert(
+    catalog.table("reach_shards").insert(
         {
             "db_id": db_id,
             "chunk": res.chunk,
@@ -288,7 +288,9 @@ def run_local(
             yield compute_chunk(kernel, c, data_dir, db_id)
         return
     ctx = get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker, initargs=(kernel,)) as ex:
+    with ProcessPoolExecutor(
+        workers, mp_context=ctx, initializer=_init_worker, initargs=(kernel,)
+    ) as ex:
         pending: set[Future[ChunkResult]] = set()
         todo = list(chunks)
         try:
@@ -354,7 +356,7 @@ def build(
             "FROM reach_shards WHERE db_id = ?",
             [db_id],
         )[0]
-        catalog.db["reach_databases"].update(
+        catalog.table("reach_databases").update(
             db_id,
             {
                 "state": "complete",

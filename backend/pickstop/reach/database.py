@@ -131,7 +131,9 @@ class ReachDatabase:
             return np.empty(0, np.int64)
         return np.concatenate([np.arange(self.offsets[i], self.offsets[i + 1]) for i in pos])
 
-    def _rank(self, rows: np.ndarray, p: np.ndarray, q: np.ndarray, limit: int | None) -> Candidates:
+    def _rank(
+        self, rows: np.ndarray, p: np.ndarray, q: np.ndarray, limit: int | None
+    ) -> Candidates:
         pos_err = np.linalg.norm(self.positions[rows] - p, axis=1)
         dot = np.abs(self.quats[rows] @ q)
         rot_err = 2.0 * np.arccos(np.minimum(dot, 1.0))
@@ -154,12 +156,15 @@ class ReachDatabase:
 
         neighbours: also the adjacent voxels (the paper's vicinity of the target).
         """
-        ps, qs = check_poses(np.reshape(p, (1, -1)) if np.size(p) == 3 else p, np.reshape(q, (1, -1)) if np.size(q) == 4 else q)
+        ps, qs = check_poses(
+            np.reshape(p, (1, -1)) if np.size(p) == 3 else p,
+            np.reshape(q, (1, -1)) if np.size(q) == 4 else q,
+        )
         pv, qv = ps[0], qs[0]
         if neighbours:
             rows = self._rows_of_keys(self.voxel.neighbour_keys(pv, qv))
         else:
-            key = self.voxel.key_one(tuple(pv), tuple(qv))  # type: ignore[arg-type]
+            key = self.voxel.key_one((pv[0], pv[1], pv[2]), (qv[0], qv[1], qv[2], qv[3]))
             i = int(np.searchsorted(self.unique_keys, key))
             if i < len(self.unique_keys) and self.unique_keys[i] == key:
                 rows = np.arange(self.offsets[i], self.offsets[i + 1])
@@ -263,7 +268,9 @@ def open_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -
     row = find_database(data_dir, robot, db_id)
     parts = [read_shard(data_dir / s["path"], s["sha256"], row["dof"]) for s in row["shards"]]
     if len(parts) != math.ceil(row["samples"] / row["chunk_size"]):
-        raise DatabaseError(f"database {row['id']}: catalog lists {len(parts)} shards, expected more")
+        raise DatabaseError(
+            f"database {row['id']}: catalog lists {len(parts)} shards, expected more"
+        )
     joints = np.concatenate([p.joints for p in parts])
     manip = np.concatenate([p.manip for p in parts])
     return ReachDatabase(row, joints, manip, Chain.from_robot(robot))

@@ -23,12 +23,22 @@ def matrices_to_quats(Rs: np.ndarray) -> np.ndarray:
     Rs = np.asarray(Rs, dtype=np.float64)
     m00, m11, m22 = Rs[..., 0, 0], Rs[..., 1, 1], Rs[..., 2, 2]
     # Squared magnitudes of each component; take the largest for a stable division.
-    t = np.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22])
+    t = np.stack(
+        [1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22]
+    )
     k = np.argmax(t, axis=0)
     s = np.sqrt(np.maximum(np.take_along_axis(t, k[None], 0)[0], 1e-300))
     q = np.empty((*Rs.shape[:-2], 4))
-    d21, d02, d10 = Rs[..., 2, 1] - Rs[..., 1, 2], Rs[..., 0, 2] - Rs[..., 2, 0], Rs[..., 1, 0] - Rs[..., 0, 1]
-    s21, s02, s10 = Rs[..., 2, 1] + Rs[..., 1, 2], Rs[..., 0, 2] + Rs[..., 2, 0], Rs[..., 1, 0] + Rs[..., 0, 1]
+    d21, d02, d10 = (
+        Rs[..., 2, 1] - Rs[..., 1, 2],
+        Rs[..., 0, 2] - Rs[..., 2, 0],
+        Rs[..., 1, 0] - Rs[..., 0, 1],
+    )
+    s21, s02, s10 = (
+        Rs[..., 2, 1] + Rs[..., 1, 2],
+        Rs[..., 0, 2] + Rs[..., 2, 0],
+        Rs[..., 1, 0] + Rs[..., 0, 1],
+    )
     cand = [
         np.stack([s, d21 / s, d02 / s, d10 / s], -1),
         np.stack([d21 / s, s, s10 / s, s02 / s], -1),

@@ -27,7 +27,9 @@ class VoxelGrid:
 
     def __post_init__(self) -> None:
         if not (0.005 <= self.resolution <= 0.5):
-            raise ValueError(f"position resolution must be in [0.005, 0.5] m, got {self.resolution}")
+            raise ValueError(
+                f"position resolution must be in [0.005, 0.5] m, got {self.resolution}"
+            )
         SO3Grid(self.orientation)  # validates
 
     @property

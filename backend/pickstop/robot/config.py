@@ -22,7 +22,7 @@ PRESET_DIR = Path(__file__).parent / "presets"
 
 def example_robot_data_share() -> Path:
     """Folder that holds ``example-robot-data/robots/...`` (the package installs data only)."""
-    import pinocchio  # noqa: F401  (cmeel.prefix sits beside it in site-packages)
+    import pinocchio
 
     for root in map(Path, __import__("site").getsitepackages()):
         share = root / "cmeel.prefix" / "share"
@@ -33,7 +33,9 @@ def example_robot_data_share() -> Path:
         share = parent / "cmeel.prefix" / "share"
         if (share / "example-robot-data").is_dir():
             return share
-    raise RobotConfigError("example-robot-data is not installed: run `pip install example-robot-data`")
+    raise RobotConfigError(
+        "example-robot-data is not installed: run `pip install example-robot-data`"
+    )
 
 
 class Footprint(BaseModel):
@@ -72,7 +74,9 @@ class RobotConfig(BaseModel):
     name: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")]
     urdf: str = Field(description="URDF path or package:// URI")
     package_dirs: list[str] = Field(default_factory=list)
-    srdf: str | None = Field(default=None, description="optional SRDF giving disabled collision pairs")
+    srdf: str | None = Field(
+        default=None, description="optional SRDF giving disabled collision pairs"
+    )
     arm_joints: list[str] = Field(
         min_length=1, description="joints sampled for reachability, root to tip (torso included)"
     )
@@ -139,9 +143,13 @@ def load_config(path: str | Path) -> tuple[RobotConfig, Path]:
     try:
         data = json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as e:
-        raise RobotConfigError(f"{path}: not valid {path.suffix.lstrip('.') or 'YAML'}: {e}") from None
+        raise RobotConfigError(
+            f"{path}: not valid {path.suffix.lstrip('.') or 'YAML'}: {e}"
+        ) from None
     if not isinstance(data, dict):
-        raise RobotConfigError(f"{path}: a robot config must be a mapping, got {type(data).__name__}")
+        raise RobotConfigError(
+            f"{path}: a robot config must be a mapping, got {type(data).__name__}"
+        )
     return parse_config(data, str(path)), path.parent.resolve()
 
 

@@ -63,7 +63,7 @@ BLOCK = 4096  # configurations per block: keeps the working set in cache
 
 
 def _rotate_soa(R: np.ndarray, axis_index: int, axis: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """``R <- R @ Rot(axis, theta)`` for ``R: (3, 3, B)`` (rows, columns, batch), ``theta: (B,)``."""
+    """``R <- R @ Rot(axis, theta)`` for ``R: (3, 3, B)`` (rows, cols, batch), ``theta: (B,)``."""
     c, s = np.cos(theta), np.sin(theta)
     if axis_index >= 0:
         a, b = _OTHER_AXES[axis_index]

@@ -154,7 +154,9 @@ def _mesh_refs(urdf_path: Path, package_dirs: list[str]) -> tuple[ET.Element, li
     except ET.ParseError as e:
         raise RobotConfigError(f"{urdf_path}: broken URDF (not well-formed XML: {e})") from None
     if root.tag != "robot":
-        raise RobotConfigError(f"{urdf_path}: broken URDF (root element is <{root.tag}>, not <robot>)")
+        raise RobotConfigError(
+            f"{urdf_path}: broken URDF (root element is <{root.tag}>, not <robot>)"
+        )
     meshes: list[Path] = []
     for link in root.iter("link"):
         for coll in link.iter("collision"):
@@ -189,7 +191,7 @@ def _joint_axis(jm: Any, shortname: str) -> tuple[float, float, float]:
 
 
 def load_robot(config: RobotConfig, root: Path) -> RobotModel:
-    """Build the reduced kinematic and collision model of ``config`` (paths relative to ``root``)."""
+    """Build the reduced kinematic and collision model of ``config`` (paths from ``root``)."""
     package_dirs = [str((root / d).resolve()) for d in config.package_dirs]
     package_dirs.append(str(example_robot_data_share()))
     urdf_path = resolve_path(config.urdf, root, package_dirs, "urdf")

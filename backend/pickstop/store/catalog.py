@@ -66,6 +66,9 @@ class Catalog:
                 conn.execute("ROLLBACK")
                 raise
 
+    def table(self, name: str) -> sqlite_utils.db.Table:
+        return self.db.table(name)
+
     def query(self, sql: str, params: Any = ()) -> list[dict[str, Any]]:
         return [dict(r) for r in self.db.query(sql, params)]
 
