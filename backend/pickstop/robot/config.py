@@ -93,6 +93,11 @@ class RobotConfig(BaseModel):
     approach_axis: tuple[float, float, float] = Field(
         default=(1.0, 0.0, 0.0), description="gripper approach direction in the tool frame"
     )
+    hand_links: list[str] = Field(
+        default_factory=list,
+        description="links of the hand (fnmatch patterns): their pose follows from the grasp, "
+        "so the grasp's open-hand model is checked against the scene in their place",
+    )
 
     @field_validator("arm_joints")
     @classmethod

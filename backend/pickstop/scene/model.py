@@ -1,0 +1,297 @@
+"""The scene file format (JSON, versioned): floor, obstacles, trays with parts, robot, task.
+
+Pydantic at the boundary: :func:`parse_scene` turns a decoded JSON document into a validated
+:class:`Scene` or raises :class:`SceneError` listing every problem with its field path.
+Poses are ``(x, y, z, yaw)`` [m, rad]: a position and a rotation about the vertical.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from pickstop.errors import InputError
+
+FORMAT = "pickstop.scene"
+VERSION = 1
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Ident = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$")]
+
+
+class SceneError(InputError):
+    """A scene document is invalid; ``problems`` lists (field path, message) pairs."""
+
+    def __init__(self, problems: list[tuple[str, str]], source: str = "scene") -> None:
+        self.problems = problems
+        text = "; ".join(f"{loc}: {msg}" for loc, msg in problems)
+        super().__init__(
+            f"{source}: invalid scene: {text}", field=problems[0][0] if problems else None
+        )
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Pose(_Strict):
+    """Position [m] and yaw about the vertical [rad]."""
+
+    x: Finite = 0.0
+    y: Finite = 0.0
+    z: Finite = 0.0
+    yaw: Finite = 0.0
+
+
+class BasePose(_Strict):
+    """A base pose on the floor: ``(x, y)`` [m] and yaw [rad]."""
+
+    x: Finite
+    y: Finite
+    yaw: Finite = 0.0
+
+
+class Box(_Strict):
+    shape: Literal["box"] = "box"
+    size: tuple[Positive, Positive, Positive]  # full extents along x, y, z [m]
+
+
+class Cylinder(_Strict):
+    shape: Literal["cylinder"] = "cylinder"
+    radius: Positive
+    height: Positive
+
+
+class Mesh(_Strict):
+    shape: Literal["mesh"] = "mesh"
+    path: str  # relative to the scene file
+    scale: Positive = 1.0
+
+
+Shape = Annotated[Box | Cylinder | Mesh, Field(discriminator="shape")]
+
+
+class Obstacle(_Strict):
+    """A static obstacle; its pose is the centre of its base face on the floor-up axis."""
+
+    id: Ident
+    name: str = ""
+    geometry: Shape
+    pose: Pose  # centre of the bounding box bottom [m], yaw [rad]
+
+
+class Grasp(_Strict):
+    """A user-given grasp: tool pose in the part frame (``T_part_tool``)."""
+
+    position: tuple[Finite, Finite, Finite]
+    quaternion_wxyz: tuple[Finite, Finite, Finite, Finite]
+
+    @field_validator("quaternion_wxyz")
+    @classmethod
+    def _unit(cls, q: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        n = math.sqrt(sum(v * v for v in q))
+        if abs(n - 1.0) > 1e-3:
+            raise ValueError(f"must be a unit quaternion (norm {n:.4f})")
+        return q
+
+
+class Part(_Strict):
+    """A part lying in its tray; ``pose`` is its bottom centre in the tray frame."""
+
+    id: Ident
+    name: str = ""
+    geometry: Shape
+    pose: Pose = Pose()
+    grasps: list[Grasp] | None = None  # override generated grasps
+
+
+class Tray(_Strict):
+    """An open box on a table. Its frame: centre of the inner floor, x along ``inner_size[0]``."""
+
+    id: Ident
+    name: str = ""
+    pose: Pose  # inner floor centre in the world [m], yaw [rad]
+    inner_size: tuple[Positive, Positive]  # [m]
+    wall_height: Positive = 0.06
+    wall_thickness: Positive = 0.01
+    floor_thickness: NonNegative = 0.005
+    parts: list[Part] = Field(default_factory=list)
+    color: str | None = None
+
+    @property
+    def outer_size(self) -> tuple[float, float]:
+        t = 2 * self.wall_thickness
+        return (self.inner_size[0] + t, self.inner_size[1] + t)
+
+
+class Gripper(_Strict):
+    """The open hand as grasp generation sees it, in the tool frame [m].
+
+    The tool frame's x is the approach direction, the hand closes along y and is
+    ``hand_width`` wide along z; the grasp point sits ``tip_offset`` behind the fingertips.
+    Defaults fit TIAGo's Hey5 hand.
+    """
+
+    max_opening: Positive = 0.08  # free gap between the fingers along y
+    finger_length: Positive = 0.08  # along x, from the palm to the fingertips
+    tip_offset: NonNegative = 0.015  # from the grasp point forward to the fingertips
+    finger_thickness: Positive = 0.02  # along y, each side
+    hand_width: Positive = 0.16  # along z
+    palm_depth: Positive = 0.05  # along x, behind the fingers
+    symmetric: bool = False  # a parallel gripper looks the same turned 180 degrees about x
+    top_down_angles: Annotated[int, Field(ge=1, le=36)] = 8  # about the vertical, over 360 deg
+    side_directions: Annotated[int, Field(ge=0, le=36)] = 8  # horizontal approach directions
+
+
+class YawPolicy(_Strict):
+    """One fixed base yaw (the paper) or a small set to search [rad]."""
+
+    fixed: Finite | None = 0.0
+    candidates: list[Finite] | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> YawPolicy:
+        if self.candidates is not None:
+            if not 1 <= len(self.candidates) <= 16:
+                raise ValueError("candidates must hold 1 to 16 yaws")
+        return self
+
+    @property
+    def yaws(self) -> list[float]:
+        if self.candidates is not None:
+            return list(self.candidates)
+        return [self.fixed if self.fixed is not None else 0.0]
+
+
+class Extent(_Strict):
+    min: tuple[Finite, Finite]
+    max: tuple[Finite, Finite]
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Extent:
+        if not (self.min[0] < self.max[0] and self.min[1] < self.max[1]):
+            raise ValueError("min must be below max in x and y")
+        return self
+
+
+class BaseGrid(_Strict):
+    """Where base positions are sampled: resolution [m] and the extent (default: the floor)."""
+
+    resolution: Annotated[float, Field(ge=0.005, le=0.5)] = 0.025
+    extent: Extent | None = None
+
+
+class RobotRef(_Strict):
+    """A preset name or a robot config file (relative to the scene file)."""
+
+    preset: str | None = "tiago"
+    config: str | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> RobotRef:
+        if self.config is not None and self.preset not in (None, "tiago"):
+            raise ValueError("give either preset or config, not both")
+        return self
+
+    @property
+    def ref(self) -> str:
+        return self.config if self.config is not None else (self.preset or "tiago")
+
+
+class Motion(_Strict):
+    """Time model parameters of the base and the arm."""
+
+    max_speed: Positive = 0.5  # [m/s]
+    max_acceleration: Positive = 0.5  # [m/s^2]
+    stop_time: NonNegative = 8.0  # decelerate, dock, relocalise [s]
+    pick_time: NonNegative = 6.0  # per part [s]
+
+
+class ErrorModel(_Strict):
+    """Base positioning error: bounded disc of radius sigma, or Gaussian with mean error sigma."""
+
+    kind: Literal["bounded", "gaussian"] = "gaussian"
+    yaw_sigma: NonNegative = 0.0  # [rad]
+
+
+class Scene(_Strict):
+    format: Literal["pickstop.scene"] = FORMAT
+    version: Literal[1] = VERSION
+    name: str = ""
+    description: str = ""
+    floor: Extent
+    robot: RobotRef = RobotRef()
+    gripper: Gripper = Gripper()
+    obstacles: list[Obstacle] = Field(default_factory=list)
+    trays: list[Tray] = Field(min_length=1)
+    task: list[Ident] | None = None  # trays the task needs (default: all)
+    base_yaw: YawPolicy = YawPolicy()
+    base_grid: BaseGrid = BaseGrid()
+    start: BasePose
+    goal: BasePose
+    sigma: Annotated[float, Field(ge=0, le=1.0)] = 0.10  # base positioning error [m]
+    error_model: ErrorModel = ErrorModel()
+    motion: Motion = Motion()
+
+    @property
+    def grid_extent(self) -> Extent:
+        return self.base_grid.extent or self.floor
+
+    def tray(self, tray_id: str) -> Tray:
+        for t in self.trays:
+            if t.id == tray_id:
+                return t
+        raise KeyError(tray_id)
+
+    @property
+    def task_trays(self) -> list[str]:
+        return list(self.task) if self.task is not None else [t.id for t in self.trays]
+
+
+def parse_scene(data: Any, source: str = "scene") -> Scene:
+    """Validate a decoded scene document (shape by pydantic, then the geometry checks)."""
+    if isinstance(data, dict) and data.get("format", FORMAT) != FORMAT:
+        raise SceneError([("format", f"expected {FORMAT!r}, got {data.get('format')!r}")], source)
+    if isinstance(data, dict) and data.get("version", VERSION) != VERSION:
+        raise SceneError(
+            [("version", f"this PickStop reads version {VERSION}, got {data.get('version')!r}")],
+            source,
+        )
+    try:
+        scene = Scene.model_validate(data)
+    except ValidationError as e:
+        problems = [
+            (".".join(str(p) for p in err["loc"]) or "(root)", err["msg"]) for err in e.errors()
+        ]
+        raise SceneError(problems, source) from None
+    from pickstop.scene.checks import check_scene
+
+    problems = check_scene(scene)
+    if problems:
+        raise SceneError(problems, source)
+    return scene
+
+
+def load_scene(path: str | Path) -> Scene:
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: scene file not found", field="scene")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path}: not valid JSON: {e}", field="scene") from None
+    return parse_scene(data, str(path))
+
+
+def scene_json_schema() -> dict[str, Any]:
+    """The published JSON Schema of the scene format."""
+    schema = Scene.model_json_schema()
+    schema["$id"] = f"https://pickstop.dev/schema/scene-v{VERSION}.json"
+    schema["title"] = "PickStop scene"
+    return schema

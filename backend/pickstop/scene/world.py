@@ -1,0 +1,227 @@
+"""The scene as solids: coal objects for exact checks, analytic shapes for the vectorised screen.
+
+Every solid is a box, a vertical cylinder or a mesh with a world transform ``T_world_solid``
+(4 x 4) at its centre. For the conservative screen a mesh is replaced by its oriented bounding
+box, so a sphere that misses the box surely misses the mesh.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import coal
+import numpy as np
+
+from pickstop.scene.model import Box, Cylinder, Mesh, Part, Pose, Scene, Tray
+
+TOUCH = 1e-4  # [m] allowed interpenetration: resting on a surface is not a collision
+
+
+def pose_matrix(pose: Pose, dz: float = 0.0) -> np.ndarray:
+    """``T_world_x`` of a pose (x, y, z + dz, yaw)."""
+    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -s], [s, c]]
+    T[:3, 3] = (pose.x, pose.y, pose.z + dz)
+    return T
+
+
+def tray_transform(tray: Tray) -> np.ndarray:
+    """``T_world_tray``: the inner floor centre, z up."""
+    return pose_matrix(tray.pose)
+
+
+def world_part_transform(tray: Tray, part: Part) -> np.ndarray:
+    """``T_world_part``: the part's bottom centre, z up."""
+    return tray_transform(tray) @ pose_matrix(part.pose)
+
+
+@dataclass(frozen=True, eq=False)
+class Solid:
+    """A rigid shape in the world. ``half`` is the half extents of its bounding box [m]."""
+
+    kind: Literal["box", "cylinder", "mesh"]
+    T_world_solid: np.ndarray  # (4, 4) centre
+    half: np.ndarray  # (3,)
+    owner: str  # id of the obstacle, tray or part (or "hand")
+    radius: float = 0.0  # cylinders
+    geometry: Any = field(default=None, repr=False)  # coal geometry
+
+    @classmethod
+    def box(cls, T: np.ndarray, size: Any, owner: str) -> Solid:
+        size = np.asarray(size, dtype=float)
+        return cls("box", T, size / 2, owner, 0.0, coal.Box(*size))
+
+    @classmethod
+    def cylinder(cls, T: np.ndarray, radius: float, height: float, owner: str) -> Solid:
+        half = np.array([radius, radius, height / 2])
+        return cls("cylinder", T, half, owner, radius, coal.Cylinder(radius, height))
+
+    @property
+    def transform(self) -> coal.Transform3s:
+        return coal.Transform3s(self.T_world_solid[:3, :3], self.T_world_solid[:3, 3])
+
+    def aabb(self) -> tuple[np.ndarray, np.ndarray]:
+        R = self.T_world_solid[:3, :3]
+        ext = np.abs(R) @ self.half
+        c = self.T_world_solid[:3, 3]
+        return c - ext, c + ext
+
+
+def shape_solid(
+    geometry: Box | Cylinder | Mesh, T_world_base: np.ndarray, owner: str, root: Path | None = None
+) -> Solid:
+    """Solid of a scene shape whose frame ``T_world_base`` is its bottom centre."""
+    if isinstance(geometry, Box):
+        T = T_world_base.copy()
+        T[:3, 3] += T[:3, 2] * geometry.size[2] / 2
+        return Solid.box(T, geometry.size, owner)
+    if isinstance(geometry, Cylinder):
+        T = T_world_base.copy()
+        T[:3, 3] += T[:3, 2] * geometry.height / 2
+        return Solid.cylinder(T, geometry.radius, geometry.height, owner)
+    path = Path(geometry.path)
+    if root is not None and not path.is_absolute():
+        path = root / path
+    mesh = coal.MeshLoader().load(str(path), np.full(3, geometry.scale))
+    mesh.computeLocalAABB()
+    lo, hi = np.asarray(mesh.aabb_local.min_), np.asarray(mesh.aabb_local.max_)
+    T = T_world_base.copy()
+    T[:3, 3] += T[:3, :3] @ ((lo + hi) / 2)
+    # The coal mesh keeps its own frame: wrap it so the solid's transform is the box centre.
+    return Solid("mesh", T, (hi - lo) / 2, owner, 0.0, _Offset(mesh, (lo + hi) / 2))
+
+
+@dataclass(frozen=True)
+class _Offset:
+    """A coal geometry whose frame sits ``offset`` away from the solid's centre."""
+
+    geometry: Any
+    offset: np.ndarray
+
+
+def _coal(s: Solid) -> tuple[Any, coal.Transform3s]:
+    if isinstance(s.geometry, _Offset):
+        T = s.T_world_solid.copy()
+        T[:3, 3] -= T[:3, :3] @ s.geometry.offset
+        return s.geometry.geometry, coal.Transform3s(T[:3, :3], T[:3, 3])
+    return s.geometry, s.transform
+
+
+def solids_overlap(a: Solid, b: Solid) -> bool:
+    """Exact test with coal; touching (up to ``TOUCH``) is not overlapping."""
+    lo_a, hi_a = a.aabb()
+    lo_b, hi_b = b.aabb()
+    if np.any(lo_a > hi_b - TOUCH) or np.any(lo_b > hi_a - TOUCH):
+        return False
+    ga, ta = _coal(a)
+    gb, tb = _coal(b)
+    req = coal.CollisionRequest()
+    req.security_margin = -TOUCH
+    res = coal.CollisionResult()
+    return bool(coal.collide(ga, ta, gb, tb, req, res))
+
+
+def tray_body_solids(tray: Tray) -> list[Solid]:
+    """The tray's floor and four walls."""
+    T = tray_transform(tray)
+    (ix, iy), (ox, oy) = tray.inner_size, tray.outer_size
+    t, h, f = tray.wall_thickness, tray.wall_height, tray.floor_thickness
+    out = []
+    if f > 0:
+        out.append(Solid.box(T @ _shift(0, 0, -f / 2), (ox, oy, f), tray.id))
+    zc, hz = (h - f) / 2, h + f
+    for dx, dy, sx, sy in (
+        ((ix + t) / 2, 0.0, t, oy),
+        (-(ix + t) / 2, 0.0, t, oy),
+        (0.0, (iy + t) / 2, ix, t),
+        (0.0, -(iy + t) / 2, ix, t),
+    ):
+        out.append(Solid.box(T @ _shift(dx, dy, zc), (sx, sy, hz), tray.id))
+    return out
+
+
+def _shift(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def part_solid(tray: Tray, part: Part, root: Path | None = None) -> Solid:
+    return shape_solid(part.geometry, world_part_transform(tray, part), part.id, root)
+
+
+def obstacle_solids(scene: Scene, root: Path | None = None) -> list[Solid]:
+    return [shape_solid(o.geometry, pose_matrix(o.pose), o.id, root) for o in scene.obstacles]
+
+
+def tray_solids(
+    scene: Scene, tray: Tray, exclude_part: str | None = None, root: Path | None = None
+) -> list[Solid]:
+    """What a hand reaching into ``tray`` can hit: its body, its other parts, the obstacles
+    and the other trays (with their parts)."""
+    out = tray_body_solids(tray)
+    out += [part_solid(tray, p, root) for p in tray.parts if p.id != exclude_part]
+    out += obstacle_solids(scene, root)
+    for other in scene.trays:
+        if other.id != tray.id:
+            out += tray_body_solids(other) + [part_solid(other, p, root) for p in other.parts]
+    return out
+
+
+def scene_solids(scene: Scene, root: Path | None = None) -> list[Solid]:
+    """Every solid of the scene."""
+    out = obstacle_solids(scene, root)
+    for tray in scene.trays:
+        out += tray_body_solids(tray) + [part_solid(tray, p, root) for p in tray.parts]
+    return out
+
+
+@dataclass(frozen=True)
+class BoxArrays:
+    """Solids as oriented boxes for the vectorised screen (cylinders by their own shape)."""
+
+    centres: np.ndarray  # (K, 3)
+    R: np.ndarray  # (K, 3, 3) world axes of each box
+    half: np.ndarray  # (K, 3)
+    is_cylinder: np.ndarray  # (K,) vertical cylinders: exact radial test
+    radius: np.ndarray  # (K,)
+    owners: tuple[str, ...]
+
+    @classmethod
+    def of(cls, solids: list[Solid]) -> BoxArrays:
+        if not solids:
+            z = np.zeros((0, 3))
+            return cls(z, np.zeros((0, 3, 3)), z, np.zeros(0, bool), np.zeros(0), ())
+        return cls(
+            centres=np.array([s.T_world_solid[:3, 3] for s in solids]),
+            R=np.array([s.T_world_solid[:3, :3] for s in solids]),
+            half=np.array([s.half for s in solids]),
+            is_cylinder=np.array(
+                [s.kind == "cylinder" and abs(s.T_world_solid[2, 2] - 1) < 1e-9 for s in solids]
+            ),
+            radius=np.array([s.radius for s in solids]),
+            owners=tuple(s.owner for s in solids),
+        )
+
+
+def spheres_hit(boxes: BoxArrays, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Which spheres ``(M, 3)``, ``(M,)`` [m] intersect any solid: ``(M,)`` bool.
+
+    Exact for boxes and vertical cylinders, conservative for meshes (their bounding box).
+    """
+    hit = np.zeros(len(centres), bool)
+    for k in range(len(boxes.centres)):
+        d = (centres - boxes.centres[k]) @ boxes.R[k]  # sphere centres in the box frame
+        if boxes.is_cylinder[k]:
+            radial = np.maximum(np.hypot(d[:, 0], d[:, 1]) - boxes.radius[k], 0.0)
+            axial = np.maximum(np.abs(d[:, 2]) - boxes.half[k, 2], 0.0)
+            dist2 = radial**2 + axial**2
+        else:
+            q = np.maximum(np.abs(d) - boxes.half[k], 0.0)
+            dist2 = np.einsum("ij,ij->i", q, q)
+        hit |= dist2 < (radii - TOUCH) ** 2
+    return hit

@@ -1,0 +1,101 @@
+"""Grasp generation per shape, filtered by the tray."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from pickstop.scene.grasps import candidate_grasps, grasps_for_part, hand_solids
+from pickstop.scene.model import Box, Cylinder, Gripper, Part, Pose, parse_scene
+from pickstop.scene.world import solids_overlap, tray_solids, world_part_transform
+
+PAPER = json.loads(
+    (Path(__file__).parents[2] / "examples/scenes/paper_experiment.json").read_text()
+)
+
+
+def _rot_ok(T):
+    R = T[:3, :3]
+    return np.allclose(R @ R.T, np.eye(3)) and np.isclose(np.linalg.det(R), 1.0)
+
+
+def test_box_top_and_side_grasps_respect_opening():
+    g = Gripper(max_opening=0.05)
+    part = Part(id="b", geometry=Box(size=(0.04, 0.10, 0.06)))
+    grasps = candidate_grasps(part, g)
+    assert all(_rot_ok(T) for T, _ in grasps)
+    top = [T for T, k in grasps if k == "top"]
+    # Only closing across the 4 cm side fits a 5 cm opening: angles 0 and 180 degrees.
+    assert len(top) == 2
+    for T in top:
+        assert np.allclose(T[:3, 0], [0, 0, -1])
+        assert abs(T[0, 1]) > 0.99
+    assert any(k == "side" for _, k in grasps)
+
+
+def test_cylinder_grasps_all_around():
+    part = Part(id="c", geometry=Cylinder(radius=0.02, height=0.05))
+    grasps = candidate_grasps(part, Gripper(top_down_angles=8, side_directions=8))
+    assert sum(k == "top" for _, k in grasps) == 8
+    # Side grasps closing horizontally fit (4 cm); closing vertically over 5 cm fits too.
+    assert sum(k == "side" for _, k in grasps) == 16
+
+
+def test_symmetric_gripper_halves_top_down_angles():
+    part = Part(id="c", geometry=Cylinder(radius=0.02, height=0.05))
+    a = candidate_grasps(part, Gripper(symmetric=False))
+    b = candidate_grasps(part, Gripper(symmetric=True))
+    assert sum(k == "top" for _, k in b) == sum(k == "top" for _, k in a)
+    angles = [np.arctan2(T[1, 1], T[0, 1]) for T, k in b if k == "top"]
+    assert max(angles) - min(angles) < np.pi
+
+
+def test_too_wide_part_has_no_grasp():
+    part = Part(id="w", geometry=Box(size=(0.2, 0.2, 0.2)))
+    assert candidate_grasps(part, Gripper(max_opening=0.08)) == []
+
+
+def test_tray_walls_block_side_grasps_and_kept_grasps_are_clear():
+    scene = parse_scene(PAPER)
+    tray = scene.tray("tray_1")
+    for part in tray.parts:
+        gs = grasps_for_part(scene, tray, part)
+        assert len(gs.Ts_part_tool) > 0
+        assert set(gs.kinds) == {"top"}  # 5 cm walls: no side grasp of a 3 cm part
+        obstacles = tray_solids(scene, tray, exclude_part=part.id)
+        T_wp = world_part_transform(tray, part)
+        for T in gs.Ts_part_tool:
+            hand = hand_solids(scene.gripper, T_wp @ T)
+            assert not any(solids_overlap(a, b) for a in hand for b in obstacles)
+
+
+def test_user_grasps_override():
+    doc = json.loads(json.dumps(PAPER))
+    doc["trays"][1]["parts"][0]["grasps"] = [
+        {"position": [0, 0, 0.03], "quaternion_wxyz": [0.0, 0.7071068, 0.7071068, 0.0]}
+    ]
+    scene = parse_scene(doc)
+    tray = scene.tray("tray_2")
+    gs = grasps_for_part(scene, tray, tray.parts[0])
+    assert gs.user_given and len(gs.Ts_part_tool) <= 1
+
+
+def test_neighbouring_part_blocks_a_grasp():
+    doc = json.loads(json.dumps(PAPER))
+    tray = doc["trays"][1]
+    alone = grasps_for_part(
+        parse_scene(doc), parse_scene(doc).tray("tray_2"), parse_scene(doc).tray("tray_2").parts[0]
+    )
+    tray["parts"].append(
+        {
+            "id": "tall",
+            "geometry": {"shape": "box", "size": [0.03, 0.03, 0.05]},
+            "pose": {"x": 0.0, "y": 0.06, "z": 0.0, "yaw": 0.0},
+        }
+    )
+    scene = parse_scene(doc)
+    crowded = grasps_for_part(scene, scene.tray("tray_2"), scene.tray("tray_2").parts[0])
+    assert len(crowded.Ts_part_tool) < len(alone.Ts_part_tool)
+    assert Pose() == Pose(x=0, y=0, z=0, yaw=0)
