@@ -124,13 +124,12 @@ def fk(chain: Chain, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return Rs, ps
 
 
-def manipulability_soa(
+def jacobian_soa(
     chain: Chain, frames: list[tuple[np.ndarray, np.ndarray]], p_tool: np.ndarray
 ) -> np.ndarray:
-    """Yoshikawa's ``sqrt(det(J J^T))`` from :func:`fk_soa` frames, ``(B,)``.
+    """Geometric Jacobian of the tool point in the base frame from :func:`fk_soa` frames.
 
-    J is the 6 x n geometric Jacobian of the tool point in the base frame; the determinant
-    comes from a batched Cholesky factorisation of the 6 x 6 ``J J^T``.
+    Returns ``J: (6, n, B)``: rows 0-2 linear [m/rad or 1], rows 3-5 angular [1 or 0].
     """
     n = len(frames)
     B = p_tool.shape[1]
@@ -147,6 +146,18 @@ def manipulability_soa(
             J[1, i] = axis[2] * lever[0] - axis[0] * lever[2]
             J[2, i] = axis[0] * lever[1] - axis[1] * lever[0]
             J[3:, i] = axis
+    return J
+
+
+def manipulability_soa(
+    chain: Chain, frames: list[tuple[np.ndarray, np.ndarray]], p_tool: np.ndarray
+) -> np.ndarray:
+    """Yoshikawa's ``sqrt(det(J J^T))`` from :func:`fk_soa` frames, ``(B,)``.
+
+    The determinant comes from a batched Cholesky factorisation of the 6 x 6 ``J J^T``.
+    """
+    J = jacobian_soa(chain, frames, p_tool)
+    B = p_tool.shape[1]
     A = np.einsum("ajn,bjn->abn", J, J)
     det = np.ones(B)
     L = np.zeros_like(A)

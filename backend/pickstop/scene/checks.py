@@ -134,7 +134,7 @@ def check_scene(scene: Scene) -> list[tuple[str, str]]:
                 continue
             if _overlap(fp, ofp) and min(z1, oz[1]) - max(z0, oz[0]) > TOUCH:
                 problems.append((where, f"tray {tray.id!r} intersects obstacle {ob.id!r}"))
-        for j, other in enumerate(scene.trays[:i]):
+        for other in scene.trays[:i]:
             oz0, oz1 = tray_z_range(other)
             if _overlap(fp, tray_footprint(other)) and min(z1, oz1) - max(z0, oz0) > TOUCH:
                 problems.append((where, f"tray {tray.id!r} intersects tray {other.id!r}"))

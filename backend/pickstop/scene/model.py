@@ -157,9 +157,8 @@ class YawPolicy(_Strict):
 
     @model_validator(mode="after")
     def _one(self) -> YawPolicy:
-        if self.candidates is not None:
-            if not 1 <= len(self.candidates) <= 16:
-                raise ValueError("candidates must hold 1 to 16 yaws")
+        if self.candidates is not None and not 1 <= len(self.candidates) <= 16:
+            raise ValueError("candidates must hold 1 to 16 yaws")
         return self
 
     @property
