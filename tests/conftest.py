@@ -8,6 +8,15 @@ import warnings
 import pytest
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def pytest_configure(config):
+    # Per-robot derived data (disabled pairs, screen) is shared by every test of a run.
+    import tempfile
+
+    os.environ.setdefault("PICKSTOP_CACHE_DIR", tempfile.mkdtemp(prefix="pickstop-cache-"))
+
+
 warnings.filterwarnings("ignore", message="You passed package dir")
 
 PR2_CONFIG = os.path.join(os.path.dirname(__file__), "..", "examples", "robots", "pr2.yaml")

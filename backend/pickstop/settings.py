@@ -22,6 +22,9 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="PICKSTOP_", extra="ignore")
 
     data_dir: Path = Field(default_factory=_default_data_dir, description="where databases live")
+    cache_dir: Path | None = Field(
+        default=None, description="derived per-robot data (default: <data_dir>/cache)"
+    )
 
 
 def data_dir(override: str | Path | None = None) -> Path:
@@ -29,3 +32,9 @@ def data_dir(override: str | Path | None = None) -> Path:
     path = Path(override) if override is not None else Settings().data_dir
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def cache_dir(data: Path) -> Path:
+    """Where per-robot derived data is cached: ``$PICKSTOP_CACHE_DIR`` or ``<data>/cache``."""
+    configured = Settings().cache_dir
+    return configured if configured is not None else Path(data) / "cache"

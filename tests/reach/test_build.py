@@ -49,10 +49,13 @@ def test_shards_sorted_by_voxel_key(small_db, tiago):
     assert (np.diff(keys) >= 0).all()
 
 
-def test_stored_configurations_are_free_of_self_collision(small_loaded, tiago):
-    from pickstop.robot.selfcollision import ExactSelfCollision, disabled_pairs
+def test_stored_configurations_are_free_of_self_collision(small_db, small_loaded, tiago):
+    from pickstop.robot.artifacts import self_collision
+    from pickstop.robot.selfcollision import ExactSelfCollision
+    from pickstop.settings import cache_dir
 
-    exact = ExactSelfCollision(tiago, disabled_pairs(tiago, cache_dir=None))
+    disabled, _ = self_collision(tiago, cache_dir(small_db[0]))
+    exact = ExactSelfCollision(tiago, disabled)
     rows = np.random.default_rng(1).choice(len(small_loaded), 500, replace=False)
     assert not exact.colliding(small_loaded.thetas(rows)).any()
 

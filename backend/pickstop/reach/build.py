@@ -201,13 +201,14 @@ def _run_chunk(chunk: int, data_dir: Path, db_id: str) -> ChunkResult:
 
 
 def make_kernel(robot: RobotModel, params: BuildParams, data_dir: Path) -> BuildKernel:
-    """The build kernel of ``robot``: its chain, self-collision spheres and voxel grid."""
-    from pickstop.robot.selfcollision import SphereModel, disabled_pairs
+    """The build kernel of ``robot``: its chain, self-collision screen and voxel grid."""
+    from pickstop.robot.artifacts import self_collision
+    from pickstop.settings import cache_dir
 
-    disabled = disabled_pairs(robot, cache_dir=data_dir / "robots")
+    _, spheres = self_collision(robot, cache_dir(data_dir))
     return BuildKernel(
         chain=Chain.from_robot(robot),
-        spheres=SphereModel.from_robot(robot, disabled),
+        spheres=spheres,
         voxel=VoxelGrid(params.resolution, params.orientation),
         lower=robot.lower,
         upper=robot.upper,
@@ -245,17 +246,27 @@ def _register(catalog: Catalog, db_id: str, robot: RobotModel, params: BuildPara
 
 
 def _chunks_done(catalog: Catalog, db_id: str, data_dir: Path) -> set[int]:
-    """Chunks whose shard is recorded and present with the recorded size."""
+    """Chunks whose shard is recorded and present with the recorded size and checksum."""
     done = set()
-    for r in catalog.query("SELECT chunk, path, bytes FROM reach_shards WHERE db_id = ?", [db_id]):
+    for r in catalog.query(
+        "SELECT chunk, path, bytes, sha256 FROM reach_shards WHERE db_id = ?", [db_id]
+    ):
         f = data_dir / r["path"]
-        if f.is_file() and f.stat().st_size == r["bytes"]:
+        if f.is_file() and f.stat().st_size == r["bytes"] and _sha256(f) == r["sha256"]:
             done.add(r["chunk"])
         else:  # a vanished or altered shard is computed again
             catalog.db.execute(
                 "DELETE FROM reach_shards WHERE db_id = ? AND chunk = ?", [db_id, r["chunk"]]
             )
     return done
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 22), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def _record(catalog: Catalog, db_id: str, res: ChunkResult) -> None:
@@ -325,10 +336,14 @@ def build(
     catalog = Catalog(data_dir)
     db_id = database_id(robot.robot_hash, params)
     row = _register(catalog, db_id, robot, params)
-    if row["state"] == "complete":
-        return row
     t0 = time.perf_counter()
     done = _chunks_done(catalog, db_id, data_dir)
+    if row["state"] == "complete":
+        if len(done) == params.n_chunks:
+            catalog.close()
+            return row
+        # A shard went missing or was altered: recompute it (the content is deterministic).
+        catalog.table("reach_databases").update(db_id, {"state": "building", "completed": None})
     todo = [c for c in range(params.n_chunks) if c not in done]
     if max_chunks is not None:
         todo = todo[:max_chunks]

@@ -103,7 +103,7 @@ def check_scene(scene: Scene) -> list[tuple[str, str]]:
         if not floor.contains(fp):
             problems.append((f"{where}.pose", f"tray {tray.id!r} is not inside the floor"))
         inner = rect(tray.pose.x, tray.pose.y, tray.pose.yaw, *tray.inner_size)
-        part_fps = []
+        part_fps: list[tuple[int, BaseGeometry]] = []
         for k, part in enumerate(tray.parts):
             pw = part_world_pose(tray, part.pose)
             pfp = footprint(part.geometry, pw)

@@ -220,8 +220,8 @@ class ErrorModel(_Strict):
 
 
 class Scene(_Strict):
-    format: Literal["pickstop.scene"] = FORMAT
-    version: Literal[1] = VERSION
+    format: Literal["pickstop.scene"] = "pickstop.scene"
+    version: Literal[1] = 1
     name: str = ""
     description: str = ""
     floor: Extent

@@ -28,8 +28,9 @@ class Catalog:
         self.data_dir = Path(data_dir)
         self.path = self.data_dir / "catalog.sqlite"
         try:
+            self.data_dir.mkdir(parents=True, exist_ok=True)
             conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
-        except sqlite3.Error as e:
+        except (sqlite3.Error, OSError) as e:
             raise DatabaseError(f"{self.path}: cannot open catalog: {e}") from None
         conn.execute("PRAGMA journal_mode=WAL")
         conn.execute("PRAGMA foreign_keys=ON")

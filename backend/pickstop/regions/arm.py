@@ -1,0 +1,191 @@
+"""The arm against the scene: conservative spheres (vectorised screen) and exact coal checks.
+
+Links are those of the reduced model that move with the arm (joints 1..n) and are not hand
+links: the hand's pose follows from the grasp alone, so the grasp's open-hand model is checked
+in its place (:mod:`pickstop.scene.grasps`).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass
+from typing import Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from pickstop.robot.model import RobotModel
+from pickstop.scene.world import TOUCH, BoxArrays, Solid, _coal
+
+SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
+
+
+def _link_of(geom_name: str) -> str:
+    head, _, tail = geom_name.rpartition("_")
+    return head if tail.isdigit() else geom_name
+
+
+def arm_geometry_ids(robot: RobotModel) -> list[int]:
+    """Collision geometries on moving arm bodies, hand links excluded."""
+    pats = robot.config.hand_links
+    out = []
+    for i, g in enumerate(robot.geom_model.geometryObjects):
+        if g.parentJoint == 0:
+            continue
+        link = _link_of(g.name)
+        if any(fnmatch.fnmatch(link, p) for p in pats):
+            continue
+        out.append(i)
+    return out
+
+
+@dataclass(frozen=True)
+class ArmSpheres:
+    """Covering spheres of the arm links in their joint frames, grouped per link."""
+
+    link_joint: np.ndarray  # (L,) joint index (1..n) carrying each link
+    bound_c: np.ndarray  # (L, 3) bounding sphere of each link [m]
+    bound_r: np.ndarray  # (L,)
+    leaf_link: np.ndarray  # (S,) link of each covering sphere
+    leaf_c: np.ndarray  # (S, 3)
+    leaf_r: np.ndarray  # (S,)
+
+    @classmethod
+    def of(cls, robot: RobotModel, excess: float = SPHERE_EXCESS) -> ArmSpheres:
+        from pickstop.robot.link_geometry import LinkShape
+        from pickstop.robot.spheres import cover
+
+        by_link: dict[str, list[int]] = {}
+        for i in arm_geometry_ids(robot):
+            by_link.setdefault(_link_of(robot.geom_model.geometryObjects[i].name), []).append(i)
+        joints, bc, br, ll, lc, lr = [], [], [], [], [], []
+        for k, (_, ids) in enumerate(sorted(by_link.items())):
+            s = cover(LinkShape.of(robot, tuple(ids)), excess)
+            c = s[:, :3].mean(axis=0)
+            r = float(np.max(np.linalg.norm(s[:, :3] - c, axis=1) + s[:, 3]))
+            joints.append(robot.geom_model.geometryObjects[ids[0]].parentJoint)
+            bc.append(c)
+            br.append(r)
+            ll += [k] * len(s)
+            lc.append(s[:, :3])
+            lr.append(s[:, 3])
+        return cls(
+            np.array(joints),
+            np.array(bc),
+            np.array(br),
+            np.array(ll),
+            np.concatenate(lc),
+            np.concatenate(lr),
+        )
+
+
+def _to_world(
+    frames: list[tuple[np.ndarray, np.ndarray]],
+    joint: np.ndarray,
+    local: np.ndarray,
+    base_xy: np.ndarray,
+    yaw: float,
+) -> np.ndarray:
+    """Points ``local: (P, 3)`` on joints ``joint: (P,)`` for every configuration -> (B, P, 3)."""
+    R = np.stack([frames[j - 1][0] for j in joint])  # (P, 3, 3, B)
+    p = np.stack([frames[j - 1][1] for j in joint])  # (P, 3, B)
+    pts = np.einsum("pikb,pk->bpi", R, local) + p.transpose(2, 0, 1)
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.empty_like(pts)
+    out[..., 0] = c * pts[..., 0] - s * pts[..., 1] + base_xy[:, None, 0]
+    out[..., 1] = s * pts[..., 0] + c * pts[..., 1] + base_xy[:, None, 1]
+    out[..., 2] = pts[..., 2]
+    return out
+
+
+def screen_arm(
+    spheres: ArmSpheres,
+    boxes: BoxArrays,
+    frames: list[tuple[np.ndarray, np.ndarray]],
+    base_xy: np.ndarray,
+    yaw: float,
+) -> np.ndarray:
+    """``(B,)`` True where the arm may touch a solid; False is guaranteed free.
+
+    frames: :func:`fk_soa` joint frames of B configurations (base frame); base_xy: (B, 2).
+    """
+    from pickstop.scene.world import spheres_hit
+
+    B = base_xy.shape[0]
+    if len(boxes.centres) == 0 or B == 0:
+        return np.zeros(B, bool)
+    bw = _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
+    L = len(spheres.bound_r)
+    hit_link = spheres_hit(boxes, bw.reshape(-1, 3), np.tile(spheres.bound_r, B)).reshape(B, L)
+    flagged = np.zeros(B, bool)
+    cfg, lnk = np.nonzero(hit_link)
+    if len(cfg) == 0:
+        return flagged
+    for link in np.unique(lnk):
+        rows = cfg[lnk == link]
+        leaves = np.flatnonzero(spheres.leaf_link == link)
+        sub = [(R[:, :, rows], p[:, rows]) for R, p in frames]
+        lw = _to_world(
+            sub,
+            np.full(len(leaves), spheres.link_joint[link]),
+            spheres.leaf_c[leaves],
+            base_xy[rows],
+            yaw,
+        )
+        h = spheres_hit(boxes, lw.reshape(-1, 3), np.tile(spheres.leaf_r[leaves], len(rows)))
+        flagged[rows] |= h.reshape(len(rows), -1).any(axis=1)
+    return flagged
+
+
+class ExactArm:
+    """Exact arm-versus-solids checks with coal (one per thread)."""
+
+    def __init__(self, robot: RobotModel) -> None:
+        self.robot = robot
+        self.data = robot.model.createData()
+        self.gdata = pin.GeometryData(robot.geom_model)
+        self.ids = arm_geometry_ids(robot)
+        self.req = coal.CollisionRequest()
+        self.req.security_margin = -TOUCH
+        self.local_boxes = []
+        for i in self.ids:
+            geom = robot.geom_model.geometryObjects[i].geometry
+            geom.computeLocalAABB()
+            lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
+            self.local_boxes.append(((lo + hi) / 2, (hi - lo) / 2))
+
+    def colliding(
+        self, theta: np.ndarray, x: float, y: float, yaw: float, solids: list[Solid]
+    ) -> bool:
+        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``?"""
+        q = self.robot.angles_to_q(theta)
+        pin.forwardKinematics(self.robot.model, self.data, q)
+        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
+        T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
+        boxes = [(s, *s.aabb()) for s in solids]
+        for i, (c_local, h_local) in zip(self.ids, self.local_boxes, strict=True):
+            g = self.robot.geom_model.geometryObjects[i]
+            M = T_wb * self.gdata.oMg[i]
+            c = M.rotation @ c_local + M.translation
+            h = np.abs(M.rotation) @ h_local
+            tf = coal.Transform3s(M.rotation, M.translation)
+            for s, lo, hi in boxes:
+                if np.any(c - h > hi) or np.any(c + h < lo):
+                    continue
+                gs, ts = _coal(s)
+                if coal.collide(g.geometry, tf, gs, ts, self.req, coal.CollisionResult()):
+                    return True
+        return False
+
+
+def nearby(solids: list[Solid], centre: Any, radius: float) -> list[Solid]:
+    """Solids whose bounding box comes within ``radius`` of ``centre`` in the floor plane."""
+    c = np.asarray(centre, dtype=float)[:2]
+    out = []
+    for s in solids:
+        lo, hi = s.aabb()
+        d = np.maximum(np.maximum(lo[:2] - c, c - hi[:2]), 0.0)
+        if float(np.hypot(*d)) <= radius:
+            out.append(s)
+    return out

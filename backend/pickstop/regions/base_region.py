@@ -1,0 +1,403 @@
+"""Base region of a tray: every base cell from which each of its parts can be grasped.
+
+For a fixed base yaw the tool targets of a part's grasps, seen from a base cell, differ only by
+a translation, so all cells x grasps are looked up in the reachability database at once (the
+paper's IK by query). Per (cell, part) the candidates are ranked by pose distance and screened
+in windows against the scene with conservative spheres; the best free one is refined to an
+exact IK solution (batched damped least squares) and checked again: screen-free is guaranteed,
+anything the screen flags goes to coal. A cell is feasible only with a verified witness
+configuration for every part.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import shapely
+from shapely.geometry.base import BaseGeometry
+
+from pickstop.reach.batch_ik import BatchSolver, refine_batch
+from pickstop.reach.database import RANK_LENGTH, ReachDatabase
+from pickstop.reach.so3 import matrices_to_quats
+from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
+from pickstop.robot.kinematics import fk_soa
+from pickstop.robot.model import RobotModel
+from pickstop.scene.checks import footprint, tray_footprint
+from pickstop.scene.grasps import GraspSet, grasps_for_part
+from pickstop.scene.model import Scene, Tray
+from pickstop.scene.world import BoxArrays, Solid, scene_solids
+
+WINDOW = 4  # candidates screened per (cell, part) at a time
+MAX_ROUNDS = 8  # refinement attempts per (cell, part)
+
+
+@dataclass(frozen=True)
+class CellGrid:
+    """Base cells: centre of cell (ix, iy) is ``(x0 + (ix + .5) res, y0 + (iy + .5) res)``."""
+
+    x0: float
+    y0: float
+    res: float  # [m]
+    nx: int
+    ny: int
+
+    @classmethod
+    def of(cls, scene: Scene) -> CellGrid:
+        ext, res = scene.grid_extent, scene.base_grid.resolution
+        nx = math.floor((ext.max[0] - ext.min[0]) / res + 1e-9)
+        ny = math.floor((ext.max[1] - ext.min[1]) / res + 1e-9)
+        return cls(ext.min[0], ext.min[1], res, nx, ny)
+
+    def centres(self, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
+        return np.stack([self.x0 + (ix + 0.5) * self.res, self.y0 + (iy + 0.5) * self.res], -1)
+
+    def cells_polygon(self, iy: np.ndarray, ix: np.ndarray) -> BaseGeometry:
+        """Union of the cells' squares: polygons with holes, touching cells merged."""
+        if len(ix) == 0:
+            return shapely.Polygon()
+        x = self.x0 + ix * self.res
+        y = self.y0 + iy * self.res
+        boxes = shapely.box(x, y, x + self.res, y + self.res)
+        return shapely.coverage_union_all(boxes)
+
+
+@dataclass(frozen=True)
+class TrayRegion:
+    """Where the base can stand to pick every part of one tray, at one yaw."""
+
+    tray_id: str
+    yaw: float  # [rad]
+    grid: CellGrid
+    mask: np.ndarray  # (ny, nx) bool feasible cells
+    cells: np.ndarray  # (K, 2) int (iy, ix) of feasible cells
+    part_ids: tuple[str, ...]
+    thetas: np.ndarray  # (K, P, dof) verified witness configuration per cell and part
+    grasp_index: np.ndarray  # (K, P) which grasp of the part's grasp set
+    polygon: BaseGeometry
+    counts: dict[str, int]
+    reason: str | None  # why the region is empty, if it is
+    seconds: float
+    key: str = ""
+
+    @property
+    def area(self) -> float:
+        """[m^2]"""
+        return float(len(self.cells)) * self.grid.res**2
+
+
+@dataclass
+class RegionPlanner:
+    """Heavy things for region computation, built once per robot and database."""
+
+    robot: RobotModel
+    db: ReachDatabase
+    solver: BatchSolver = field(init=False)
+    arm: ArmSpheres = field(init=False)
+    self_spheres: Any = field(init=False)
+    exact_self: Any = field(init=False)
+    exact_arm: ExactArm = field(init=False)
+    reach_xy: float = field(init=False)
+    cache: dict[str, TrayRegion] = field(default_factory=dict)
+    grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
+    cache_size: int = 256
+    cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
+
+    def __post_init__(self) -> None:
+        from pickstop.robot.artifacts import self_collision
+        from pickstop.robot.selfcollision import ExactSelfCollision
+
+        self.solver = BatchSolver.of(self.robot)
+        self.arm = ArmSpheres.of(self.robot)
+        disabled, self.self_spheres = self_collision(self.robot, self.cache_dir)
+        self.exact_self = ExactSelfCollision(self.robot, disabled)
+        self.exact_arm = ExactArm(self.robot)
+        self.reach_xy = float(np.hypot(self.db.positions[:, 0], self.db.positions[:, 1]).max())
+
+    # -- caching ---------------------------------------------------------------------------
+    def _influence(self, scene: Scene, tray: Tray) -> float:
+        return 2.0 * self.reach_xy + 0.5 * math.hypot(*tray.outer_size)
+
+    def region_key(self, scene: Scene, tray: Tray, yaw: float) -> str:
+        """Everything the region of ``tray`` depends on: moving a far tray keeps the key."""
+        c = np.array([tray.pose.x, tray.pose.y])
+        r = self._influence(scene, tray)
+        near_obs = [
+            o.model_dump() for o in scene.obstacles if _near(footprint(o.geometry, o.pose), c, r)
+        ]
+        near_trays = [
+            t.model_dump()
+            for t in scene.trays
+            if t.id != tray.id and _near(tray_footprint(t), c, r)
+        ]
+        blob = {
+            "tray": tray.model_dump(),
+            "yaw": yaw,
+            "grid": [scene.grid_extent.model_dump(), scene.base_grid.resolution],
+            "gripper": scene.gripper.model_dump(),
+            "obstacles": near_obs,
+            "trays": near_trays,
+            "robot": self.robot.robot_hash,
+            "db": self.db.id,
+            "algo": [WINDOW, MAX_ROUNDS, 1],
+        }
+        return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
+
+    def grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
+        out = []
+        for part in tray.parts:
+            key = hashlib.sha256(
+                json.dumps(
+                    [
+                        tray.model_dump(),
+                        part.id,
+                        scene.gripper.model_dump(),
+                        [o.model_dump() for o in scene.obstacles],
+                        [t.model_dump() for t in scene.trays if t.id != tray.id],
+                    ],
+                    sort_keys=True,
+                ).encode()
+            ).hexdigest()
+            if key not in self.grasp_cache:
+                self.grasp_cache[key] = grasps_for_part(scene, tray, part)
+            out.append(self.grasp_cache[key])
+        return out
+
+    def tray_region(self, scene: Scene, tray_id: str, yaw: float | None = None) -> TrayRegion:
+        tray = scene.tray(tray_id)
+        yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
+        key = self.region_key(scene, tray, yaw)
+        hit = self.cache.get(key)
+        if hit is not None:
+            return hit
+        region = compute_tray_region(self, scene, tray, yaw, key)
+        if len(self.cache) >= self.cache_size:
+            self.cache.pop(next(iter(self.cache)))
+        self.cache[key] = region
+        return region
+
+    def regions(self, scene: Scene) -> dict[tuple[str, float], TrayRegion]:
+        """Regions of every tray the task needs, at every yaw of the policy."""
+        return {
+            (t, y): self.tray_region(scene, t, y)
+            for t in scene.task_trays
+            for y in scene.base_yaw.yaws
+        }
+
+
+def _near(geom: BaseGeometry | None, c: np.ndarray, r: float) -> bool:
+    return geom is None or geom.distance(shapely.Point(c)) <= r
+
+
+def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: float) -> np.ndarray:
+    """``(M,)`` True where the base footprint at ``centres: (M, 2)`` is on the floor and clear."""
+    fp = robot.config.footprint
+    r = fp.bounding_radius
+    blockers = [footprint(o.geometry, o.pose) for o in scene.obstacles]
+    blockers += [tray_footprint(t) for t in scene.trays]
+    geoms = [g for g in blockers if g is not None]
+    x, y = centres[:, 0], centres[:, 1]
+    floor = shapely.box(*scene.floor.min, *scene.floor.max).buffer(-r)
+    ok = shapely.contains_xy(floor, x, y) if not floor.is_empty else np.zeros(len(x), bool)
+    if geoms:
+        if fp.radius is not None:
+            blocked = shapely.union_all(geoms).buffer(fp.radius, quad_segs=8)
+            ok &= ~shapely.contains_xy(blocked, x, y) & ~shapely.intersects_xy(
+                blocked.boundary, x, y
+            )
+        else:
+            # Polygon footprint: exact test per candidate cell near an obstacle.
+            union = shapely.union_all(geoms)
+            near = ok & shapely.contains_xy(union.buffer(r), x, y)
+            poly = np.asarray(fp.polygon)
+            c, s = math.cos(yaw), math.sin(yaw)
+            rot = poly @ np.array([[c, s], [-s, c]])
+            for i in np.flatnonzero(near):
+                ok[i] = not shapely.Polygon(rot + centres[i]).intersects(union)
+    return ok
+
+
+def compute_tray_region(
+    planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float, key: str = ""
+) -> TrayRegion:
+    t0 = time.perf_counter()
+    robot = planner.robot
+    grid = CellGrid.of(scene)
+    counts = {"grid": grid.nx * grid.ny}
+    part_ids = tuple(p.id for p in tray.parts)
+
+    def empty(reason: str) -> TrayRegion:
+        return TrayRegion(
+            tray.id,
+            yaw,
+            grid,
+            np.zeros((grid.ny, grid.nx), bool),
+            np.zeros((0, 2), int),
+            part_ids,
+            np.zeros((0, len(part_ids), robot.dof)),
+            np.zeros((0, len(part_ids)), int),
+            shapely.Polygon(),
+            counts,
+            reason,
+            time.perf_counter() - t0,
+            key,
+        )
+
+    if not tray.parts:
+        return empty(f"tray {tray.id!r} has no parts")
+    tc = np.array([tray.pose.x, tray.pose.y])
+    reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
+    # Cells within reach of the tray (a bounding window, then the disc).
+    lo = np.floor((tc - reach - [grid.x0, grid.y0]) / grid.res).astype(int)
+    hi = np.ceil((tc + reach - [grid.x0, grid.y0]) / grid.res).astype(int)
+    ix = np.arange(max(lo[0], 0), min(hi[0], grid.nx))
+    iy = np.arange(max(lo[1], 0), min(hi[1], grid.ny))
+    IX2, IY2 = np.meshgrid(ix, iy)
+    IX, IY = IX2.ravel(), IY2.ravel()
+    cen = grid.centres(IX, IY)
+    near = np.hypot(*(cen - tc).T) <= reach
+    IX, IY, cen = IX[near], IY[near], cen[near]
+    counts["in_reach"] = len(IX)
+    if len(IX) == 0:
+        return empty(
+            f"tray {tray.id!r} is farther than the arm reaches ({reach:.2f} m) from every grid cell"
+        )
+    free = footprint_free(scene, robot, cen, yaw)
+    IX, IY, cen = IX[free], IY[free], cen[free]
+    counts["footprint_free"] = len(IX)
+    if len(IX) == 0:
+        return empty(f"no cell within reach of tray {tray.id!r} has room for the base footprint")
+
+    solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
+    boxes = BoxArrays.of(solids)
+    grasp_sets = planner.grasps(scene, tray)
+    c, s = math.cos(yaw), math.sin(yaw)
+    Rz_T = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # R_base_world
+    alive = np.arange(len(IX))  # indices into the candidate cells still feasible
+    witness = np.zeros((len(IX), len(part_ids), robot.dof))
+    grasp_of = np.zeros((len(IX), len(part_ids)), int)
+    for k, gs in enumerate(grasp_sets):
+        if len(gs.Ts_world_tool) == 0:
+            return empty(
+                f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
+                "fits the open hand without touching the tray, a neighbour or a table"
+            )
+        found, th, gi = _solve_part(planner, boxes, solids, gs, cen[alive], Rz_T, yaw)
+        alive = alive[found]
+        witness[alive, k] = th[found]
+        grasp_of[alive, k] = gi[found]
+        counts[f"feasible_after_{gs.part_id}"] = len(alive)
+        if len(alive) == 0:
+            return empty(
+                f"no base cell lets the arm grasp part {gs.part_id!r} of tray {tray.id!r} "
+                f"without collision (of {counts['footprint_free']} reachable free cells)"
+            )
+    mask = np.zeros((grid.ny, grid.nx), bool)
+    mask[IY[alive], IX[alive]] = True
+    cells = np.stack([IY[alive], IX[alive]], 1)
+    counts["feasible"] = len(alive)
+    return TrayRegion(
+        tray.id,
+        yaw,
+        grid,
+        mask,
+        cells,
+        part_ids,
+        witness[alive],
+        grasp_of[alive],
+        grid.cells_polygon(cells[:, 0], cells[:, 1]),
+        counts,
+        None,
+        time.perf_counter() - t0,
+        key,
+    )
+
+
+def _solve_part(
+    planner: RegionPlanner,
+    boxes: BoxArrays,
+    solids: list[Solid],
+    gs: GraspSet,
+    cen: np.ndarray,
+    Rz_T: np.ndarray,
+    yaw: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,))."""
+    db, solver = planner.db, planner.solver
+    M, G = len(cen), len(gs.Ts_world_tool)
+    R_bt = np.einsum("ij,gjk->gik", Rz_T, gs.Ts_world_tool[:, :3, :3])  # (G, 3, 3)
+    q_bt = matrices_to_quats(R_bt)
+    rel = gs.Ts_world_tool[None, :, :3, 3] - np.concatenate([cen, np.zeros((M, 1))], 1)[:, None]
+    p_bt = rel @ Rz_T.T  # (M, G, 3)
+    starts, ends = db.lookup(p_bt.reshape(-1, 3), np.tile(q_bt, (M, 1)))
+    n = ends - starts
+    target = np.repeat(np.arange(M * G), n)  # entry -> (cell, grasp) target
+    off = np.repeat(np.cumsum(n) - n, n)
+    rows = np.arange(len(target)) - off + np.repeat(starts, n)
+    cell = target // G
+    g = target % G
+    pos_err = np.linalg.norm(db.positions[rows] - p_bt.reshape(-1, 3)[target], axis=1)
+    dot = np.abs(np.einsum("ij,ij->i", db.quats[rows], q_bt[g]))
+    score = pos_err + RANK_LENGTH * 2 * np.arccos(np.minimum(dot, 1.0))
+    order = np.lexsort((score, cell))
+    rows, cell, g, target = rows[order], cell[order], g[order], target[order]
+    first = np.searchsorted(cell, np.arange(M))
+    rank = np.arange(len(cell)) - first[cell]
+    state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done
+    screened = np.zeros(M, np.int64)
+    found = np.zeros(M, bool)
+    th_out = np.zeros((M, solver.chain.dof))
+    g_out = np.zeros(M, int)
+    has = np.bincount(cell, minlength=M) > 0
+    for _ in range(MAX_ROUNDS):
+        open_cells = np.flatnonzero(~found & has & (screened < np.bincount(cell, minlength=M)))
+        pending = ~found[cell] & (state == 1)
+        ready = np.zeros(M, bool)
+        ready[cell[pending]] = True
+        need = open_cells[~ready[open_cells]]
+        if len(need):
+            sel = np.flatnonzero(
+                np.isin(cell, need) & (rank >= screened[cell]) & (rank < screened[cell] + WINDOW)
+            )
+            screened[need] += WINDOW
+            if len(sel):
+                th = db.thetas(rows[sel])
+                _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
+                hit = screen_arm(planner.arm, boxes, frames, cen[cell[sel]], yaw)
+                state[sel] = np.where(hit, 2, 1)
+        cand = np.flatnonzero((state == 1) & ~found[cell])
+        if len(cand) == 0:
+            if not np.any(~found & has & (screened < np.bincount(cell, minlength=M))):
+                break
+            continue
+        # Best untried free candidate per cell (entries are sorted by cell then score).
+        _, pick = np.unique(cell[cand], return_index=True)
+        e = cand[pick]
+        state[e] = 2
+        res = refine_batch(solver, db.thetas(rows[e]), R_bt[g[e]], p_bt.reshape(-1, 3)[target[e]])
+        ok = np.flatnonzero(res.success)
+        if len(ok) == 0:
+            continue
+        ths = res.thetas[ok]
+        _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(ths.T), frames=True)
+        env_hit = screen_arm(planner.arm, boxes, frames, cen[cell[e[ok]]], yaw)
+        from pickstop.robot.selfcollision import screen
+
+        self_hit = screen(planner.self_spheres, frames)
+        good = np.ones(len(ok), bool)
+        for j in np.flatnonzero(env_hit | self_hit):
+            x, y = cen[cell[e[ok[j]]]]
+            self_bad = self_hit[j] and planner.exact_self.colliding(ths[j][None])[0]
+            env_bad = env_hit[j] and planner.exact_arm.colliding(ths[j], x, y, yaw, solids)
+            good[j] = not (self_bad or env_bad)
+        acc = e[ok[good]]
+        found[cell[acc]] = True
+        th_out[cell[acc]] = ths[good]
+        g_out[cell[acc]] = g[acc]
+    return found, th_out, g_out
