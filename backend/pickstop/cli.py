@@ -318,6 +318,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PickStopError as e:
         print(f"pickstop: error: {e.message}", file=sys.stderr)
         return e.exit_code
+    except BrokenPipeError:  # output piped into a reader that closed early (head, less)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt:
         print("pickstop: interrupted (a build resumes where it stopped)", file=sys.stderr)
         return 130
