@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from pickstop.errors import PickStopError
+from pickstop.errors import InputError, PickStopError
 
 DEFAULT_SAMPLES = 2_000_000
 
@@ -215,6 +215,36 @@ def cmd_reach_query(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_regions(args: argparse.Namespace) -> int:
+    from pickstop.regions.geojson import regions_geojson
+    from pickstop.regions.loader import planner_for
+    from pickstop.scene.model import load_scene
+    from pickstop.settings import data_dir
+
+    scene = load_scene(args.scene)
+    trays = args.tray or scene.task_trays
+    known = {t.id for t in scene.trays}
+    for t in trays:
+        if t not in known:
+            raise InputError(f"--tray {t!r}: no such tray in {args.scene}", field="tray")
+    planner = planner_for(
+        scene, Path(args.scene).resolve().parent, data_dir(args.data_dir), args.db
+    )
+    regions = [planner.tray_region(scene, t, y) for t in trays for y in scene.base_yaw.yaws]
+    doc = regions_geojson(regions, {t.id: t.name for t in scene.trays})
+    if args.out:
+        Path(args.out).write_text(json.dumps(doc, indent=1) + "\n")
+    _emit(
+        {
+            "scene": scene.name,
+            "database": planner.db.id,
+            "out": args.out,
+            "regions": [f["properties"] for f in doc["features"]],
+        }
+    )
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """The embedded default: the bundled TIAGo, its database (built once), a top-down query."""
     from pickstop.reach.build import BuildParams, build
@@ -264,6 +294,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="the embedded default: bundled TIAGo and example scene")
     demo.add_argument("--samples", type=_positive_int, default=DEFAULT_SAMPLES)
     demo.set_defaults(func=cmd_demo)
+
+    rg = sub.add_parser("regions", help="base regions of a scene's trays, as GeoJSON")
+    rg.add_argument("scene", help="scene JSON file")
+    rg.add_argument("--out", help="write the GeoJSON FeatureCollection here")
+    rg.add_argument("--tray", action="append", help="only this tray (repeatable)")
+    rg.add_argument("--db", help="reachability database id (default: newest for the robot)")
+    rg.set_defaults(func=cmd_regions)
 
     reach = sub.add_parser("reach", help="reachability databases").add_subparsers(
         dest="reach_command", required=True

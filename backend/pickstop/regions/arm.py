@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickstop.robot.model import RobotModel
-from pickstop.scene.world import TOUCH, BoxArrays, Solid, _coal
+from pickstop.scene.world import BoxArrays, Solid, _coal, collide
 
 SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
 
@@ -105,17 +105,23 @@ def screen_arm(
     frames: list[tuple[np.ndarray, np.ndarray]],
     base_xy: np.ndarray,
     yaw: float,
+    envelope: Any = None,
 ) -> np.ndarray:
     """``(B,)`` True where the arm may touch a solid; False is guaranteed free.
 
     frames: :func:`fk_soa` joint frames of B configurations (base frame); base_xy: (B, 2).
+    envelope: if given, the space the links' bounding spheres occupy is marked in it.
     """
     from pickstop.scene.world import spheres_hit
 
     B = base_xy.shape[0]
-    if len(boxes.centres) == 0 or B == 0:
+    if B == 0:
         return np.zeros(B, bool)
     bw = _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
+    if envelope is not None:
+        envelope.mark_spheres(bw.reshape(-1, 3), float(spheres.bound_r.max()))
+    if len(boxes.centres) == 0:
+        return np.zeros(B, bool)
     L = len(spheres.bound_r)
     hit_link = spheres_hit(boxes, bw.reshape(-1, 3), np.tile(spheres.bound_r, B)).reshape(B, L)
     flagged = np.zeros(B, bool)
@@ -146,8 +152,6 @@ class ExactArm:
         self.data = robot.model.createData()
         self.gdata = pin.GeometryData(robot.geom_model)
         self.ids = arm_geometry_ids(robot)
-        self.req = coal.CollisionRequest()
-        self.req.security_margin = -TOUCH
         self.local_boxes = []
         for i in self.ids:
             geom = robot.geom_model.geometryObjects[i].geometry
@@ -174,7 +178,7 @@ class ExactArm:
                 if np.any(c - h > hi) or np.any(c + h < lo):
                     continue
                 gs, ts = _coal(s)
-                if coal.collide(g.geometry, tf, gs, ts, self.req, coal.CollisionResult()):
+                if collide(g.geometry, tf, gs, ts):
                     return True
         return False
 

@@ -27,15 +27,17 @@ from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
+from pickstop.regions.envelope import Envelope
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
-from pickstop.scene.checks import footprint, tray_footprint
 from pickstop.scene.grasps import GraspSet, grasps_for_part
 from pickstop.scene.model import Scene, Tray
-from pickstop.scene.world import BoxArrays, Solid, scene_solids
+from pickstop.scene.world import BoxArrays, Solid, scene_solids, tray_body_solids
 
+Bounds = list[tuple[np.ndarray, np.ndarray]]
 WINDOW = 4  # candidates screened per (cell, part) at a time
 MAX_ROUNDS = 8  # refinement attempts per (cell, part)
+REFINE_ITERATIONS = 8  # database candidates are close: 2-4 steps; a slow one yields its turn
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,7 @@ class TrayRegion:
     reason: str | None  # why the region is empty, if it is
     seconds: float
     key: str = ""
+    envelope: Envelope | None = field(default=None, repr=False, compare=False)
 
     @property
     def area(self) -> float:
@@ -104,7 +107,7 @@ class RegionPlanner:
     exact_self: Any = field(init=False)
     exact_arm: ExactArm = field(init=False)
     reach_xy: float = field(init=False)
-    cache: dict[str, TrayRegion] = field(default_factory=dict)
+    cache: dict[str, list[_CacheEntry]] = field(default_factory=dict)
     grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
     cache_size: int = 256
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
@@ -121,33 +124,44 @@ class RegionPlanner:
         self.reach_xy = float(np.hypot(self.db.positions[:, 0], self.db.positions[:, 1]).max())
 
     # -- caching ---------------------------------------------------------------------------
-    def _influence(self, scene: Scene, tray: Tray) -> float:
-        return 2.0 * self.reach_xy + 0.5 * math.hypot(*tray.outer_size)
-
-    def region_key(self, scene: Scene, tray: Tray, yaw: float) -> str:
-        """Everything the region of ``tray`` depends on: moving a far tray keeps the key."""
-        c = np.array([tray.pose.x, tray.pose.y])
-        r = self._influence(scene, tray)
-        near_obs = [
-            o.model_dump() for o in scene.obstacles if _near(footprint(o.geometry, o.pose), c, r)
-        ]
-        near_trays = [
-            t.model_dump()
-            for t in scene.trays
-            if t.id != tray.id and _near(tray_footprint(t), c, r)
-        ]
+    def own_key(self, scene: Scene, tray: Tray, yaw: float) -> str:
+        """What the region of ``tray`` depends on apart from the other objects."""
         blob = {
             "tray": tray.model_dump(),
             "yaw": yaw,
             "grid": [scene.grid_extent.model_dump(), scene.base_grid.resolution],
+            "floor": scene.floor.model_dump(),
             "gripper": scene.gripper.model_dump(),
-            "obstacles": near_obs,
-            "trays": near_trays,
             "robot": self.robot.robot_hash,
             "db": self.db.id,
-            "algo": [WINDOW, MAX_ROUNDS, 1],
+            "algo": [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, 2],
         }
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
+
+    def tray_region(self, scene: Scene, tray_id: str, yaw: float | None = None) -> TrayRegion:
+        """The region of one tray, reused from the cache while nothing it looked at changed."""
+        tray = scene.tray(tray_id)
+        yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
+        key = self.own_key(scene, tray, yaw)
+        snap = _snapshot(scene, tray.id)
+        for entry in self.cache.get(key, []):
+            if _still_valid(entry, snap):
+                return entry.region
+        region = compute_tray_region(self, scene, tray, yaw, key)
+        entries = self.cache.setdefault(key, [])
+        entries.insert(0, _CacheEntry(region, snap))
+        del entries[4:]  # a few layouts per tray and yaw
+        if len(self.cache) > self.cache_size:
+            self.cache.pop(next(iter(self.cache)))
+        return region
+
+    def regions(self, scene: Scene) -> dict[tuple[str, float], TrayRegion]:
+        """Regions of every tray the task needs, at every yaw of the policy."""
+        return {
+            (t, y): self.tray_region(scene, t, y)
+            for t in scene.task_trays
+            for y in scene.base_yaw.yaws
+        }
 
     def grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
         out = []
@@ -169,51 +183,68 @@ class RegionPlanner:
             out.append(self.grasp_cache[key])
         return out
 
-    def tray_region(self, scene: Scene, tray_id: str, yaw: float | None = None) -> TrayRegion:
-        tray = scene.tray(tray_id)
-        yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
-        key = self.region_key(scene, tray, yaw)
-        hit = self.cache.get(key)
-        if hit is not None:
-            return hit
-        region = compute_tray_region(self, scene, tray, yaw, key)
-        if len(self.cache) >= self.cache_size:
-            self.cache.pop(next(iter(self.cache)))
-        self.cache[key] = region
-        return region
 
-    def regions(self, scene: Scene) -> dict[tuple[str, float], TrayRegion]:
-        """Regions of every tray the task needs, at every yaw of the policy."""
-        return {
-            (t, y): self.tray_region(scene, t, y)
-            for t in scene.task_trays
-            for y in scene.base_yaw.yaws
-        }
+@dataclass(frozen=True)
+class _CacheEntry:
+    region: TrayRegion
+    snapshot: dict[str, tuple[str, Bounds]]
 
 
-def _near(geom: BaseGeometry | None, c: np.ndarray, r: float) -> bool:
-    return geom is None or geom.distance(shapely.Point(c)) <= r
+def _snapshot(
+    scene: Scene, exclude: str
+) -> dict[str, tuple[str, list[tuple[np.ndarray, np.ndarray]]]]:
+    """Every other object: its definition and the bounds of its solids."""
+    from pickstop.scene.world import part_solid, pose_matrix, shape_solid, tray_body_solids
+
+    out = {}
+    for o in scene.obstacles:
+        out[f"obstacle:{o.id}"] = (
+            o.model_dump_json(),
+            [shape_solid(o.geometry, pose_matrix(o.pose), o.id).aabb()],
+        )
+    for t in scene.trays:
+        if t.id != exclude:
+            solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
+            out[f"tray:{t.id}"] = (t.model_dump_json(), [s.aabb() for s in solids])
+    return out
+
+
+def _still_valid(entry: _CacheEntry, snap: dict) -> bool:
+    env = entry.region.envelope
+    if env is None:
+        return False
+    for k in entry.snapshot.keys() | snap.keys():
+        old, new = entry.snapshot.get(k), snap.get(k)
+        if old is not None and new is not None and old[0] == new[0]:
+            continue
+        for side in (old, new):
+            if side is not None and any(env.touches(lo, hi) for lo, hi in side[1]):
+                return False
+    return True
 
 
 def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: float) -> np.ndarray:
-    """``(M,)`` True where the base footprint at ``centres: (M, 2)`` is on the floor and clear."""
+    """``(M,)`` True where the base footprint at ``centres: (M, 2)`` is on the floor and clear
+    of every solid reaching below the base body's height (tables, pillars, racks)."""
     fp = robot.config.footprint
     r = fp.bounding_radius
-    blockers = [footprint(o.geometry, o.pose) for o in scene.obstacles]
-    blockers += [tray_footprint(t) for t in scene.trays]
-    geoms = [g for g in blockers if g is not None]
+    geoms = [
+        shapely.Polygon(_floor_outline(s))
+        for s in scene_solids(scene)
+        if s.aabb()[0][2] < fp.height
+    ]
     x, y = centres[:, 0], centres[:, 1]
     floor = shapely.box(*scene.floor.min, *scene.floor.max).buffer(-r)
     ok = shapely.contains_xy(floor, x, y) if not floor.is_empty else np.zeros(len(x), bool)
     if geoms:
+        union = shapely.union_all(geoms)
         if fp.radius is not None:
-            blocked = shapely.union_all(geoms).buffer(fp.radius, quad_segs=8)
+            blocked = union.buffer(fp.radius, quad_segs=8)
             ok &= ~shapely.contains_xy(blocked, x, y) & ~shapely.intersects_xy(
                 blocked.boundary, x, y
             )
         else:
             # Polygon footprint: exact test per candidate cell near an obstacle.
-            union = shapely.union_all(geoms)
             near = ok & shapely.contains_xy(union.buffer(r), x, y)
             poly = np.asarray(fp.polygon)
             c, s = math.cos(yaw), math.sin(yaw)
@@ -221,6 +252,14 @@ def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: fl
             for i in np.flatnonzero(near):
                 ok[i] = not shapely.Polygon(rot + centres[i]).intersects(union)
     return ok
+
+
+def _floor_outline(solid: Solid) -> np.ndarray:
+    """Floor-plane outline of a solid (its bounding box corners projected, convex)."""
+    T, h = solid.T_world_solid, solid.half
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
+    pts = (corners @ T[:3, :3].T + T[:3, 3])[:, :2]
+    return np.asarray(shapely.MultiPoint(pts).convex_hull.exterior.coords)
 
 
 def compute_tray_region(
@@ -231,6 +270,14 @@ def compute_tray_region(
     grid = CellGrid.of(scene)
     counts = {"grid": grid.nx * grid.ny}
     part_ids = tuple(p.id for p in tray.parts)
+
+    env = Envelope.empty(scene.floor.min, scene.floor.max)
+    # The hands reaching into the tray, whatever the grasp: the tray grown by a hand's size.
+    g = scene.gripper
+    hand = g.finger_length + g.palm_depth + 0.5 * g.hand_width
+    for body in tray_body_solids(tray):
+        lo, hi = body.aabb()
+        env.mark_box(lo - hand, hi + np.array([hand, hand, hand + 0.2]))
 
     def empty(reason: str) -> TrayRegion:
         return TrayRegion(
@@ -247,6 +294,7 @@ def compute_tray_region(
             reason,
             time.perf_counter() - t0,
             key,
+            env,
         )
 
     if not tray.parts:
@@ -264,6 +312,8 @@ def compute_tray_region(
     near = np.hypot(*(cen - tc).T) <= reach
     IX, IY, cen = IX[near], IY[near], cen[near]
     counts["in_reach"] = len(IX)
+    fp = robot.config.footprint
+    env.mark_columns(cen, fp.bounding_radius, fp.height)
     if len(IX) == 0:
         return empty(
             f"tray {tray.id!r} is farther than the arm reaches ({reach:.2f} m) from every grid cell"
@@ -288,7 +338,7 @@ def compute_tray_region(
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
                 "fits the open hand without touching the tray, a neighbour or a table"
             )
-        found, th, gi = _solve_part(planner, boxes, solids, gs, cen[alive], Rz_T, yaw)
+        found, th, gi = _solve_part(planner, boxes, solids, gs, cen[alive], Rz_T, yaw, env)
         alive = alive[found]
         witness[alive, k] = th[found]
         grasp_of[alive, k] = gi[found]
@@ -316,6 +366,7 @@ def compute_tray_region(
         None,
         time.perf_counter() - t0,
         key,
+        env,
     )
 
 
@@ -327,6 +378,7 @@ def _solve_part(
     cen: np.ndarray,
     Rz_T: np.ndarray,
     yaw: float,
+    env: Envelope,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,))."""
     db, solver = planner.db, planner.solver
@@ -369,7 +421,7 @@ def _solve_part(
             if len(sel):
                 th = db.thetas(rows[sel])
                 _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
-                hit = screen_arm(planner.arm, boxes, frames, cen[cell[sel]], yaw)
+                hit = screen_arm(planner.arm, boxes, frames, cen[cell[sel]], yaw, env)
                 state[sel] = np.where(hit, 2, 1)
         cand = np.flatnonzero((state == 1) & ~found[cell])
         if len(cand) == 0:
@@ -380,13 +432,19 @@ def _solve_part(
         _, pick = np.unique(cell[cand], return_index=True)
         e = cand[pick]
         state[e] = 2
-        res = refine_batch(solver, db.thetas(rows[e]), R_bt[g[e]], p_bt.reshape(-1, 3)[target[e]])
+        res = refine_batch(
+            solver,
+            db.thetas(rows[e]),
+            R_bt[g[e]],
+            p_bt.reshape(-1, 3)[target[e]],
+            max_iter=REFINE_ITERATIONS,
+        )
         ok = np.flatnonzero(res.success)
         if len(ok) == 0:
             continue
         ths = res.thetas[ok]
         _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(ths.T), frames=True)
-        env_hit = screen_arm(planner.arm, boxes, frames, cen[cell[e[ok]]], yaw)
+        env_hit = screen_arm(planner.arm, boxes, frames, cen[cell[e[ok]]], yaw, env)
         from pickstop.robot.selfcollision import screen
 
         self_hit = screen(planner.self_spheres, frames)

@@ -45,6 +45,7 @@ class Footprint(BaseModel):
 
     radius: Annotated[float, Field(gt=0, lt=5)] | None = None
     polygon: list[tuple[float, float]] | None = None
+    height: Annotated[float, Field(gt=0, lt=3)] = 0.35  # base body: what reaches below it blocks
 
     @model_validator(mode="after")
     def _one_shape(self) -> Footprint:

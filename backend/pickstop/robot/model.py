@@ -171,9 +171,17 @@ def _mesh_refs(urdf_path: Path, package_dirs: list[str]) -> tuple[ET.Element, li
     return root, meshes
 
 
+#: Config fields that do not change what the arm can reach (nor its self-collision): a
+#: reachability database stays valid when only these change.
+_NOT_KINEMATIC = {"footprint", "hand_links", "approach_axis"}
+
+
 def _hash(config: RobotConfig, files: list[Path]) -> str:
+    """Hash of everything a reachability database depends on: config and file contents."""
     h = hashlib.sha256()
-    h.update(json.dumps(config.model_dump(mode="json"), sort_keys=True).encode())
+    h.update(
+        json.dumps(config.model_dump(mode="json", exclude=_NOT_KINEMATIC), sort_keys=True).encode()
+    )
     for f in files:
         h.update(f.name.encode())
         h.update(f.read_bytes())

@@ -111,6 +111,18 @@ def _coal(s: Solid) -> tuple[Any, coal.Transform3s]:
     return s.geometry, s.transform
 
 
+_REQ_TOUCH = coal.CollisionRequest()
+_REQ_TOUCH.security_margin = -TOUCH
+_REQ_EXACT = coal.CollisionRequest()  # coal allows no negative margin for meshes
+
+
+def collide(ga: Any, ta: coal.Transform3s, gb: Any, tb: coal.Transform3s) -> bool:
+    """coal collision of two geometries; between primitives, touching is not colliding."""
+    mesh = isinstance(ga, coal.BVHModelBase) or isinstance(gb, coal.BVHModelBase)
+    req = _REQ_EXACT if mesh else _REQ_TOUCH
+    return bool(coal.collide(ga, ta, gb, tb, req, coal.CollisionResult()))
+
+
 def solids_overlap(a: Solid, b: Solid) -> bool:
     """Exact test with coal; touching (up to ``TOUCH``) is not overlapping."""
     lo_a, hi_a = a.aabb()
@@ -119,10 +131,7 @@ def solids_overlap(a: Solid, b: Solid) -> bool:
         return False
     ga, ta = _coal(a)
     gb, tb = _coal(b)
-    req = coal.CollisionRequest()
-    req.security_margin = -TOUCH
-    res = coal.CollisionResult()
-    return bool(coal.collide(ga, ta, gb, tb, req, res))
+    return collide(ga, ta, gb, tb)
 
 
 def tray_body_solids(tray: Tray) -> list[Solid]:
@@ -190,12 +199,15 @@ class BoxArrays:
     is_cylinder: np.ndarray  # (K,) vertical cylinders: exact radial test
     radius: np.ndarray  # (K,)
     owners: tuple[str, ...]
+    lo: np.ndarray  # (K, 3) world axis-aligned bounds, for a cheap first test
+    hi: np.ndarray  # (K, 3)
 
     @classmethod
     def of(cls, solids: list[Solid]) -> BoxArrays:
         if not solids:
             z = np.zeros((0, 3))
-            return cls(z, np.zeros((0, 3, 3)), z, np.zeros(0, bool), np.zeros(0), ())
+            return cls(z, np.zeros((0, 3, 3)), z, np.zeros(0, bool), np.zeros(0), (), z, z)
+        bounds = [s.aabb() for s in solids]
         return cls(
             centres=np.array([s.T_world_solid[:3, 3] for s in solids]),
             R=np.array([s.T_world_solid[:3, :3] for s in solids]),
@@ -205,6 +217,8 @@ class BoxArrays:
             ),
             radius=np.array([s.radius for s in solids]),
             owners=tuple(s.owner for s in solids),
+            lo=np.array([b[0] for b in bounds]),
+            hi=np.array([b[1] for b in bounds]),
         )
 
 
@@ -214,8 +228,22 @@ def spheres_hit(boxes: BoxArrays, centres: np.ndarray, radii: np.ndarray) -> np.
     Exact for boxes and vertical cylinders, conservative for meshes (their bounding box).
     """
     hit = np.zeros(len(centres), bool)
+    if len(centres) == 0:
+        return hit
+    r_max = float(radii.max())
+    c_lo, c_hi = centres.min(axis=0) - r_max, centres.max(axis=0) + r_max
     for k in range(len(boxes.centres)):
-        d = (centres - boxes.centres[k]) @ boxes.R[k]  # sphere centres in the box frame
+        if np.any(boxes.lo[k] > c_hi) or np.any(boxes.hi[k] < c_lo):
+            continue
+        # Cheap first test against the box's world bounds, exact test for what remains.
+        idx = np.flatnonzero(
+            ~hit
+            & np.all(centres + radii[:, None] > boxes.lo[k], axis=1)
+            & np.all(centres - radii[:, None] < boxes.hi[k], axis=1)
+        )
+        if len(idx) == 0:
+            continue
+        d = (centres[idx] - boxes.centres[k]) @ boxes.R[k]  # sphere centres in the box frame
         if boxes.is_cylinder[k]:
             radial = np.maximum(np.hypot(d[:, 0], d[:, 1]) - boxes.radius[k], 0.0)
             axial = np.maximum(np.abs(d[:, 2]) - boxes.half[k, 2], 0.0)
@@ -223,5 +251,5 @@ def spheres_hit(boxes: BoxArrays, centres: np.ndarray, radii: np.ndarray) -> np.
         else:
             q = np.maximum(np.abs(d) - boxes.half[k], 0.0)
             dist2 = np.einsum("ij,ij->i", q, q)
-        hit |= dist2 < (radii - TOUCH) ** 2
+        hit[idx[dist2 < (radii[idx] - TOUCH) ** 2]] = True
     return hit

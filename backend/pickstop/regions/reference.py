@@ -1,0 +1,580 @@
+"""Reference computations of a tray's base region, without the reachability database.
+
+``baseline_region`` is the paper's comparison with a conventional IK solver: one numerical
+solution per (cell, part, grasp) from a fixed seed, then an exact collision check of that
+solution. ``oracle_region`` is dense multi-start IK: many uniform random seeds per (cell, part,
+grasp), escalated only where nothing valid was found yet, every converged solution checked.
+
+Both see what production sees: the same grid, yaw, footprint-free cells within reach, grasps,
+and collision model (arm links against the scene solids, enabled link pairs against each
+other). The sphere screens decide nothing but "surely free"; whatever they flag goes to coal.
+Witnesses are judged on the numpy FK (1 mm, 0.5 deg) and the joint limits.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import weakref
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+import shapely
+
+from pickstop.reach.batch_ik import BatchSolver, refine_batch
+from pickstop.reach.ik import POS_TOL, ROT_TOL
+from pickstop.regions.arm import ExactArm, nearby, screen_arm
+from pickstop.regions.base_region import CellGrid, RegionPlanner, TrayRegion, footprint_free
+from pickstop.robot.kinematics import fk, fk_soa
+from pickstop.robot.model import RobotModel
+from pickstop.robot.screen import screen
+from pickstop.scene.grasps import GraspSet
+from pickstop.scene.model import Scene, Tray
+from pickstop.scene.world import TOUCH, BoxArrays, Solid, _coal, scene_solids
+
+CHUNK = 16_384  # IK problems per refine_batch call: keeps the working set small
+BASELINE_ITERATIONS = 100
+ORACLE_SEEDS = (4, 16, 64, 256)  # cumulative random seeds per (cell, part, grasp), by round
+
+
+# -- exact arm check ---------------------------------------------------------------------------
+class TouchingArm(ExactArm):
+    """:class:`ExactArm` that also works for mesh links.
+
+    coal 3.0 refuses a negative security margin for BVH models (it raises ``ValueError``), so a
+    mesh link is tested at margin 0 against its primitive solid shrunk by ``TOUCH``: a point
+    deeper than ``TOUCH`` inside a box or a cylinder is a point inside the shrunk one. A scene
+    mesh cannot be shrunk; against it touching already counts (stricter by ``TOUCH``).
+    """
+
+    def __init__(self, robot: RobotModel) -> None:
+        super().__init__(robot)
+        self.req_zero = coal.CollisionRequest()
+        self.bvh = np.array(
+            [
+                robot.geom_model.geometryObjects[i].geometry.getObjectType()
+                == coal.OBJECT_TYPE.OT_BVH
+                for i in self.ids
+            ]
+        )
+        self.c_local = np.array([c for c, _ in self.local_boxes])  # (L, 3)
+        self.h_local = np.array([h for _, h in self.local_boxes])  # (L, 3)
+        self._solid: weakref.WeakKeyDictionary[Solid, tuple[Any, ...]] = weakref.WeakKeyDictionary()
+
+    def _prepared(self, s: Solid) -> tuple[Any, ...]:
+        hit = self._solid.get(s)
+        if hit is None:
+            lo, hi = s.aabb()
+            g, tf = _coal(s)
+            if s.kind == "box":
+                shrunk: tuple[Any, Any] = (coal.Box(*(2 * s.half - 2 * TOUCH)), s.transform)
+            elif s.kind == "cylinder":
+                shrunk = (coal.Cylinder(s.radius - TOUCH, 2 * s.half[2] - 2 * TOUCH), s.transform)
+            else:
+                shrunk = (g, tf)
+            hit = (lo, hi, g, tf, *shrunk, s.kind == "mesh")
+            self._solid[s] = hit
+        return hit
+
+    def colliding(
+        self, theta: np.ndarray, x: float, y: float, yaw: float, solids: list[Solid]
+    ) -> bool:
+        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``?"""
+        if not solids:
+            return False
+        q = self.robot.angles_to_q(np.asarray(theta, dtype=float))
+        pin.forwardKinematics(self.robot.model, self.data, q)
+        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
+        T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
+        Ms = [T_wb * self.gdata.oMg[i] for i in self.ids]
+        R = np.stack([M.rotation for M in Ms])
+        c = np.einsum("lij,lj->li", R, self.c_local) + np.stack([M.translation for M in Ms])
+        h = np.einsum("lij,lj->li", np.abs(R), self.h_local)
+        prep = [self._prepared(s) for s in solids]
+        lo = np.stack([p[0] for p in prep])
+        hi = np.stack([p[1] for p in prep])
+        near = np.all(c[:, None] - h[:, None] <= hi[None], axis=2) & np.all(
+            c[:, None] + h[:, None] >= lo[None], axis=2
+        )
+        for link, k in zip(*np.nonzero(near), strict=True):
+            geom = self.robot.geom_model.geometryObjects[self.ids[link]].geometry
+            tf = coal.Transform3s(Ms[link].rotation, Ms[link].translation)
+            _, _, g, g_tf, g_shrunk, tf_shrunk, is_mesh = prep[k]
+            if self.bvh[link] or is_mesh:
+                hit = coal.collide(
+                    geom, tf, g_shrunk, tf_shrunk, self.req_zero, coal.CollisionResult()
+                )
+            else:
+                hit = coal.collide(geom, tf, g, g_tf, self.req, coal.CollisionResult())
+            if hit:
+                return True
+        return False
+
+
+# -- what production sees ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class Candidates:
+    """Footprint-free base cells within reach of a tray, selected as production selects them."""
+
+    grid: CellGrid
+    cells: np.ndarray  # (M, 2) int (iy, ix)
+    centres: np.ndarray  # (M, 2) [m]
+    counts: dict[str, int]
+    reason: str | None  # why there is no candidate, if there is none
+
+
+def candidate_cells(planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float) -> Candidates:
+    """The cells :func:`compute_tray_region` tries: within reach of the tray and clear."""
+    grid = CellGrid.of(scene)
+    counts = {"grid": grid.nx * grid.ny}
+    none = np.zeros((0, 2), int)
+    tc = np.array([tray.pose.x, tray.pose.y])
+    reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
+    lo = np.floor((tc - reach - [grid.x0, grid.y0]) / grid.res).astype(int)
+    hi = np.ceil((tc + reach - [grid.x0, grid.y0]) / grid.res).astype(int)
+    IX2, IY2 = np.meshgrid(
+        np.arange(max(lo[0], 0), min(hi[0], grid.nx)), np.arange(max(lo[1], 0), min(hi[1], grid.ny))
+    )
+    IX, IY = IX2.ravel(), IY2.ravel()
+    cen = grid.centres(IX, IY)
+    near = np.hypot(*(cen - tc).T) <= reach
+    IX, IY, cen = IX[near], IY[near], cen[near]
+    counts["in_reach"] = len(IX)
+    if len(IX) == 0:
+        reason = (
+            f"tray {tray.id!r} is farther than the arm reaches ({reach:.2f} m) from every grid cell"
+        )
+        return Candidates(grid, none, np.zeros((0, 2)), counts, reason)
+    free = footprint_free(scene, planner.robot, cen, yaw)
+    IX, IY, cen = IX[free], IY[free], cen[free]
+    counts["footprint_free"] = len(IX)
+    reason = None
+    if len(IX) == 0:
+        reason = f"no cell within reach of tray {tray.id!r} has room for the base footprint"
+    return Candidates(grid, np.stack([IY, IX], 1), cen, counts, reason)
+
+
+@dataclass(frozen=True)
+class ReachBound:
+    """Where the last joint's origin can be: within ``radius`` of the segment ``a``-``b``.
+
+    The target pose fixes the last joint's frame (the tool sits at a fixed offset in it). The
+    first revolute joint's origin moves only with the prismatic joints before it, along
+    ``a``-``b`` (or within ``radius`` of its midpoint when several precede it), and the last
+    joint's origin stays within the summed link offsets of it. A target whose last joint origin
+    lies farther has no IK solution, from any seed.
+    """
+
+    a: np.ndarray  # (3,) [m] base frame
+    b: np.ndarray  # (3,) [m]
+    radius: float  # [m]
+    R_joint_tool: np.ndarray  # (3, 3)
+    p_joint_tool: np.ndarray  # (3,) [m]
+
+    @classmethod
+    def of(cls, solver: BatchSolver) -> ReachBound:
+        ch = solver.chain
+        revolute = np.flatnonzero(~ch.prismatic)
+        if len(revolute) == 0:
+            return cls(np.zeros(3), np.zeros(3), math.inf, ch.R_joint_tool, ch.p_joint_tool)
+        k = int(revolute[0])
+        th = np.zeros((2, ch.dof))
+        th[0, :k], th[1, :k] = solver.lower[:k], solver.upper[:k]
+        _, _, frames = fk_soa(ch, np.ascontiguousarray(th.T), frames=True)
+        a, b = frames[k][1][:, 0], frames[k][1][:, 1]
+        r = float(np.linalg.norm(ch.p_parent_joint[k + 1 :], axis=1).sum())
+        stroke = np.maximum(np.abs(solver.lower), np.abs(solver.upper))
+        r += float(stroke[ch.prismatic & (np.arange(ch.dof) > k)].sum())
+        if k > 1:  # a box of prismatic strokes: a ball about its centre
+            r += float(0.5 * (solver.upper[:k] - solver.lower[:k]).sum())
+            a = b = 0.5 * (a + b)
+        # A converged solution may miss its target by the IK tolerances.
+        r += POS_TOL + ROT_TOL * float(np.linalg.norm(ch.p_joint_tool)) + 1e-6
+        return cls(a, b, r, ch.R_joint_tool, ch.p_joint_tool)
+
+    def contains(self, Rs: np.ndarray, ps: np.ndarray) -> np.ndarray:
+        """``(N,)`` False where no configuration reaches ``T_base_tool``: ``Rs: (N, 3, 3)``,
+        ``ps: (N, 3)`` [m]."""
+        wrist = ps - np.einsum("nij,kj,k->ni", Rs, self.R_joint_tool, self.p_joint_tool)
+        d = self.b - self.a
+        t = np.clip((wrist - self.a) @ d / max(float(d @ d), 1e-300), 0.0, 1.0)
+        gap = np.linalg.norm(wrist - (self.a + t[:, None] * d), axis=1)
+        return gap <= self.radius
+
+
+@dataclass
+class _Setup:
+    """One tray's problem: candidate cells, grasp targets in the base frame, solids, checks."""
+
+    planner: RegionPlanner
+    tray: Tray
+    yaw: float
+    cand: Candidates
+    grasps: list[GraspSet]
+    solids: list[Solid]
+    boxes: BoxArrays
+    arm: TouchingArm
+    bound: ReachBound
+    R_base_world: np.ndarray  # (3, 3)
+    stats: dict[str, int]
+
+    def targets(self, k: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Part ``k``'s grasp targets from candidate ``cells: (M,)``: R (G, 3, 3), p (M, G, 3)."""
+        Ts = self.grasps[k].Ts_world_tool
+        R = np.einsum("ij,gjk->gik", self.R_base_world, Ts[:, :3, :3])
+        cen = np.concatenate([self.cand.centres[cells], np.zeros((len(cells), 1))], 1)
+        p = (Ts[None, :, :3, 3] - cen[:, None]) @ self.R_base_world.T
+        return R, p
+
+    def valid(self, cells: np.ndarray, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Screen ``thetas: (N, dof)`` at candidate ``cells: (N,)``: (surely free, flagged)."""
+        pl = self.planner
+        free = np.zeros(len(cells), bool)
+        for s in range(0, len(cells), CHUNK):
+            th = np.ascontiguousarray(thetas[s : s + CHUNK].T)
+            _, _, frames = fk_soa(pl.solver.chain, th, frames=True)
+            env = screen_arm(
+                pl.arm, self.boxes, frames, self.cand.centres[cells[s : s + CHUNK]], self.yaw
+            )
+            own = screen(pl.self_spheres, frames)
+            free[s : s + CHUNK] = ~env & ~own
+        return free, ~free
+
+    def exact_ok(self, cell: int, theta: np.ndarray) -> bool:
+        """Coal: neither the arm against the solids nor the robot against itself."""
+        self.stats["exact_checks"] += 1
+        if self.planner.exact_self.colliding(theta[None])[0]:
+            return False
+        x, y = self.cand.centres[cell]
+        return not self.arm.colliding(theta, float(x), float(y), self.yaw, self.solids)
+
+
+_ARMS: dict[str, TouchingArm] = {}
+
+
+def touching_arm(robot: RobotModel) -> TouchingArm:
+    """One :class:`TouchingArm` per robot and process."""
+    arm = _ARMS.get(robot.robot_hash)
+    if arm is None:
+        arm = _ARMS[robot.robot_hash] = TouchingArm(robot)
+    return arm
+
+
+def _setup(
+    planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float, cand: Candidates
+) -> _Setup:
+    tc = np.array([tray.pose.x, tray.pose.y])
+    reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
+    solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return _Setup(
+        planner,
+        tray,
+        yaw,
+        cand,
+        planner.grasps(scene, tray),
+        solids,
+        BoxArrays.of(solids),
+        touching_arm(planner.robot),
+        ReachBound.of(planner.solver),
+        np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]),
+        {"ik_problems": 0, "ik_converged": 0, "exact_checks": 0},
+    )
+
+
+# -- the shared solve loop ---------------------------------------------------------------------
+SeedFn = Callable[[int, int, np.ndarray, np.ndarray, int], np.ndarray]
+
+
+def _solve_part(
+    st: _Setup,
+    k: int,
+    cells: np.ndarray,
+    rounds: Sequence[int],
+    seeds: SeedFn,
+    max_iter: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Part ``k`` from candidate ``cells: (M,)``: found (M,), witnesses (M, dof), grasps (M,).
+
+    Round r gives each unresolved (cell, grasp) ``rounds[r]`` new seeds from
+    ``seeds(r, k, cells (Q, 2) (iy, ix), grasps (Q,), n) -> (Q, n, dof)``; every converged
+    solution counts.
+    """
+    solver = st.planner.solver
+    M, dof = len(cells), solver.chain.dof
+    R_t, p_t = st.targets(k, cells)
+    G = len(R_t)
+    reachable = st.bound.contains(
+        np.broadcast_to(R_t, (M, G, 3, 3)).reshape(-1, 3, 3), p_t.reshape(-1, 3)
+    )
+    reachable = reachable.reshape(M, G)
+    found = np.zeros(M, bool)
+    th_out = np.zeros((M, dof))
+    g_out = np.zeros(M, int)
+    for r, n in enumerate(rounds):
+        qa, qg = np.nonzero(reachable & ~found[:, None])
+        if len(qa) == 0 or n == 0:
+            break
+        th0 = seeds(r, k, st.cand.cells[cells[qa]], qg, n).reshape(-1, dof)
+        pa, pg = np.repeat(qa, n), np.repeat(qg, n)
+        st.stats["ik_problems"] += len(pa)
+        conv = np.zeros(len(pa), bool)
+        th = np.empty_like(th0)
+        for s in range(0, len(pa), CHUNK):
+            sl = slice(s, s + CHUNK)
+            res = refine_batch(solver, th0[sl], R_t[pg[sl]], p_t[pa[sl], pg[sl]], max_iter=max_iter)
+            conv[sl], th[sl] = res.success, res.thetas
+        ok = np.flatnonzero(conv)
+        ok = ok[pose_ok(solver, th[ok], R_t[pg[ok]], p_t[pa[ok], pg[ok]])]
+        st.stats["ik_converged"] += len(ok)
+        free, _ = st.valid(cells[pa[ok]], th[ok])
+        # Problems are ordered (cell, grasp, seed): the first valid solution of a cell wins.
+        sure = ok[free]
+        _, first = np.unique(pa[sure], return_index=True)
+        hit = sure[first]
+        found[pa[hit]], th_out[pa[hit]], g_out[pa[hit]] = True, th[hit], pg[hit]
+        for j in ok[~free]:
+            a = pa[j]
+            if not found[a] and st.exact_ok(cells[a], th[j]):
+                found[a], th_out[a], g_out[a] = True, th[j], pg[j]
+    return found, th_out, g_out
+
+
+def pose_ok(solver: BatchSolver, thetas: np.ndarray, Rs: np.ndarray, ps: np.ndarray) -> np.ndarray:
+    """``(N,)``: numpy FK of ``thetas: (N, dof)`` within 1 mm and 0.5 deg of the targets and
+    every joint within its limits."""
+    if len(thetas) == 0:
+        return np.zeros(0, bool)
+    R, p = fk(solver.chain, thetas)
+    cos = (np.einsum("nij,nij->n", R, Rs) - 1.0) / 2.0
+    ang = np.arccos(np.clip(cos, -1.0, 1.0))
+    inside = np.all((thetas >= solver.lower - 1e-9) & (thetas <= solver.upper + 1e-9), axis=1)
+    return (np.linalg.norm(p - ps, axis=1) <= POS_TOL) & (ang <= ROT_TOL) & inside
+
+
+def _region(
+    planner: RegionPlanner,
+    scene: Scene,
+    tray_id: str,
+    yaw: float | None,
+    rounds: Sequence[int],
+    seeds: SeedFn,
+    max_iter: int,
+    cells: np.ndarray | None,
+    t0: float,
+) -> TrayRegion:
+    tray = scene.tray(tray_id)
+    yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
+    cand = candidate_cells(planner, scene, tray, yaw)
+    grid, counts = cand.grid, dict(cand.counts)
+    part_ids = tuple(p.id for p in tray.parts)
+    P, dof = len(part_ids), planner.robot.dof
+
+    def result(idx: np.ndarray, th: np.ndarray, gi: np.ndarray, reason: str | None) -> TrayRegion:
+        sel = cand.cells[idx]
+        mask = np.zeros((grid.ny, grid.nx), bool)
+        mask[sel[:, 0], sel[:, 1]] = True
+        counts["feasible"] = len(idx)
+        return TrayRegion(
+            tray.id,
+            yaw,
+            grid,
+            mask,
+            sel,
+            part_ids,
+            th,
+            gi,
+            grid.cells_polygon(sel[:, 0], sel[:, 1]) if len(sel) else shapely.Polygon(),
+            counts,
+            reason,
+            time.perf_counter() - t0,
+        )
+
+    def empty(reason: str) -> TrayRegion:
+        return result(np.zeros(0, int), np.zeros((0, P, dof)), np.zeros((0, P), int), reason)
+
+    if not tray.parts:
+        return empty(f"tray {tray.id!r} has no parts")
+    if cand.reason is not None:
+        return empty(cand.reason)
+    idx = np.arange(len(cand.cells))
+    if cells is not None:
+        want = np.asarray(cells, dtype=int).reshape(-1, 2)
+        lin = cand.cells[:, 0] * grid.nx + cand.cells[:, 1]
+        idx = idx[np.isin(lin, want[:, 0] * grid.nx + want[:, 1])]
+        counts["requested"] = len(want)
+    counts["evaluated"] = len(idx)
+    if len(idx) == 0:
+        return empty(f"none of the requested cells is a free cell within reach of {tray.id!r}")
+    st = _setup(planner, scene, tray, yaw, cand)
+    alive = idx
+    witness = np.zeros((len(cand.cells), P, dof))
+    grasp_of = np.zeros((len(cand.cells), P), int)
+    for k, gs in enumerate(st.grasps):
+        if len(gs.Ts_world_tool) == 0:
+            return empty(
+                f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
+                "fits the open hand without touching the tray, a neighbour or a table"
+            )
+        found, th, gi = _solve_part(st, k, alive, rounds, seeds, max_iter)
+        alive = alive[found]
+        witness[alive, k], grasp_of[alive, k] = th[found], gi[found]
+        counts[f"feasible_after_{gs.part_id}"] = len(alive)
+        if len(alive) == 0:
+            counts.update(st.stats)
+            return empty(
+                f"no base cell lets the arm grasp part {gs.part_id!r} of tray {tray.id!r} "
+                f"without collision (of {len(idx)} reachable free cells evaluated)"
+            )
+    counts.update(st.stats)
+    return result(alive, witness[alive], grasp_of[alive], None)
+
+
+# -- the two references ------------------------------------------------------------------------
+def baseline_region(
+    planner: RegionPlanner,
+    scene: Scene,
+    tray_id: str,
+    yaw: float | None = None,
+    seed_theta: np.ndarray | None = None,
+    *,
+    max_iter: int = BASELINE_ITERATIONS,
+    cells: np.ndarray | None = None,
+) -> TrayRegion:
+    """The conventional-IK region: per (cell, part, grasp) one damped least squares solve from
+    ``seed_theta: (dof,)`` (default: mid-range of the joint limits), then an exact check.
+
+    A part is graspable from a cell if any grasp's single solution is valid; a cell is
+    feasible if every part is. ``cells: (N, 2)`` (iy, ix) restricts the evaluation.
+    """
+    t0 = time.perf_counter()
+    solver = planner.solver
+    seed = 0.5 * (solver.lower + solver.upper) if seed_theta is None else np.asarray(seed_theta)
+    assert seed.shape == (solver.chain.dof,), seed.shape
+
+    def seeds(r: int, k: int, cells: np.ndarray, grasps: np.ndarray, n: int) -> np.ndarray:
+        return np.broadcast_to(seed, (len(cells), n, len(seed)))
+
+    return _region(planner, scene, tray_id, yaw, (1,), seeds, max_iter, cells, t0)
+
+
+def oracle_region(
+    planner: RegionPlanner,
+    scene: Scene,
+    tray_id: str,
+    yaw: float | None = None,
+    seeds: Sequence[int] = ORACLE_SEEDS,
+    rng_seed: int = 0,
+    *,
+    max_iter: int = BASELINE_ITERATIONS,
+    cells: np.ndarray | None = None,
+) -> TrayRegion:
+    """Dense multi-start IK: up to ``seeds[-1]`` uniform random seeds per (cell, part, grasp).
+
+    ``seeds`` are cumulative counts: round r adds ``seeds[r] - seeds[r - 1]`` seeds to the
+    (cell, part) pairs with no valid solution yet. A part is graspable if any converged
+    solution of any grasp is free of collision (screen-free, else coal). Targets outside the
+    :class:`ReachBound` are skipped (no seed can reach them). ``cells: (N, 2)`` (iy, ix)
+    restricts the evaluation; the mask then holds only those. Each (cell, part, grasp, round)
+    draws from its own generator, so a cell's answer does not depend on the others evaluated.
+    """
+    t0 = time.perf_counter()
+    totals = np.asarray(seeds, dtype=int)
+    assert totals.ndim == 1 and len(totals) and np.all(np.diff(totals) > 0) and totals[0] > 0
+    rounds = tuple(int(n) for n in np.diff(totals, prepend=0))
+    solver = planner.solver
+
+    def draw(r: int, k: int, cells: np.ndarray, grasps: np.ndarray, n: int) -> np.ndarray:
+        out = np.empty((len(cells), n, solver.chain.dof))
+        for q, ((iy, ix), g) in enumerate(zip(cells, grasps, strict=True)):
+            rng = np.random.default_rng([rng_seed, int(iy), int(ix), k, int(g), r])
+            out[q] = rng.uniform(solver.lower, solver.upper, (n, solver.chain.dof))
+        return out
+
+    return _region(planner, scene, tray_id, yaw, rounds, draw, max_iter, cells, t0)
+
+
+# -- checking a region -------------------------------------------------------------------------
+@dataclass(frozen=True)
+class WitnessCheck:
+    """Every witness of a region re-checked from scratch: numpy FK, limits, coal."""
+
+    witnesses: int
+    pose_failures: int  # FK off its grasp target by more than 1 mm or 0.5 deg, or off limits
+    arm_collisions: int  # arm links against the scene solids
+    self_collisions: int  # enabled link pairs
+
+    @property
+    def failures(self) -> int:
+        return self.pose_failures + self.arm_collisions + self.self_collisions
+
+
+def verify_witnesses(planner: RegionPlanner, scene: Scene, region: TrayRegion) -> WitnessCheck:
+    """Re-check every witness of ``region`` exactly, against every solid of the scene."""
+    tray = scene.tray(region.tray_id)
+    grasps = planner.grasps(scene, tray)
+    K, P = region.grasp_index.shape
+    if K == 0:
+        return WitnessCheck(0, 0, 0, 0)
+    c, s = math.cos(region.yaw), math.sin(region.yaw)
+    R_bw = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    cen = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
+    Ts = np.stack([grasps[k].Ts_world_tool[region.grasp_index[:, k]] for k in range(P)], 1)
+    Rs = np.einsum("ij,kpjl->kpil", R_bw, Ts[..., :3, :3])
+    ps = (Ts[..., :3, 3] - np.concatenate([cen, np.zeros((K, 1))], 1)[:, None]) @ R_bw.T
+    th = region.thetas.reshape(K * P, -1)
+    pose_bad = ~pose_ok(planner.solver, th, Rs.reshape(-1, 3, 3), ps.reshape(-1, 3))
+    own = planner.exact_self.colliding(th)
+    arm = touching_arm(planner.robot)
+    solids = scene_solids(scene)
+    env = np.array([arm.colliding(t, *cen[i // P], region.yaw, solids) for i, t in enumerate(th)])
+    return WitnessCheck(K * P, int(pose_bad.sum()), int(env.sum()), int(own.sum()))
+
+
+@dataclass(frozen=True)
+class ComparisonCells:
+    """Where an oracle is run to check a region: (N, 2) (iy, ix) arrays."""
+
+    region: np.ndarray  # the region's feasible cells
+    band: np.ndarray  # candidates outside it within ``width`` cells of its boundary
+    sample: np.ndarray  # a random sample of the other candidates
+
+    @property
+    def all(self) -> np.ndarray:
+        return np.concatenate([self.region, self.band, self.sample])
+
+
+def dilate(mask: np.ndarray, width: int) -> np.ndarray:
+    """Cells within Chebyshev distance ``width`` of a True cell of ``mask: (ny, nx)``."""
+    out = mask.copy()
+    for _ in range(width):
+        m = out.copy()
+        m[1:] |= out[:-1]
+        m[:-1] |= out[1:]
+        out = m.copy()
+        out[:, 1:] |= m[:, :-1]
+        out[:, :-1] |= m[:, 1:]
+    return out
+
+
+def comparison_cells(
+    planner: RegionPlanner,
+    scene: Scene,
+    region: TrayRegion,
+    width: int = 2,
+    sample: int = 200,
+    rng_seed: int = 0,
+) -> ComparisonCells:
+    """The region's cells, every candidate within ``width`` cells of its boundary (outside it)
+    and ``sample`` random other candidates (footprint-free, within reach)."""
+    cand = candidate_cells(planner, scene, scene.tray(region.tray_id), region.yaw).cells
+    near = dilate(region.mask, width)[cand[:, 0], cand[:, 1]]
+    inside = region.mask[cand[:, 0], cand[:, 1]]
+    band = cand[near & ~inside]
+    rest = cand[~near]
+    pick = np.random.default_rng(rng_seed).permutation(len(rest))[:sample]
+    return ComparisonCells(region.cells, band, rest[np.sort(pick)])

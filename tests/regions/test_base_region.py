@@ -1,0 +1,155 @@
+"""Base regions: verified witnesses, explained emptiness, precise cache invalidation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pickstop.reach.so3 import quats_to_matrices
+from pickstop.regions.arm import ExactArm, screen_arm
+from pickstop.regions.geojson import read_polygons, regions_geojson
+from pickstop.robot.kinematics import Chain, fk, fk_soa
+from pickstop.scene.model import parse_scene
+from pickstop.scene.world import BoxArrays, scene_solids
+
+
+def test_every_feasible_cell_has_exactly_verified_witnesses(planner, paper_doc, tiago):
+    from pickstop.robot.artifacts import self_collision
+    from pickstop.robot.selfcollision import ExactSelfCollision
+
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "tray_2")
+    assert region.reason is None and len(region.cells) > 20
+    chain = Chain.from_robot(tiago)
+    grasps = planner.grasps(scene, scene.tray("tray_2"))
+    solids = scene_solids(scene)
+    exact_arm = ExactArm(tiago)
+    exact_self = ExactSelfCollision(tiago, self_collision(tiago, planner.cache_dir)[0])
+    yaw = region.yaw
+    c, s = np.cos(yaw), np.sin(yaw)
+    xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
+    for k, gs in enumerate(grasps):
+        th = region.thetas[:, k]
+        R, p = fk(chain, th)
+        for i in range(len(th)):
+            T_wt = gs.Ts_world_tool[region.grasp_index[i, k]]
+            # The tool pose in the world from the witness on its base cell.
+            Rw = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ R[i]
+            pw = np.array(
+                [
+                    c * p[i, 0] - s * p[i, 1] + xy[i, 0],
+                    s * p[i, 0] + c * p[i, 1] + xy[i, 1],
+                    p[i, 2],
+                ]
+            )
+            assert np.linalg.norm(pw - T_wt[:3, 3]) <= 1e-3
+            cosang = (np.trace(Rw.T @ T_wt[:3, :3]) - 1) / 2
+            assert np.arccos(np.clip(cosang, -1, 1)) <= np.radians(0.5) + 1e-9
+            assert (th[i] >= tiago.lower - 1e-9).all() and (th[i] <= tiago.upper + 1e-9).all()
+            assert not exact_arm.colliding(th[i], xy[i, 0], xy[i, 1], yaw, solids)
+        assert not exact_self.colliding(th).any()
+
+
+def test_region_polygon_matches_cells_and_geojson_round_trip(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "tray_1")
+    assert region.polygon.area == pytest.approx(region.area, rel=1e-9)
+    assert region.mask.sum() == len(region.cells)
+    doc = json.loads(json.dumps(regions_geojson([region])))
+    polys = read_polygons(doc)
+    assert polys[("tray_1", region.yaw)].symmetric_difference(region.polygon).area < 1e-9
+    props = doc["features"][0]["properties"]
+    assert props["cells"] == len(region.cells) and props["area_m2"] == pytest.approx(region.area)
+
+
+def test_tray_out_of_reach_has_empty_region_with_reason(planner, paper_doc):
+    # A tray on a high shelf: the base can stand in front, the arm cannot reach it.
+    paper_doc["obstacles"].append(
+        {
+            "id": "shelf",
+            "geometry": {"shape": "box", "size": [0.6, 0.4, 2.0]},
+            "pose": {"x": 3.6, "y": 2.6, "z": 0.0, "yaw": 0.0},
+        }
+    )
+    paper_doc["trays"].append(
+        {
+            "id": "high",
+            "pose": {"x": 3.6, "y": 2.6, "z": 2.005, "yaw": 0.0},
+            "inner_size": [0.3, 0.2],
+            "parts": [{"id": "hp", "geometry": {"shape": "box", "size": [0.04, 0.04, 0.03]}}],
+        }
+    )
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "high")
+    assert len(region.cells) == 0 and region.polygon.is_empty
+    assert "part 'hp'" in region.reason and "tray 'high'" in region.reason
+
+
+def test_tray_beyond_the_grid_explains(planner, paper_doc):
+    paper_doc["base_grid"] = {
+        "resolution": 0.05,
+        "extent": {"min": [-1.0, -1.0], "max": [0.0, 0.0]},
+    }
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "tray_4")
+    assert len(region.cells) == 0 and "farther than the arm reaches" in region.reason
+
+
+def test_moving_a_tray_recomputes_only_what_it_affects(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    before = {t: planner.tray_region(scene, t) for t in ("tray_1", "tray_2", "tray_4")}
+    # tray_4 sits on its own table 2 m away; slide it along that table.
+    for t in paper_doc["trays"]:
+        if t["id"] == "tray_4":
+            t["pose"]["x"] += 0.2
+    moved = parse_scene(paper_doc)
+    after = {t: planner.tray_region(moved, t) for t in ("tray_1", "tray_2", "tray_4")}
+    assert after["tray_1"] is before["tray_1"]
+    assert after["tray_2"] is before["tray_2"]
+    assert after["tray_4"] is not before["tray_4"]
+    # Bring tray_3 (not in the task) right next to tray_2: tray_2's region must be recomputed.
+    for t in paper_doc["trays"]:
+        if t["id"] == "tray_3":
+            t["pose"]["x"] = 1.73
+    crowded = parse_scene(paper_doc)
+    assert planner.tray_region(crowded, "tray_2") is not after["tray_2"]
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_environment_screen_is_conservative(planner, tiago, seed):
+    """Screen 'free' is guaranteed: coal finds no collision where the screen finds none."""
+    from pickstop.scene.model import load_scene
+    from tests.regions.conftest import EXAMPLES
+
+    scene = load_scene(EXAMPLES / "paper_experiment.json")
+    solids = scene_solids(scene)
+    boxes = BoxArrays.of(solids)
+    rng = np.random.default_rng(seed)
+    n = 150
+    th = rng.uniform(tiago.lower, tiago.upper, (n, tiago.dof))
+    # Bases in front of the tables, where the arm often reaches into the trays and tables.
+    xy = np.stack([rng.uniform(0.5, 2.2, n), rng.uniform(0.6, 1.1, n)], 1)
+    yaw = float(rng.uniform(0, 2 * np.pi))
+    _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    flagged = screen_arm(planner.arm, boxes, frames, xy, yaw)
+    exact = ExactArm(tiago)
+    colliding = np.array(
+        [exact.colliding(th[i], xy[i, 0], xy[i, 1], yaw, solids) for i in range(n)]
+    )
+    assert not (colliding & ~flagged).any()
+    assert flagged.sum() >= colliding.sum()
+
+
+def test_top_down_grasp_targets_point_down(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    for gs in planner.grasps(scene, scene.tray("tray_1")):
+        approach = gs.Ts_world_tool[:, :3, 0]
+        assert np.allclose(approach, [0, 0, -1], atol=1e-9)
+    assert quats_to_matrices(np.array([0.70710678, 0, 0.70710678, 0]))[2, 0] == pytest.approx(
+        -1, abs=1e-6
+    )
