@@ -1,0 +1,141 @@
+"""Choose the stops: fewest stops serving every required tray once, then the shortest route.
+
+One CP-SAT model holds both: stop choice (x_c), which stop serves which tray (y_ct: every
+required tray exactly once, only by a chosen stop that lies in its region, every chosen stop
+serving at least one) and the route start -> chosen stops -> goal as a circuit whose unchosen
+stops are skipped by self-loops. Lexicographic optimum: first the fewest stops, then, with the
+count fixed, the shortest route (or the least predicted time).
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from ortools.sat.python import cp_model
+
+from pickstop.errors import PickStopError
+
+SCALE = 1000  # costs are integers: millimetres or milliseconds
+
+
+class InfeasiblePlanError(PickStopError):
+    """No plan exists; the message names the trays and numbers involved."""
+
+    exit_code = 3
+
+
+@dataclass(frozen=True)
+class Selection:
+    order: tuple[int, ...]  # chosen candidates in visiting order
+    serves: dict[str, int]  # required tray -> candidate serving it
+    cost: float  # route length [m] or predicted time [s] of the chosen order
+    optimal: bool  # proven by the solver
+    seconds: float
+
+
+def select_stops(
+    trays_of: list[frozenset[str]],
+    required: list[str],
+    cost: np.ndarray,
+    *,
+    objective: Literal["stops", "time"] = "stops",
+    stop_cost: float = 0.0,
+    time_limit: float = 20.0,
+    workers: int = 8,
+) -> Selection:
+    """Pick stops among candidates.
+
+    trays_of: trays each candidate can serve (candidate c is node c + 2).
+    cost: (N + 2, N + 2) leg costs between nodes (0 = start, 1 = goal) [m or s].
+    objective: "stops" minimises the number of stops, then the route cost; "time" minimises
+    route cost + ``stop_cost`` per stop directly.
+    """
+    t0 = time.perf_counter()
+    N = len(trays_of)
+    assert cost.shape == (N + 2, N + 2)
+    req = list(dict.fromkeys(required))
+    servable = {t: [c for c in range(N) if t in trays_of[c]] for t in req}
+    missing = [t for t in req if not servable[t]]
+    if missing:
+        raise InfeasiblePlanError(
+            f"no candidate stop serves tray(s) {', '.join(missing)}", field="trays"
+        )
+    model = cp_model.CpModel()
+    x = [model.NewBoolVar(f"x{c}") for c in range(N)]
+    y = {(c, t): model.NewBoolVar(f"y{c}_{t}") for t in req for c in servable[t]}
+    for t in req:
+        model.AddExactlyOne(y[c, t] for c in servable[t])
+    for c in range(N):
+        mine = [y[c, t] for t in req if (c, t) in y]
+        for v in mine:
+            model.AddImplication(v, x[c])
+        if mine:
+            model.AddBoolOr(mine).OnlyEnforceIf(x[c])
+        else:
+            model.Add(x[c] == 0)
+    # Route: a circuit through start (0), goal (1) and the chosen stops, closed by goal->start.
+    icost = np.where(np.isfinite(cost), np.round(cost * SCALE), -1).astype(np.int64)
+    arcs = [(1, 0, model.NewConstant(1))]
+    arc_lits: list[tuple[int, int, cp_model.IntVar]] = []
+    for i in range(N + 2):
+        for j in range(N + 2):
+            if i == j or (i, j) == (1, 0) or j == 0 or i == 1 or icost[i, j] < 0:
+                continue
+            lit = model.NewBoolVar(f"a{i}_{j}")
+            arcs.append((i, j, lit))
+            arc_lits.append((i, j, lit))
+            if i >= 2:
+                model.AddImplication(lit, x[i - 2])
+            if j >= 2:
+                model.AddImplication(lit, x[j - 2])
+    for c in range(N):
+        arcs.append((c + 2, c + 2, x[c].Not()))
+    model.AddCircuit(arcs)
+    route = sum(int(icost[i, j]) * lit for i, j, lit in arc_lits)
+    n_stops = sum(x)
+    solver = cp_model.CpSolver()
+    solver.parameters.num_workers = workers
+    solver.parameters.max_time_in_seconds = time_limit
+    optimal = True
+    if objective == "stops":
+        model.Minimize(n_stops)
+        status = solver.Solve(model)
+        _check(status, req)
+        optimal &= status == cp_model.OPTIMAL
+        best = round(solver.ObjectiveValue())
+        model.Add(n_stops == best)
+        model.Minimize(route)
+    else:
+        model.Minimize(route + round(stop_cost * SCALE) * n_stops)
+    for c in range(N):  # warm start from the previous phase
+        model.AddHint(x[c], bool(solver.Value(x[c])) if objective == "stops" else False)
+    status = solver.Solve(model)
+    _check(status, req)
+    optimal &= status == cp_model.OPTIMAL
+    succ = {i: j for i, j, lit in arc_lits if solver.Value(lit)}
+    order, node = [], 0
+    while node != 1:
+        node = succ[node]
+        if node >= 2:
+            order.append(node - 2)
+    serves = {t: c for (c, t), v in y.items() if solver.Value(v)}
+    nodes = [0, *(c + 2 for c in order), 1]
+    total = float(sum(cost[a, b] for a, b in itertools.pairwise(nodes)))
+    if objective == "time":
+        total += stop_cost * len(order)
+    return Selection(tuple(order), serves, total, optimal, time.perf_counter() - t0)
+
+
+def _check(status: int, req: list[str]) -> None:
+    if status in (cp_model.OPTIMAL, cp_model.FEASIBLE):
+        return
+    if status == cp_model.INFEASIBLE:
+        raise InfeasiblePlanError(
+            f"the candidate stops cannot serve trays {', '.join(req)} each exactly once on a "
+            "route from start to goal (a stop or the goal may be unreachable)"
+        )
+    raise InfeasiblePlanError("the stop selection found no plan within its time limit")
