@@ -225,7 +225,8 @@ def list_databases(data_dir: Path, robot: str | None = None) -> list[dict[str, A
 
 
 def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -> dict[str, Any]:
-    """The catalog row to use for ``robot``: ``db_id`` if given (checked), else the newest."""
+    """The catalog row to use for ``robot``: ``db_id`` if given (checked), else the complete
+    database with the most configurations (the newest of equals)."""
     rows = list_databases(data_dir)
     if db_id is not None:
         match = [r for r in rows if r["id"] == db_id or r["id"].startswith(db_id)]
@@ -247,6 +248,8 @@ def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -
             )
         return row
     ok = [r for r in rows if r["robot_hash"] == robot.robot_hash and r["state"] == "complete"]
+    # The most capable database first (most stored configurations), the newest among equals.
+    ok.sort(key=lambda r: -(r["stored"] or 0))  # stable: rows come newest first
     if not ok:
         same_name = [r["id"] for r in rows if r["robot"] == robot.name]
         hint = (

@@ -36,7 +36,7 @@ from pickstop.scene.world import BoxArrays, Solid, scene_solids, tray_body_solid
 
 Bounds = list[tuple[np.ndarray, np.ndarray]]
 WINDOW = 4  # candidates screened per (cell, part) at a time
-MAX_ROUNDS = 8  # refinement attempts per (cell, part)
+MAX_ROUNDS = 5  # refinement rounds per part (1, 2, then 4 candidates per open cell)
 REFINE_ITERATIONS = 8  # database candidates are close: 2-4 steps; a slow one yields its turn
 
 
@@ -407,6 +407,7 @@ def _solve_part(
     th_out = np.zeros((M, solver.chain.dof))
     g_out = np.zeros(M, int)
     has = np.bincount(cell, minlength=M) > 0
+    attempt = 0
     for _ in range(MAX_ROUNDS):
         open_cells = np.flatnonzero(~found & has & (screened < np.bincount(cell, minlength=M)))
         pending = ~found[cell] & (state == 1)
@@ -428,10 +429,14 @@ def _solve_part(
             if not np.any(~found & has & (screened < np.bincount(cell, minlength=M))):
                 break
             continue
-        # Best untried free candidate per cell (entries are sorted by cell then score).
-        _, pick = np.unique(cell[cand], return_index=True)
-        e = cand[pick]
+        # The best untried free candidates per cell (entries are sorted by cell then score):
+        # one in the first round, then more at once, so few rounds settle the hard cells.
+        width = min(1 << attempt, 4)
+        _, first, count = np.unique(cell[cand], return_index=True, return_counts=True)
+        pos = np.arange(len(cand)) - np.repeat(first, count)
+        e = cand[pos < width]
         state[e] = 2
+        attempt += 1
         res = refine_batch(
             solver,
             db.thetas(rows[e]),
@@ -455,7 +460,10 @@ def _solve_part(
             env_bad = env_hit[j] and planner.exact_arm.colliding(ths[j], x, y, yaw, solids)
             good[j] = not (self_bad or env_bad)
         acc = e[ok[good]]
+        # Several may succeed for a cell: keep its best-ranked (first) one.
+        _, keep = np.unique(cell[acc], return_index=True)
+        acc, ths_acc = acc[keep], ths[good][keep]
         found[cell[acc]] = True
-        th_out[cell[acc]] = ths[good]
+        th_out[cell[acc]] = ths_acc
         g_out[cell[acc]] = g[acc]
     return found, th_out, g_out

@@ -228,19 +228,16 @@ def spheres_hit(boxes: BoxArrays, centres: np.ndarray, radii: np.ndarray) -> np.
     Exact for boxes and vertical cylinders, conservative for meshes (their bounding box).
     """
     hit = np.zeros(len(centres), bool)
-    if len(centres) == 0:
+    if len(centres) == 0 or len(boxes.centres) == 0:
         return hit
-    r_max = float(radii.max())
-    c_lo, c_hi = centres.min(axis=0) - r_max, centres.max(axis=0) + r_max
-    for k in range(len(boxes.centres)):
-        if np.any(boxes.lo[k] > c_hi) or np.any(boxes.hi[k] < c_lo):
-            continue
-        # Cheap first test against the box's world bounds, exact test for what remains.
-        idx = np.flatnonzero(
-            ~hit
-            & np.all(centres + radii[:, None] > boxes.lo[k], axis=1)
-            & np.all(centres - radii[:, None] < boxes.hi[k], axis=1)
-        )
+    # Bounds test of every sphere against every box at once, one axis at a time.
+    near = np.ones((len(centres), len(boxes.centres)), bool)
+    for a in range(3):
+        c = centres[:, a, None]
+        r = radii[:, None]
+        near &= (c + r > boxes.lo[None, :, a]) & (c - r < boxes.hi[None, :, a])
+    for k in np.flatnonzero(near.any(axis=0)):
+        idx = np.flatnonzero(near[:, k] & ~hit)
         if len(idx) == 0:
             continue
         d = (centres[idx] - boxes.centres[k]) @ boxes.R[k]  # sphere centres in the box frame

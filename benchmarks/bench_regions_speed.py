@@ -1,0 +1,103 @@
+"""Base region speed on the example scenes with a warm database.
+
+    python benchmarks/bench_regions_speed.py [--db ID]
+
+Prints: one 4-part tray (paper scene tray_3), all regions of the five-tray scene, the
+recompute after moving one tray, the 12-tray factory cell from scratch, and peak memory.
+Times are the best of several runs (2 shared cores), regions computed afresh each run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from pickstop.regions.base_region import compute_tray_region  # noqa: E402
+from pickstop.regions.loader import planner_for  # noqa: E402
+from pickstop.scene.model import parse_scene  # noqa: E402
+from pickstop.settings import data_dir  # noqa: E402
+
+SCENES = Path(__file__).parents[1] / "examples" / "scenes"
+
+
+def best(fn, runs: int = 5) -> float:
+    out = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t)
+    return min(out)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--db")
+    args = ap.parse_args()
+    paper = parse_scene(json.loads((SCENES / "paper_experiment.json").read_text()))
+    planner = planner_for(paper, SCENES, data_dir(), args.db)
+    print(f"database: {planner.db.id} ({len(planner.db):,} configurations)")
+    tray = paper.tray("tray_3")
+    planner.grasps(paper, tray)
+    yaw = paper.base_yaw.yaws[0]
+    r = compute_tray_region(planner, paper, tray, yaw)
+    g = r.grid
+    print(
+        f"one tray, {len(tray.parts)} parts, grid {g.res} m, {r.counts['in_reach']} cells in "
+        f"reach ({r.counts['footprint_free']} free): "
+        f"{best(lambda: compute_tray_region(planner, paper, tray, yaw)):.3f} s, "
+        f"{len(r.cells)} feasible"
+    )
+
+    five_doc = json.loads((SCENES / "five_trays.json").read_text())
+    five = parse_scene(five_doc)
+
+    def all_five() -> None:
+        planner.cache.clear()
+        planner.regions(five)
+
+    planner.regions(five)  # grasps cached, as in a running service
+    print(f"five-tray scene, all {len(five.task_trays)} regions: {best(all_five):.3f} s")
+
+    def move_one() -> None:
+        planner.cache.clear()
+        planner.regions(five)
+        doc = json.loads(json.dumps(five_doc))
+        doc["trays"][4]["pose"]["x"] += 0.3
+        moved = parse_scene(doc)
+        planner.grasps(moved, moved.tray("tray_5"))
+        t = time.perf_counter()
+        regs = planner.regions(moved)
+        times.append(time.perf_counter() - t)
+        recomputed.append(sum(1 for k, v in regs.items() if v.seconds and v.key and v is not None))
+
+    times: list[float] = []
+    recomputed: list[int] = []
+    for _ in range(3):
+        move_one()
+    print(f"five-tray scene, recompute after moving tray_5 by 0.3 m: {min(times):.3f} s")
+
+    cell = parse_scene(json.loads((SCENES / "factory_cell.json").read_text()))
+    planner.cache.clear()
+    planner.grasp_cache.clear()
+    t = time.perf_counter()
+    regs = planner.regions(cell)
+    dt = time.perf_counter() - t
+    empty = [k[0] for k, v in regs.items() if not len(v.cells)]
+    print(
+        f"factory cell, {len(regs)} task regions from scratch (grasps included): {dt:.2f} s; "
+        f"empty: {empty or 'none'}"
+    )
+    print(
+        f"peak memory (database, planner, factory cell): "
+        f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB"
+    )
+
+
+if __name__ == "__main__":
+    main()
