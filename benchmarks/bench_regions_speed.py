@@ -18,10 +18,10 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pickstop.regions.base_region import compute_tray_region  # noqa: E402
-from pickstop.regions.loader import planner_for  # noqa: E402
-from pickstop.scene.model import parse_scene  # noqa: E402
-from pickstop.settings import data_dir  # noqa: E402
+from pickstop.regions.base_region import compute_tray_region
+from pickstop.regions.loader import planner_for
+from pickstop.scene.model import parse_scene
+from pickstop.settings import data_dir
 
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"
 
