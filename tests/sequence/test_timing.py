@@ -1,0 +1,34 @@
+"""Time model arithmetic."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pickstop.sequence.timing import leg_time, plan_time
+
+
+def test_long_leg_reaches_top_speed():
+    # v = 0.5, a = 0.5: 0.25 m to speed up, 0.25 m to stop; 4 m -> 3.5 m cruising at 0.5.
+    assert leg_time(4.0, 0.5, 0.5) == pytest.approx(1.0 + 7.0 + 1.0)
+
+
+def test_short_leg_is_triangular():
+    # 0.2 m < v^2 / a = 0.5 m: t = 2 sqrt(L / a)
+    assert leg_time(0.2, 1.0, 2.0) == pytest.approx(2 * math.sqrt(0.1))
+
+
+def test_profile_is_continuous_and_increasing():
+    L = np.linspace(0, 3, 301)
+    t = leg_time(L, 0.6, 0.4)
+    assert t[0] == 0 and (np.diff(t) > 0).all()
+    knee = 0.6**2 / 0.4
+    assert leg_time(knee - 1e-9, 0.6, 0.4) == pytest.approx(leg_time(knee, 0.6, 0.4))
+
+
+def test_plan_time_adds_stops_and_picks():
+    b = plan_time([4.0, 4.0], n_stops=1, n_parts=3, v=0.5, a=0.5, stop_time=8, pick_time=6)
+    assert b.travel == pytest.approx(18.0)
+    assert b.total == pytest.approx(18 + 8 + 18)
