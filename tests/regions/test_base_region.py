@@ -153,3 +153,16 @@ def test_top_down_grasp_targets_point_down(planner, paper_doc):
     assert quats_to_matrices(np.array([0.70710678, 0, 0.70710678, 0]))[2, 0] == pytest.approx(
         -1, abs=1e-6
     )
+
+
+def test_feasible_at_agrees_with_the_grid(planner, paper_doc):
+    from pickstop.regions.base_region import feasible_at
+
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "tray_2")
+    centres = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
+    ok, thetas, _ = feasible_at(planner, scene, "tray_2", centres, region.yaw)
+    assert ok.mean() > 0.97  # refinement order may differ; the same pipeline decides
+    assert thetas.shape == (len(centres), 1, planner.robot.dof)
+    far = np.array([[4.5, -0.5], [0.0, 0.0]])
+    assert not feasible_at(planner, scene, "tray_2", far, region.yaw)[0].any()

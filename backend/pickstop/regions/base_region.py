@@ -324,11 +324,8 @@ def compute_tray_region(
     if len(IX) == 0:
         return empty(f"no cell within reach of tray {tray.id!r} has room for the base footprint")
 
-    solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
-    boxes = BoxArrays.of(solids)
+    _, solids, boxes, Rz_T = _tray_world(planner, scene, tray, yaw)
     grasp_sets = planner.grasps(scene, tray)
-    c, s = math.cos(yaw), math.sin(yaw)
-    Rz_T = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # R_base_world
     alive = np.arange(len(IX))  # indices into the candidate cells still feasible
     witness = np.zeros((len(IX), len(part_ids), robot.dof))
     grasp_of = np.zeros((len(IX), len(part_ids)), int)
@@ -368,6 +365,49 @@ def compute_tray_region(
         key,
         env,
     )
+
+
+def _tray_world(
+    planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float
+) -> tuple[float, list[Solid], BoxArrays, np.ndarray]:
+    """Reach radius around the tray [m], the solids near it (exact and as arrays), R_base_world."""
+    tc = np.array([tray.pose.x, tray.pose.y])
+    reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
+    solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
+    c, s = math.cos(yaw), math.sin(yaw)
+    Rz_T = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    return reach, solids, BoxArrays.of(solids), Rz_T
+
+
+def feasible_at(
+    planner: RegionPlanner, scene: Scene, tray_id: str, xy: np.ndarray, yaw: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The region's test at arbitrary base poses ``xy: (M, 2)`` [m], ``yaw`` [rad].
+
+    Returns ``ok: (M,)``, witnesses ``(M, P, dof)`` and grasp indices ``(M, P)``: the same
+    exact pipeline as the grid (footprint, IK by query, screen, refinement, coal), at the
+    given poses rather than at cell centres.
+    """
+    tray = scene.tray(tray_id)
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    M, P = len(xy), len(tray.parts)
+    thetas = np.zeros((M, P, planner.robot.dof))
+    grasp = np.zeros((M, P), int)
+    alive = np.flatnonzero(footprint_free(scene, planner.robot, xy, yaw))
+    if not P:
+        return np.zeros(M, bool), thetas, grasp
+    _, solids, boxes, Rz_T = _tray_world(planner, scene, tray, yaw)
+    env = Envelope.empty(scene.floor.min, scene.floor.max)
+    for k, gs in enumerate(planner.grasps(scene, tray)):
+        if len(alive) == 0 or len(gs.Ts_world_tool) == 0:
+            return np.zeros(M, bool), thetas, grasp
+        found, th, gi = _solve_part(planner, boxes, solids, gs, xy[alive], Rz_T, yaw, env)
+        alive = alive[found]
+        thetas[alive, k] = th[found]
+        grasp[alive, k] = gi[found]
+    ok = np.zeros(M, bool)
+    ok[alive] = True
+    return ok, thetas, grasp
 
 
 def _solve_part(

@@ -12,7 +12,7 @@ from __future__ import annotations
 import itertools
 import time
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from ortools.sat.python import cp_model
@@ -65,36 +65,36 @@ def select_stops(
             f"no candidate stop serves tray(s) {', '.join(missing)}", field="trays"
         )
     model = cp_model.CpModel()
-    x = [model.NewBoolVar(f"x{c}") for c in range(N)]
-    y = {(c, t): model.NewBoolVar(f"y{c}_{t}") for t in req for c in servable[t]}
+    x = [model.new_bool_var(f"x{c}") for c in range(N)]
+    y = {(c, t): model.new_bool_var(f"y{c}_{t}") for t in req for c in servable[t]}
     for t in req:
-        model.AddExactlyOne(y[c, t] for c in servable[t])
+        model.add_exactly_one(y[c, t] for c in servable[t])
     for c in range(N):
         mine = [y[c, t] for t in req if (c, t) in y]
         for v in mine:
-            model.AddImplication(v, x[c])
+            model.add_implication(v, x[c])
         if mine:
-            model.AddBoolOr(mine).OnlyEnforceIf(x[c])
+            model.add_bool_or(mine).only_enforce_if(x[c])
         else:
-            model.Add(x[c] == 0)
+            model.add(x[c] == 0)
     # Route: a circuit through start (0), goal (1) and the chosen stops, closed by goal->start.
     icost = np.where(np.isfinite(cost), np.round(cost * SCALE), -1).astype(np.int64)
-    arcs = [(1, 0, model.NewConstant(1))]
+    arcs: list[tuple[int, int, Any]] = [(1, 0, model.new_constant(1))]
     arc_lits: list[tuple[int, int, cp_model.IntVar]] = []
     for i in range(N + 2):
         for j in range(N + 2):
             if i == j or (i, j) == (1, 0) or j == 0 or i == 1 or icost[i, j] < 0:
                 continue
-            lit = model.NewBoolVar(f"a{i}_{j}")
+            lit = model.new_bool_var(f"a{i}_{j}")
             arcs.append((i, j, lit))
             arc_lits.append((i, j, lit))
             if i >= 2:
-                model.AddImplication(lit, x[i - 2])
+                model.add_implication(lit, x[i - 2])
             if j >= 2:
-                model.AddImplication(lit, x[j - 2])
+                model.add_implication(lit, x[j - 2])
     for c in range(N):
-        arcs.append((c + 2, c + 2, x[c].Not()))
-    model.AddCircuit(arcs)
+        arcs.append((c + 2, c + 2, x[c].negated()))
+    model.add_circuit(arcs)
     route = sum(int(icost[i, j]) * lit for i, j, lit in arc_lits)
     n_stops = sum(x)
     solver = cp_model.CpSolver()
@@ -102,27 +102,27 @@ def select_stops(
     solver.parameters.max_time_in_seconds = time_limit
     optimal = True
     if objective == "stops":
-        model.Minimize(n_stops)
-        status = solver.Solve(model)
+        model.minimize(n_stops)
+        status = solver.solve(model)
         _check(status, req)
         optimal &= status == cp_model.OPTIMAL
-        best = round(solver.ObjectiveValue())
-        model.Add(n_stops == best)
-        model.Minimize(route)
+        best = round(solver.objective_value)
+        model.add(n_stops == best)
+        model.minimize(route)
     else:
-        model.Minimize(route + round(stop_cost * SCALE) * n_stops)
+        model.minimize(route + round(stop_cost * SCALE) * n_stops)
     for c in range(N):  # warm start from the previous phase
-        model.AddHint(x[c], bool(solver.Value(x[c])) if objective == "stops" else False)
-    status = solver.Solve(model)
+        model.add_hint(x[c], bool(solver.value(x[c])) if objective == "stops" else False)
+    status = solver.solve(model)
     _check(status, req)
     optimal &= status == cp_model.OPTIMAL
-    succ = {i: j for i, j, lit in arc_lits if solver.Value(lit)}
+    succ = {i: j for i, j, lit in arc_lits if solver.value(lit)}
     order, node = [], 0
     while node != 1:
         node = succ[node]
         if node >= 2:
             order.append(node - 2)
-    serves = {t: c for (c, t), v in y.items() if solver.Value(v)}
+    serves = {t: c for (c, t), v in y.items() if solver.value(v)}
     nodes = [0, *(c + 2 for c in order), 1]
     total = float(sum(cost[a, b] for a, b in itertools.pairwise(nodes)))
     if objective == "time":
@@ -130,7 +130,7 @@ def select_stops(
     return Selection(tuple(order), serves, total, optimal, time.perf_counter() - t0)
 
 
-def _check(status: int, req: list[str]) -> None:
+def _check(status: Any, req: list[str]) -> None:
     if status in (cp_model.OPTIMAL, cp_model.FEASIBLE):
         return
     if status == cp_model.INFEASIBLE:

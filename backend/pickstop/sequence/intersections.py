@@ -40,7 +40,7 @@ def polygon_parts(geom: BaseGeometry) -> list[Polygon]:
         return [geom] if geom.area > MIN_AREA else []
     if isinstance(geom, MultiPolygon) or hasattr(geom, "geoms"):
         out: list[Polygon] = []
-        for g in geom.geoms:  # type: ignore[attr-defined]
+        for g in geom.geoms:
             out += polygon_parts(g)
         return out
     return []  # lines and points
