@@ -78,9 +78,10 @@ def explain_misses(
     solids = nearby(scene_solids(scene), (tray.pose.x, tray.pose.y), 3 * planner.reach_xy)
     boxes = BoxArrays.of(solids)
     why: Counter[str] = Counter()
-    budget = WINDOW * MAX_ROUNDS
+    budget = WINDOW * MAX_ROUNDS  # candidates production screens at most per (cell, part)
+    refined = sum(min(1 << a, 4) for a in range(MAX_ROUNDS))  # and refines: 1, 2, 4, 4, ...
     for i in range(len(missed)):
-        cause = "free candidates for every part: refinement order or budget"
+        cause = "free candidates refine for every part: refined pose flagged or colliding"
         for gs in planner.grasps(scene, tray):
             R, p = grasp_targets(gs, yaw, cen[i : i + 1])
             q = matrices_to_quats(R)
@@ -91,7 +92,9 @@ def explain_misses(
                 near = sum(
                     len(db.query(p[0, j], q[j], neighbours=True).rows) for j in range(len(q))
                 )
-                cause = "empty voxels, " + ("neighbours hold some" if near else "neighbours too")
+                cause = "every grasp's own voxel empty; " + (
+                    "adjacent voxels hold candidates" if near else "adjacent voxels empty too"
+                )
                 break
             pos_err = np.linalg.norm(db.positions[rows] - p[0, g], axis=1)
             dot = np.abs(np.einsum("ij,ij->i", db.quats[rows], q[g]))
@@ -110,16 +113,17 @@ def explain_misses(
             if free[0] >= budget:
                 cause = f"first free candidate ranked beyond the {budget} screened"
                 break
-            tried = free[:MAX_ROUNDS]
+            tried = free[free < budget][:refined]
             short = refine_batch(
                 solver, th[tried], R[g[tried]], p[0, g[tried]], max_iter=REFINE_ITERATIONS
             )
             if not short.success.any():
                 long = refine_batch(solver, th[tried], R[g[tried]], p[0, g[tried]], max_iter=100)
                 cause = (
-                    f"refinement: {REFINE_ITERATIONS} iterations too few"
+                    f"refinement converges only after more than {REFINE_ITERATIONS} iterations"
                     if long.success.any()
-                    else "refinement fails from every free candidate"
+                    else f"refinement stalls from all (up to {refined}) free candidates, "
+                    "even with 100 iterations"
                 )
                 break
         why[cause] += 1

@@ -185,6 +185,30 @@ class ReachDatabase:
         ends = np.where(found, self.offsets[pos + 1], 0)
         return starts, ends
 
+    def lookup_keys(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Row ranges ``starts, ends`` of voxel ``keys`` (empty where absent or -1)."""
+        keys = np.asarray(keys, dtype=np.int64)
+        pos = np.searchsorted(self.unique_keys, keys)
+        np.minimum(pos, len(self.unique_keys) - 1, out=pos)
+        found = (self.unique_keys[pos] == keys) & (keys >= 0)
+        return np.where(found, self.offsets[pos], 0), np.where(found, self.offsets[pos + 1], 0)
+
+    def lookup_vicinity(
+        self, ps: np.ndarray, qs: np.ndarray, full: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Row ranges of the position voxels next to each target, in its orientation cell.
+
+        The own voxel and its 6 face neighbours (``full``: all 27 around it). Returns
+        ``starts, ends: (M, 7 or 27)``: the paper's vicinity of a target pose.
+        """
+        cells = self.voxel.position_cells(ps)  # (M, 3)
+        orient = self.voxel.so3.index(qs)  # (M,)
+        offs = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)])
+        if not full:
+            offs = offs[np.abs(offs).sum(axis=1) <= 1]
+        keys = self.voxel.keys_from_cells(cells[:, None, :] + offs, orient[:, None])
+        return self.lookup_keys(keys)
+
     def query_many(self, ps: Any, qs: Any, *, order: bool = True) -> CandidateSet:
         """Candidates of many targets (own voxel), each target's ranked best first if ``order``."""
         ps, qs = check_poses(ps, qs)

@@ -37,6 +37,8 @@ from pickstop.scene.world import BoxArrays, Solid, scene_solids, tray_body_solid
 Bounds = list[tuple[np.ndarray, np.ndarray]]
 WINDOW = 4  # candidates screened per (cell, part) at a time
 MAX_ROUNDS = 5  # refinement rounds per part (1, 2, then 4 candidates per open cell)
+VICINITY_ROUNDS = 3  # the vicinity pass: 1, 2, then 4 candidates per open cell
+VICINITY_DISTANCE = 0.05  # [m] open cells this close to solved ones also query the vicinity
 REFINE_ITERATIONS = 8  # database candidates are close: 2-4 steps; a slow one yields its turn
 
 
@@ -420,27 +422,102 @@ def _solve_part(
     yaw: float,
     env: Envelope,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,))."""
-    db, solver = planner.db, planner.solver
-    M, G = len(cen), len(gs.Ts_world_tool)
+    """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,)).
+
+    First the candidates of each target's own voxel; then, for cells still open next to
+    solved ones, the target's vicinity (the 27 surrounding position voxels), as the paper
+    queries it: an empty own voxel at the edge of the sampled set is the usual miss.
+    """
+    M = len(cen)
     R_bt = np.einsum("ij,gjk->gik", Rz_T, gs.Ts_world_tool[:, :3, :3])  # (G, 3, 3)
     q_bt = matrices_to_quats(R_bt)
     rel = gs.Ts_world_tool[None, :, :3, 3] - np.concatenate([cen, np.zeros((M, 1))], 1)[:, None]
     p_bt = rel @ Rz_T.T  # (M, G, 3)
-    starts, ends = db.lookup(p_bt.reshape(-1, 3), np.tile(q_bt, (M, 1)))
-    n = ends - starts
-    target = np.repeat(np.arange(M * G), n)  # entry -> (cell, grasp) target
+    args = (planner, boxes, solids, cen, R_bt, yaw, env)
+    found, th_out, g_out = _rounds(*args, *_gather(planner.db, p_bt, q_bt, False))
+    open_ = np.flatnonzero(~found)
+    if found.any() and len(open_):
+        near = _near_found(cen, found, VICINITY_DISTANCE)
+        sub = open_[near[open_]]
+        if len(sub):
+            f2, th2, g2 = _rounds(
+                planner,
+                boxes,
+                solids,
+                cen[sub],
+                R_bt,
+                yaw,
+                env,
+                *_gather(planner.db, p_bt[sub], q_bt, True),
+            )
+            found[sub[f2]] = True
+            th_out[sub[f2]] = th2[f2]
+            g_out[sub[f2]] = g2[f2]
+    return found, th_out, g_out
+
+
+def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
+    """``(M,)`` True for points within about ``dist`` [m] of a found one (hash grid)."""
+    key = np.floor(cen / dist).astype(np.int64)
+    marked = {(int(a), int(b)) for a, b in key[found]}
+    out = np.zeros(len(cen), bool)
+    for i, (a, b) in enumerate(key.tolist()):
+        out[i] = any((a + da, b + db) in marked for da in (-1, 0, 1) for db in (-1, 0, 1))
+    return out
+
+
+def _gather(
+    db: ReachDatabase, p_bt: np.ndarray, q_bt: np.ndarray, vicinity: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Candidates of targets ``p_bt: (M, G, 3)``, ``q_bt: (G, 4)``, sorted by cell then score.
+
+    Returns rows, cell, grasp, target (cell * G + grasp), rank within the cell and the target
+    positions ``(M * G, 3)``.
+    """
+    M, G = p_bt.shape[:2]
+    ps, qs = p_bt.reshape(-1, 3), np.tile(q_bt, (M, 1))
+    if vicinity:
+        starts, ends = db.lookup_vicinity(ps, qs)  # (M * G, 27)
+        n = (ends - starts).ravel()
+        target = np.repeat(np.repeat(np.arange(M * G), starts.shape[1]), n)
+        starts = starts.ravel()
+    else:
+        starts, ends = db.lookup(ps, qs)
+        n = ends - starts
+        target = np.repeat(np.arange(M * G), n)
     off = np.repeat(np.cumsum(n) - n, n)
     rows = np.arange(len(target)) - off + np.repeat(starts, n)
     cell = target // G
     g = target % G
-    pos_err = np.linalg.norm(db.positions[rows] - p_bt.reshape(-1, 3)[target], axis=1)
+    pos_err = np.linalg.norm(db.positions[rows] - ps[target], axis=1)
     dot = np.abs(np.einsum("ij,ij->i", db.quats[rows], q_bt[g]))
     score = pos_err + RANK_LENGTH * 2 * np.arccos(np.minimum(dot, 1.0))
     order = np.lexsort((score, cell))
     rows, cell, g, target = rows[order], cell[order], g[order], target[order]
     first = np.searchsorted(cell, np.arange(M))
     rank = np.arange(len(cell)) - first[cell]
+    return rows, cell, g, target, rank, ps
+
+
+def _rounds(
+    planner: RegionPlanner,
+    boxes: BoxArrays,
+    solids: list[Solid],
+    cen: np.ndarray,
+    R_bt: np.ndarray,
+    yaw: float,
+    env: Envelope,
+    rows: np.ndarray,
+    cell: np.ndarray,
+    g: np.ndarray,
+    target: np.ndarray,
+    rank: np.ndarray,
+    ps: np.ndarray,
+    rounds: int = MAX_ROUNDS,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Screen, refine and verify candidates per cell in widening rounds."""
+    db, solver = planner.db, planner.solver
+    M = len(cen)
     state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done
     screened = np.zeros(M, np.int64)
     found = np.zeros(M, bool)
@@ -448,7 +525,7 @@ def _solve_part(
     g_out = np.zeros(M, int)
     has = np.bincount(cell, minlength=M) > 0
     attempt = 0
-    for _ in range(MAX_ROUNDS):
+    for _ in range(rounds):
         open_cells = np.flatnonzero(~found & has & (screened < np.bincount(cell, minlength=M)))
         pending = ~found[cell] & (state == 1)
         ready = np.zeros(M, bool)
@@ -481,7 +558,7 @@ def _solve_part(
             solver,
             db.thetas(rows[e]),
             R_bt[g[e]],
-            p_bt.reshape(-1, 3)[target[e]],
+            ps[target[e]],
             max_iter=REFINE_ITERATIONS,
         )
         ok = np.flatnonzero(res.success)

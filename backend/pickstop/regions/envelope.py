@@ -21,6 +21,8 @@ Z_TOP = 3.0  # [m]
 class Envelope:
     origin: np.ndarray  # (3,) world corner of voxel (0, 0, 0) [m]
     occ: np.ndarray  # (nx, ny, nz) bool
+    _pending: np.ndarray | None = None  # sphere centres not yet grown
+    _radius: float = 0.0
 
     @classmethod
     def empty(
@@ -36,13 +38,24 @@ class Envelope:
         return np.clip(idx, 0, np.array(self.occ.shape) - 1)
 
     def mark_spheres(self, centres: np.ndarray, radius: float) -> None:
-        """Mark every voxel within ``radius`` [m] of any of ``centres: (N, 3)`` (as cubes)."""
+        """Mark every voxel within ``radius`` [m] of any of ``centres: (N, 3)`` (as cubes).
+
+        Centres are collected and grown once, by the largest radius, in :meth:`settle`.
+        """
         if len(centres) == 0:
             return
-        hit = np.zeros_like(self.occ)
+        if self._pending is None:
+            self._pending = np.zeros_like(self.occ)
         i = self._index(centres.reshape(-1, 3))
-        hit[i[:, 0], i[:, 1], i[:, 2]] = True
-        k = math.ceil(radius / VOXEL) + 1
+        self._pending[i[:, 0], i[:, 1], i[:, 2]] = True
+        self._radius = max(self._radius, radius)
+
+    def settle(self) -> None:
+        """Grow the collected sphere centres into the occupancy grid."""
+        if self._pending is None:
+            return
+        hit = self._pending
+        k = math.ceil(self._radius / VOXEL) + 1
         for axis in range(3):
             grown = hit.copy()
             for s in range(1, k + 1):
@@ -53,6 +66,7 @@ class Envelope:
                 grown[tuple(hi)] |= hit[tuple(lo)]
             hit = grown
         self.occ |= hit
+        self._pending = None
 
     def mark_box(self, lo: np.ndarray, hi: np.ndarray) -> None:
         a, b = self._index(np.asarray(lo)), self._index(np.asarray(hi))
@@ -86,6 +100,7 @@ class Envelope:
         The grid spans the floor plus a margin and the robot's height, so the part of a box
         beyond it is out of the robot's reach and is clipped away.
         """
+        self.settle()
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
         top = self.origin + VOXEL * np.array(self.occ.shape)
         if np.any(hi < self.origin) or np.any(lo > top):

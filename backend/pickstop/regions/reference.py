@@ -15,104 +15,25 @@ from __future__ import annotations
 
 import math
 import time
-import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
-import coal
 import numpy as np
-import pinocchio as pin
 import shapely
 
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
-from pickstop.regions.arm import ExactArm, nearby, screen_arm
+from pickstop.regions.arm import nearby, screen_arm
 from pickstop.regions.base_region import CellGrid, RegionPlanner, TrayRegion, footprint_free
 from pickstop.robot.kinematics import fk, fk_soa
-from pickstop.robot.model import RobotModel
 from pickstop.robot.screen import screen
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Scene, Tray
-from pickstop.scene.world import TOUCH, BoxArrays, Solid, _coal, scene_solids
+from pickstop.scene.world import BoxArrays, Solid, scene_solids
 
 CHUNK = 16_384  # IK problems per refine_batch call: keeps the working set small
 BASELINE_ITERATIONS = 100
 ORACLE_SEEDS = (4, 16, 64, 256)  # cumulative random seeds per (cell, part, grasp), by round
-
-
-# -- exact arm check ---------------------------------------------------------------------------
-class TouchingArm(ExactArm):
-    """:class:`ExactArm` that also works for mesh links.
-
-    coal 3.0 refuses a negative security margin for BVH models (it raises ``ValueError``), so a
-    mesh link is tested at margin 0 against its primitive solid shrunk by ``TOUCH``: a point
-    deeper than ``TOUCH`` inside a box or a cylinder is a point inside the shrunk one. A scene
-    mesh cannot be shrunk; against it touching already counts (stricter by ``TOUCH``).
-    """
-
-    def __init__(self, robot: RobotModel) -> None:
-        super().__init__(robot)
-        self.req_zero = coal.CollisionRequest()
-        self.bvh = np.array(
-            [
-                robot.geom_model.geometryObjects[i].geometry.getObjectType()
-                == coal.OBJECT_TYPE.OT_BVH
-                for i in self.ids
-            ]
-        )
-        self.c_local = np.array([c for c, _ in self.local_boxes])  # (L, 3)
-        self.h_local = np.array([h for _, h in self.local_boxes])  # (L, 3)
-        self._solid: weakref.WeakKeyDictionary[Solid, tuple[Any, ...]] = weakref.WeakKeyDictionary()
-
-    def _prepared(self, s: Solid) -> tuple[Any, ...]:
-        hit = self._solid.get(s)
-        if hit is None:
-            lo, hi = s.aabb()
-            g, tf = _coal(s)
-            if s.kind == "box":
-                shrunk: tuple[Any, Any] = (coal.Box(*(2 * s.half - 2 * TOUCH)), s.transform)
-            elif s.kind == "cylinder":
-                shrunk = (coal.Cylinder(s.radius - TOUCH, 2 * s.half[2] - 2 * TOUCH), s.transform)
-            else:
-                shrunk = (g, tf)
-            hit = (lo, hi, g, tf, *shrunk, s.kind == "mesh")
-            self._solid[s] = hit
-        return hit
-
-    def colliding(
-        self, theta: np.ndarray, x: float, y: float, yaw: float, solids: list[Solid]
-    ) -> bool:
-        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``?"""
-        if not solids:
-            return False
-        q = self.robot.angles_to_q(np.asarray(theta, dtype=float))
-        pin.forwardKinematics(self.robot.model, self.data, q)
-        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
-        T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
-        Ms = [T_wb * self.gdata.oMg[i] for i in self.ids]
-        R = np.stack([M.rotation for M in Ms])
-        c = np.einsum("lij,lj->li", R, self.c_local) + np.stack([M.translation for M in Ms])
-        h = np.einsum("lij,lj->li", np.abs(R), self.h_local)
-        prep = [self._prepared(s) for s in solids]
-        lo = np.stack([p[0] for p in prep])
-        hi = np.stack([p[1] for p in prep])
-        near = np.all(c[:, None] - h[:, None] <= hi[None], axis=2) & np.all(
-            c[:, None] + h[:, None] >= lo[None], axis=2
-        )
-        for link, k in zip(*np.nonzero(near), strict=True):
-            geom = self.robot.geom_model.geometryObjects[self.ids[link]].geometry
-            tf = coal.Transform3s(Ms[link].rotation, Ms[link].translation)
-            _, _, g, g_tf, g_shrunk, tf_shrunk, is_mesh = prep[k]
-            if self.bvh[link] or is_mesh:
-                hit = coal.collide(
-                    geom, tf, g_shrunk, tf_shrunk, self.req_zero, coal.CollisionResult()
-                )
-            else:
-                hit = coal.collide(geom, tf, g, g_tf, self.req, coal.CollisionResult())
-            if hit:
-                return True
-        return False
 
 
 # -- what production sees ----------------------------------------------------------------------
@@ -145,17 +66,30 @@ def candidate_cells(planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float
     IX, IY, cen = IX[near], IY[near], cen[near]
     counts["in_reach"] = len(IX)
     if len(IX) == 0:
-        reason = (
+        far = (
             f"tray {tray.id!r} is farther than the arm reaches ({reach:.2f} m) from every grid cell"
         )
-        return Candidates(grid, none, np.zeros((0, 2)), counts, reason)
+        return Candidates(grid, none, np.zeros((0, 2)), counts, far)
     free = footprint_free(scene, planner.robot, cen, yaw)
     IX, IY, cen = IX[free], IY[free], cen[free]
     counts["footprint_free"] = len(IX)
-    reason = None
+    reason: str | None = None
     if len(IX) == 0:
         reason = f"no cell within reach of tray {tray.id!r} has room for the base footprint"
     return Candidates(grid, np.stack([IY, IX], 1), cen, counts, reason)
+
+
+def grasp_targets(
+    grasps: GraspSet, yaw: float, centres: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``T_base_tool`` of every grasp from bases at ``centres: (M, 2)`` [m] facing ``yaw``:
+    ``Rs: (G, 3, 3)`` (the same from every cell) and ``ps: (M, G, 3)`` [m]."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    R_base_world = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    Ts = grasps.Ts_world_tool
+    Rs = np.einsum("ij,gjk->gik", R_base_world, Ts[:, :3, :3])
+    base = np.concatenate([centres, np.zeros((len(centres), 1))], 1)
+    return Rs, (Ts[None, :, :3, 3] - base[:, None]) @ R_base_world.T
 
 
 @dataclass(frozen=True)
@@ -217,51 +151,37 @@ class _Setup:
     grasps: list[GraspSet]
     solids: list[Solid]
     boxes: BoxArrays
-    arm: TouchingArm
     bound: ReachBound
-    R_base_world: np.ndarray  # (3, 3)
     stats: dict[str, int]
 
     def targets(self, k: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Part ``k``'s grasp targets from candidate ``cells: (M,)``: R (G, 3, 3), p (M, G, 3)."""
-        Ts = self.grasps[k].Ts_world_tool
-        R = np.einsum("ij,gjk->gik", self.R_base_world, Ts[:, :3, :3])
-        cen = np.concatenate([self.cand.centres[cells], np.zeros((len(cells), 1))], 1)
-        p = (Ts[None, :, :3, 3] - cen[:, None]) @ self.R_base_world.T
-        return R, p
+        return grasp_targets(self.grasps[k], self.yaw, self.cand.centres[cells])
 
-    def valid(self, cells: np.ndarray, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Screen ``thetas: (N, dof)`` at candidate ``cells: (N,)``: (surely free, flagged)."""
+    def screen(self, cells: np.ndarray, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Sphere screens of ``thetas: (N, dof)`` at candidate ``cells: (N,)``: (arm against
+        the solids, self) flags, each ``(N,)``; False is surely free."""
         pl = self.planner
-        free = np.zeros(len(cells), bool)
+        env = np.zeros(len(cells), bool)
+        own = np.zeros(len(cells), bool)
         for s in range(0, len(cells), CHUNK):
             th = np.ascontiguousarray(thetas[s : s + CHUNK].T)
             _, _, frames = fk_soa(pl.solver.chain, th, frames=True)
-            env = screen_arm(
-                pl.arm, self.boxes, frames, self.cand.centres[cells[s : s + CHUNK]], self.yaw
-            )
-            own = screen(pl.self_spheres, frames)
-            free[s : s + CHUNK] = ~env & ~own
-        return free, ~free
+            cen = self.cand.centres[cells[s : s + CHUNK]]
+            env[s : s + CHUNK] = screen_arm(pl.arm, self.boxes, frames, cen, self.yaw)
+            own[s : s + CHUNK] = screen(pl.self_spheres, frames)
+        return env, own
 
-    def exact_ok(self, cell: int, theta: np.ndarray) -> bool:
-        """Coal: neither the arm against the solids nor the robot against itself."""
+    def exact_ok(self, cell: int, theta: np.ndarray, env: bool, own: bool) -> bool:
+        """Coal on what the screens flagged: the arm against the solids, the robot itself."""
         self.stats["exact_checks"] += 1
-        if self.planner.exact_self.colliding(theta[None])[0]:
+        if own and self.planner.exact_self.colliding(theta[None])[0]:
             return False
         x, y = self.cand.centres[cell]
-        return not self.arm.colliding(theta, float(x), float(y), self.yaw, self.solids)
-
-
-_ARMS: dict[str, TouchingArm] = {}
-
-
-def touching_arm(robot: RobotModel) -> TouchingArm:
-    """One :class:`TouchingArm` per robot and process."""
-    arm = _ARMS.get(robot.robot_hash)
-    if arm is None:
-        arm = _ARMS[robot.robot_hash] = TouchingArm(robot)
-    return arm
+        return not (
+            env
+            and self.planner.exact_arm.colliding(theta, float(x), float(y), self.yaw, self.solids)
+        )
 
 
 def _setup(
@@ -270,7 +190,6 @@ def _setup(
     tc = np.array([tray.pose.x, tray.pose.y])
     reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
     solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
-    c, s = math.cos(yaw), math.sin(yaw)
     return _Setup(
         planner,
         tray,
@@ -279,9 +198,7 @@ def _setup(
         planner.grasps(scene, tray),
         solids,
         BoxArrays.of(solids),
-        touching_arm(planner.robot),
         ReachBound.of(planner.solver),
-        np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]),
         {"ik_problems": 0, "ik_converged": 0, "exact_checks": 0},
     )
 
@@ -297,12 +214,13 @@ def _solve_part(
     rounds: Sequence[int],
     seeds: SeedFn,
     max_iter: int,
+    prune: bool,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Part ``k`` from candidate ``cells: (M,)``: found (M,), witnesses (M, dof), grasps (M,).
 
     Round r gives each unresolved (cell, grasp) ``rounds[r]`` new seeds from
     ``seeds(r, k, cells (Q, 2) (iy, ix), grasps (Q,), n) -> (Q, n, dof)``; every converged
-    solution counts.
+    solution counts. ``prune``: skip targets outside the :class:`ReachBound`.
     """
     solver = st.planner.solver
     M, dof = len(cells), solver.chain.dof
@@ -311,7 +229,7 @@ def _solve_part(
     reachable = st.bound.contains(
         np.broadcast_to(R_t, (M, G, 3, 3)).reshape(-1, 3, 3), p_t.reshape(-1, 3)
     )
-    reachable = reachable.reshape(M, G)
+    reachable = reachable.reshape(M, G) | (not prune)
     found = np.zeros(M, bool)
     th_out = np.zeros((M, dof))
     g_out = np.zeros(M, int)
@@ -331,15 +249,16 @@ def _solve_part(
         ok = np.flatnonzero(conv)
         ok = ok[pose_ok(solver, th[ok], R_t[pg[ok]], p_t[pa[ok], pg[ok]])]
         st.stats["ik_converged"] += len(ok)
-        free, _ = st.valid(cells[pa[ok]], th[ok])
+        env, own = st.screen(cells[pa[ok]], th[ok])
+        free = ~env & ~own
         # Problems are ordered (cell, grasp, seed): the first valid solution of a cell wins.
         sure = ok[free]
         _, first = np.unique(pa[sure], return_index=True)
         hit = sure[first]
         found[pa[hit]], th_out[pa[hit]], g_out[pa[hit]] = True, th[hit], pg[hit]
-        for j in ok[~free]:
-            a = pa[j]
-            if not found[a] and st.exact_ok(cells[a], th[j]):
+        for i in np.flatnonzero(~free):
+            j, a = ok[i], pa[ok[i]]
+            if not found[a] and st.exact_ok(cells[a], th[j], env[i], own[i]):
                 found[a], th_out[a], g_out[a] = True, th[j], pg[j]
     return found, th_out, g_out
 
@@ -366,6 +285,7 @@ def _region(
     max_iter: int,
     cells: np.ndarray | None,
     t0: float,
+    prune: bool = True,
 ) -> TrayRegion:
     tray = scene.tray(tray_id)
     yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
@@ -420,7 +340,7 @@ def _region(
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
                 "fits the open hand without touching the tray, a neighbour or a table"
             )
-        found, th, gi = _solve_part(st, k, alive, rounds, seeds, max_iter)
+        found, th, gi = _solve_part(st, k, alive, rounds, seeds, max_iter, prune)
         alive = alive[found]
         witness[alive, k], grasp_of[alive, k] = th[found], gi[found]
         counts[f"feasible_after_{gs.part_id}"] = len(alive)
@@ -444,12 +364,14 @@ def baseline_region(
     *,
     max_iter: int = BASELINE_ITERATIONS,
     cells: np.ndarray | None = None,
+    prune: bool = True,
 ) -> TrayRegion:
     """The conventional-IK region: per (cell, part, grasp) one damped least squares solve from
     ``seed_theta: (dof,)`` (default: mid-range of the joint limits), then an exact check.
 
     A part is graspable from a cell if any grasp's single solution is valid; a cell is
     feasible if every part is. ``cells: (N, 2)`` (iy, ix) restricts the evaluation.
+    ``prune``: skip targets outside the :class:`ReachBound` (same answer, less time).
     """
     t0 = time.perf_counter()
     solver = planner.solver
@@ -459,7 +381,7 @@ def baseline_region(
     def seeds(r: int, k: int, cells: np.ndarray, grasps: np.ndarray, n: int) -> np.ndarray:
         return np.broadcast_to(seed, (len(cells), n, len(seed)))
 
-    return _region(planner, scene, tray_id, yaw, (1,), seeds, max_iter, cells, t0)
+    return _region(planner, scene, tray_id, yaw, (1,), seeds, max_iter, cells, t0, prune)
 
 
 def oracle_region(
@@ -520,18 +442,23 @@ def verify_witnesses(planner: RegionPlanner, scene: Scene, region: TrayRegion) -
     K, P = region.grasp_index.shape
     if K == 0:
         return WitnessCheck(0, 0, 0, 0)
-    c, s = math.cos(region.yaw), math.sin(region.yaw)
-    R_bw = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
     cen = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
-    Ts = np.stack([grasps[k].Ts_world_tool[region.grasp_index[:, k]] for k in range(P)], 1)
-    Rs = np.einsum("ij,kpjl->kpil", R_bw, Ts[..., :3, :3])
-    ps = (Ts[..., :3, 3] - np.concatenate([cen, np.zeros((K, 1))], 1)[:, None]) @ R_bw.T
+    Rs = np.empty((K, P, 3, 3))
+    ps = np.empty((K, P, 3))
+    for k in range(P):
+        R, p = grasp_targets(grasps[k], region.yaw, cen)
+        Rs[:, k] = R[region.grasp_index[:, k]]
+        ps[:, k] = p[np.arange(K), region.grasp_index[:, k]]
     th = region.thetas.reshape(K * P, -1)
     pose_bad = ~pose_ok(planner.solver, th, Rs.reshape(-1, 3, 3), ps.reshape(-1, 3))
     own = planner.exact_self.colliding(th)
-    arm = touching_arm(planner.robot)
-    solids = scene_solids(scene)
-    env = np.array([arm.colliding(t, *cen[i // P], region.yaw, solids) for i, t in enumerate(th)])
+    arm, solids = planner.exact_arm, scene_solids(scene)
+    env = np.array(
+        [
+            arm.colliding(t, float(cen[i // P, 0]), float(cen[i // P, 1]), region.yaw, solids)
+            for i, t in enumerate(th)
+        ]
+    )
     return WitnessCheck(K * P, int(pose_bad.sum()), int(env.sum()), int(own.sum()))
 
 
