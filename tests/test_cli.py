@@ -63,7 +63,8 @@ def test_build_info_query(cli_data, capsys):
     )
     assert code == 0
     res = json.loads(out)
-    assert (res["voxel"]["resolution_m"] == 0.05 and res["count"] == len(res["candidates"])) or True
+    assert res["voxel"]["resolution_m"] == 0.05
+    assert res["count"] >= len(res["candidates"]) and len(res["candidates"]) <= 10
     assert res["count"] > 0 and res["candidates"][0]["theta"]
     assert "refined" in res and isinstance(res["refined"]["success"], bool)
 
