@@ -99,6 +99,16 @@ def _to_world(
     return out
 
 
+def bound_centres(
+    spheres: ArmSpheres,
+    frames: list[tuple[np.ndarray, np.ndarray]],
+    base_xy: np.ndarray,
+    yaw: float,
+) -> np.ndarray:
+    """World centres ``(B * L, 3)`` of the links' bounding spheres of B configurations."""
+    return _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw).reshape(-1, 3)
+
+
 def screen_arm(
     spheres: ArmSpheres,
     boxes: BoxArrays,
@@ -110,7 +120,7 @@ def screen_arm(
     """``(B,)`` True where the arm may touch a solid; False is guaranteed free.
 
     frames: :func:`fk_soa` joint frames of B configurations (base frame); base_xy: (B, 2).
-    envelope: if given, the space the links' bounding spheres occupy is marked in it.
+    envelope: if given, the owners of the solids that flagged a configuration are recorded.
     """
     from pickstop.scene.world import spheres_hit
 
@@ -118,8 +128,6 @@ def screen_arm(
     if B == 0:
         return np.zeros(B, bool)
     bw = _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
-    if envelope is not None:
-        envelope.mark_spheres(bw.reshape(-1, 3), float(spheres.bound_r.max()))
     if len(boxes.centres) == 0:
         return np.zeros(B, bool)
     L = len(spheres.bound_r)
@@ -139,7 +147,12 @@ def screen_arm(
             base_xy[rows],
             yaw,
         )
-        h = spheres_hit(boxes, lw.reshape(-1, 3), np.tile(spheres.leaf_r[leaves], len(rows)))
+        hit_boxes: set[int] = set()
+        h = spheres_hit(
+            boxes, lw.reshape(-1, 3), np.tile(spheres.leaf_r[leaves], len(rows)), hit_boxes
+        )
+        if envelope is not None:
+            envelope.hit_owners.update(boxes.owners[k] for k in hit_boxes)
         flagged[rows] |= h.reshape(len(rows), -1).any(axis=1)
     return flagged
 

@@ -26,7 +26,7 @@ from shapely.geometry.base import BaseGeometry
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
+from pickstop.regions.arm import ArmSpheres, ExactArm, bound_centres, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
@@ -136,7 +136,7 @@ class RegionPlanner:
             "gripper": scene.gripper.model_dump(),
             "robot": self.robot.robot_hash,
             "db": self.db.id,
-            "algo": [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, 2],
+            "algo": [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, 3],
         }
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
 
@@ -189,25 +189,22 @@ class RegionPlanner:
 @dataclass(frozen=True)
 class _CacheEntry:
     region: TrayRegion
-    snapshot: dict[str, tuple[str, Bounds]]
+    snapshot: dict[str, tuple[str, Bounds, frozenset[str]]]
 
 
-def _snapshot(
-    scene: Scene, exclude: str
-) -> dict[str, tuple[str, list[tuple[np.ndarray, np.ndarray]]]]:
-    """Every other object: its definition and the bounds of its solids."""
+def _snapshot(scene: Scene, exclude: str) -> dict[str, tuple[str, Bounds, frozenset[str]]]:
+    """Every other object: its definition, the bounds of its solids and their owner names."""
     from pickstop.scene.world import part_solid, pose_matrix, shape_solid, tray_body_solids
 
     out = {}
     for o in scene.obstacles:
-        out[f"obstacle:{o.id}"] = (
-            o.model_dump_json(),
-            [shape_solid(o.geometry, pose_matrix(o.pose), o.id).aabb()],
-        )
+        solid = shape_solid(o.geometry, pose_matrix(o.pose), o.id)
+        out[f"obstacle:{o.id}"] = (o.model_dump_json(), [solid.aabb()], frozenset([o.id]))
     for t in scene.trays:
         if t.id != exclude:
             solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
-            out[f"tray:{t.id}"] = (t.model_dump_json(), [s.aabb() for s in solids])
+            owners = frozenset([t.id, *(p.id for p in t.parts)])
+            out[f"tray:{t.id}"] = (t.model_dump_json(), [s.aabb() for s in solids], owners)
     return out
 
 
@@ -219,9 +216,12 @@ def _still_valid(entry: _CacheEntry, snap: dict) -> bool:
         old, new = entry.snapshot.get(k), snap.get(k)
         if old is not None and new is not None and old[0] == new[0]:
             continue
-        for side in (old, new):
-            if side is not None and any(env.touches(lo, hi) for lo, hi in side[1]):
-                return False
+        if old is not None and (
+            old[2] & env.hit_owners or any(env.touches(lo, hi, False) for lo, hi in old[1])
+        ):
+            return False  # where it was, it rejected something or shaped the hand or footprint
+        if new is not None and any(env.touches(lo, hi) for lo, hi in new[1]):
+            return False  # where it is, it may block a witness, the hand or the footprint
     return True
 
 
@@ -580,6 +580,12 @@ def _rounds(
         # Several may succeed for a cell: keep its best-ranked (first) one.
         _, keep = np.unique(cell[acc], return_index=True)
         acc, ths_acc = acc[keep], ths[good][keep]
+        if len(acc):
+            _, _, fr = fk_soa(solver.chain, np.ascontiguousarray(ths_acc.T), frames=True)
+            env.mark_spheres(
+                bound_centres(planner.arm, fr, cen[cell[acc]], yaw),
+                float(planner.arm.bound_r.max()),
+            )
         found[cell[acc]] = True
         th_out[cell[acc]] = ths_acc
         g_out[cell[acc]] = g[acc]

@@ -1,15 +1,17 @@
-"""What a region computation looked at: a coarse 3D occupancy grid of the world.
+"""What a region's answer depends on, to tell when a cached region is still valid.
 
-While a tray's region is computed, the space its checks covered is marked: the bounding
-spheres of every arm link screened, the open hand at every grasp, the base footprint at every
-candidate cell (full height). An object that lies outside the marked space cannot have changed
-the answer, so moving or adding it leaves the cached region valid.
+Recorded while a tray's region is computed: the space of the open hand at every grasp and of
+the base footprint at every candidate cell (``occ``, coarse voxels), the space the arms of the
+accepted witnesses occupy (``witness``), and which objects made the screen reject anything
+(``hit_owners``). When another object moves, the region is unchanged if (a) where it was, it
+rejected nothing and touched no hand or footprint space: no rejection can flip; and (b) where
+it now is, it touches no witness arm, hand or footprint space: every witness stays valid.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -23,6 +25,8 @@ class Envelope:
     occ: np.ndarray  # (nx, ny, nz) bool
     _pending: np.ndarray | None = None  # sphere centres not yet grown
     _radius: float = 0.0
+    witness: np.ndarray | None = None  # (nx, ny, nz) bool: arms of accepted witnesses
+    hit_owners: set[str] = field(default_factory=set)
 
     @classmethod
     def empty(
@@ -65,7 +69,7 @@ class Envelope:
                 grown[tuple(lo)] |= hit[tuple(hi)]
                 grown[tuple(hi)] |= hit[tuple(lo)]
             hit = grown
-        self.occ |= hit
+        self.witness = hit if self.witness is None else self.witness | hit
         self._pending = None
 
     def mark_box(self, lo: np.ndarray, hi: np.ndarray) -> None:
@@ -94,8 +98,9 @@ class Envelope:
         top = self._index(np.array([self.origin[0], self.origin[1], height]))[2]
         self.occ[:, :, : top + 1] |= cols[:, :, None]
 
-    def touches(self, lo: np.ndarray, hi: np.ndarray) -> bool:
-        """Does the box ``[lo, hi]`` [m] reach any marked voxel?
+    def touches(self, lo: np.ndarray, hi: np.ndarray, witnesses: bool = True) -> bool:
+        """Does the box ``[lo, hi]`` [m] reach any marked voxel (hand, footprint and, if
+        ``witnesses``, the witness arms)?
 
         The grid spans the floor plus a margin and the robot's height, so the part of a box
         beyond it is out of the robot's reach and is clipped away.
@@ -106,4 +111,7 @@ class Envelope:
         if np.any(hi < self.origin) or np.any(lo > top):
             return False
         a, b = self._index(lo), self._index(hi)
-        return bool(self.occ[a[0] : b[0] + 1, a[1] : b[1] + 1, a[2] : b[2] + 1].any())
+        box = (slice(a[0], b[0] + 1), slice(a[1], b[1] + 1), slice(a[2], b[2] + 1))
+        if self.occ[box].any():
+            return True
+        return bool(witnesses and self.witness is not None and self.witness[box].any())

@@ -222,10 +222,13 @@ class BoxArrays:
         )
 
 
-def spheres_hit(boxes: BoxArrays, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+def spheres_hit(
+    boxes: BoxArrays, centres: np.ndarray, radii: np.ndarray, hit_boxes: set[int] | None = None
+) -> np.ndarray:
     """Which spheres ``(M, 3)``, ``(M,)`` [m] intersect any solid: ``(M,)`` bool.
 
     Exact for boxes and vertical cylinders, conservative for meshes (their bounding box).
+    hit_boxes: if given, the indices of the boxes that were hit are added to it.
     """
     hit = np.zeros(len(centres), bool)
     if len(centres) == 0 or len(boxes.centres) == 0:
@@ -248,5 +251,9 @@ def spheres_hit(boxes: BoxArrays, centres: np.ndarray, radii: np.ndarray) -> np.
         else:
             q = np.maximum(np.abs(d) - boxes.half[k], 0.0)
             dist2 = np.einsum("ij,ij->i", q, q)
-        hit[idx[dist2 < (radii[idx] - TOUCH) ** 2]] = True
+        inside = idx[dist2 < (radii[idx] - TOUCH) ** 2]
+        if len(inside):
+            hit[inside] = True
+            if hit_boxes is not None:
+                hit_boxes.add(int(k))
     return hit
