@@ -230,6 +230,8 @@ def cmd_regions(args: argparse.Namespace) -> int:
     planner = planner_for(
         scene, Path(args.scene).resolve().parent, data_dir(args.data_dir), args.db
     )
+    if not args.tray:  # every task tray: use all cores
+        planner.regions(scene, workers=os.cpu_count() or 1)
     regions = [planner.tray_region(scene, t, y) for t in trays for y in scene.base_yaw.yaws]
     doc = regions_geojson(regions, {t.id: t.name for t in scene.trays})
     if args.out:

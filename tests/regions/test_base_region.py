@@ -166,3 +166,18 @@ def test_feasible_at_agrees_with_the_grid(planner, paper_doc):
     assert thetas.shape == (len(centres), 1, planner.robot.dof)
     far = np.array([[4.5, -0.5], [0.0, 0.0]])
     assert not feasible_at(planner, scene, "tray_2", far, region.yaw)[0].any()
+
+
+def test_parallel_regions_equal_serial(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    planner.cache.clear()
+    serial = planner.regions(scene, workers=1)
+    planner.cache.clear()
+    try:
+        parallel = planner.regions(scene, workers=2)
+    finally:
+        planner.close()
+    assert serial.keys() == parallel.keys()
+    for k in serial:
+        np.testing.assert_array_equal(serial[k].mask, parallel[k].mask)
+        np.testing.assert_allclose(serial[k].thetas, parallel[k].thetas)

@@ -113,6 +113,8 @@ class RegionPlanner:
     grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
     cache_size: int = 256
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
+    workers: int = 1  # processes for several regions at once (forked: they share the database)
+    _workers_pool: Any = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         from pickstop.robot.artifacts import self_collision
@@ -144,26 +146,60 @@ class RegionPlanner:
         """The region of one tray, reused from the cache while nothing it looked at changed."""
         tray = scene.tray(tray_id)
         yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
-        key = self.own_key(scene, tray, yaw)
+        hit = self._cached(scene, tray_id, yaw)
+        if hit is not None:
+            return hit
+        region = compute_tray_region(self, scene, tray, yaw, self.own_key(scene, tray, yaw))
+        self._store(scene, region)
+        return region
+
+    def regions(
+        self, scene: Scene, workers: int | None = None
+    ) -> dict[tuple[str, float], TrayRegion]:
+        """Regions of every tray the task needs, at every yaw of the policy.
+
+        workers: processes for the regions not in the cache (default: the planner's
+        ``workers``); they are forked from this process, so they share its database.
+        """
+        pairs = [(t, y) for t in scene.task_trays for y in scene.base_yaw.yaws]
+        workers = self.workers if workers is None else workers
+        todo = [(t, y) for t, y in pairs if self._cached(scene, t, y) is None]
+        if workers > 1 and len(todo) > 1:
+            pool = self._pool(workers)
+            for region in pool.starmap(_pool_region, [(scene, t, y) for t, y in todo]):
+                self._store(scene, region)
+        return {(t, y): self.tray_region(scene, t, y) for t, y in pairs}
+
+    def _cached(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion | None:
+        tray = scene.tray(tray_id)
         snap = _snapshot(scene, tray.id)
-        for entry in self.cache.get(key, []):
+        for entry in self.cache.get(self.own_key(scene, tray, yaw), []):
             if _still_valid(entry, snap):
                 return entry.region
-        region = compute_tray_region(self, scene, tray, yaw, key)
-        entries = self.cache.setdefault(key, [])
-        entries.insert(0, _CacheEntry(region, snap))
+        return None
+
+    def _store(self, scene: Scene, region: TrayRegion) -> None:
+        entries = self.cache.setdefault(region.key, [])
+        entries.insert(0, _CacheEntry(region, _snapshot(scene, region.tray_id)))
         del entries[4:]  # a few layouts per tray and yaw
         if len(self.cache) > self.cache_size:
             self.cache.pop(next(iter(self.cache)))
-        return region
 
-    def regions(self, scene: Scene) -> dict[tuple[str, float], TrayRegion]:
-        """Regions of every tray the task needs, at every yaw of the policy."""
-        return {
-            (t, y): self.tray_region(scene, t, y)
-            for t in scene.task_trays
-            for y in scene.base_yaw.yaws
-        }
+    def _pool(self, workers: int) -> Any:
+        if self._workers_pool is None or self._workers_pool[0] != workers:
+            import multiprocessing
+
+            global _POOL_PLANNER
+            _POOL_PLANNER = self
+            ctx = multiprocessing.get_context("fork")
+            self._workers_pool = (workers, ctx.Pool(workers))
+        return self._workers_pool[1]
+
+    def close(self) -> None:
+        """Stop the worker processes, if any."""
+        if self._workers_pool is not None:
+            self._workers_pool[1].terminate()
+            self._workers_pool = None
 
     def grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
         out = []
@@ -190,6 +226,16 @@ class RegionPlanner:
 class _CacheEntry:
     region: TrayRegion
     snapshot: dict[str, tuple[str, Bounds, frozenset[str]]]
+
+
+_POOL_PLANNER: RegionPlanner | None = None  # the planner the forked workers inherited
+
+
+def _pool_region(scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
+    assert _POOL_PLANNER is not None
+    planner = _POOL_PLANNER
+    tray = scene.tray(tray_id)
+    return compute_tray_region(planner, scene, tray, yaw, planner.own_key(scene, tray, yaw))
 
 
 def _snapshot(scene: Scene, exclude: str) -> dict[str, tuple[str, Bounds, frozenset[str]]]:
