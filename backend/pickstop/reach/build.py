@@ -356,6 +356,7 @@ def build(
     try:
         for res in run(kernel, todo, data_dir, db_id):
             _record(catalog, db_id, res)
+            done.add(res.chunk)
             samples_done += res.samples
             if progress:
                 progress(samples_done, params.samples)
@@ -365,7 +366,7 @@ def build(
             "UPDATE reach_databases SET build_seconds = build_seconds + ? WHERE id = ?",
             [elapsed, db_id],
         )
-    if len(_chunks_done(catalog, db_id, data_dir)) == params.n_chunks:
+    if len(done) == params.n_chunks:
         totals = catalog.query(
             "SELECT SUM(rows) s, SUM(rejected_self_collision) c, SUM(rejected_thinning) t "
             "FROM reach_shards WHERE db_id = ?",

@@ -177,13 +177,7 @@ class ReachDatabase:
 
         The hot path of region computation; inputs are trusted (use :func:`check_poses`).
         """
-        keys = self.voxel.keys(ps, qs)
-        pos = np.searchsorted(self.unique_keys, keys)
-        np.minimum(pos, len(self.unique_keys) - 1, out=pos)
-        found = self.unique_keys[pos] == keys
-        starts = np.where(found, self.offsets[pos], 0)
-        ends = np.where(found, self.offsets[pos + 1], 0)
-        return starts, ends
+        return self.lookup_keys(self.voxel.keys(ps, qs))
 
     def lookup_keys(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Row ranges ``starts, ends`` of voxel ``keys`` (empty where absent or -1)."""

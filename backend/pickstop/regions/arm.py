@@ -21,23 +21,24 @@ from pickstop.scene.world import BoxArrays, Solid, _coal, collide
 SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
 
 
-def _link_of(geom_name: str) -> str:
-    head, _, tail = geom_name.rpartition("_")
-    return head if tail.isdigit() else geom_name
+def arm_links(robot: RobotModel) -> list[Any]:
+    """Collision links on moving arm bodies, hand links excluded (sorted by name)."""
+    from pickstop.robot.link_geometry import collision_links
+
+    pats = robot.config.hand_links
+    return sorted(
+        (
+            link
+            for link in collision_links(robot)
+            if link.joint != 0 and not any(fnmatch.fnmatch(link.name, p) for p in pats)
+        ),
+        key=lambda link: link.name,
+    )
 
 
 def arm_geometry_ids(robot: RobotModel) -> list[int]:
     """Collision geometries on moving arm bodies, hand links excluded."""
-    pats = robot.config.hand_links
-    out = []
-    for i, g in enumerate(robot.geom_model.geometryObjects):
-        if g.parentJoint == 0:
-            continue
-        link = _link_of(g.name)
-        if any(fnmatch.fnmatch(link, p) for p in pats):
-            continue
-        out.append(i)
-    return out
+    return sorted(i for link in arm_links(robot) for i in link.geometry_ids)
 
 
 @dataclass(frozen=True)
@@ -56,15 +57,12 @@ class ArmSpheres:
         from pickstop.robot.link_geometry import LinkShape
         from pickstop.robot.spheres import cover
 
-        by_link: dict[str, list[int]] = {}
-        for i in arm_geometry_ids(robot):
-            by_link.setdefault(_link_of(robot.geom_model.geometryObjects[i].name), []).append(i)
         joints, bc, br, ll, lc, lr = [], [], [], [], [], []
-        for k, (_, ids) in enumerate(sorted(by_link.items())):
-            s = cover(LinkShape.of(robot, tuple(ids)), excess)
+        for k, link in enumerate(arm_links(robot)):
+            s = cover(LinkShape.of(robot, tuple(link.geometry_ids)), excess)
             c = s[:, :3].mean(axis=0)
             r = float(np.max(np.linalg.norm(s[:, :3] - c, axis=1) + s[:, 3]))
-            joints.append(robot.geom_model.geometryObjects[ids[0]].parentJoint)
+            joints.append(link.joint)
             bc.append(c)
             br.append(r)
             ll += [k] * len(s)

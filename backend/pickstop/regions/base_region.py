@@ -348,7 +348,7 @@ def compute_tray_region(
     if not tray.parts:
         return empty(f"tray {tray.id!r} has no parts")
     tc = np.array([tray.pose.x, tray.pose.y])
-    reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
+    reach, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
     # Cells within reach of the tray (a bounding window, then the disc).
     lo = np.floor((tc - reach - [grid.x0, grid.y0]) / grid.res).astype(int)
     hi = np.ceil((tc + reach - [grid.x0, grid.y0]) / grid.res).astype(int)
@@ -372,7 +372,6 @@ def compute_tray_region(
     if len(IX) == 0:
         return empty(f"no cell within reach of tray {tray.id!r} has room for the base footprint")
 
-    _, solids, boxes, Rz_T = _tray_world(planner, scene, tray, yaw)
     grasp_sets = planner.grasps(scene, tray)
     alive = np.arange(len(IX))  # indices into the candidate cells still feasible
     witness = np.zeros((len(IX), len(part_ids), robot.dof))
@@ -415,7 +414,7 @@ def compute_tray_region(
     )
 
 
-def _tray_world(
+def tray_world(
     planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float
 ) -> tuple[float, list[Solid], BoxArrays, np.ndarray]:
     """Reach radius around the tray [m], the solids near it (exact and as arrays), R_base_world."""
@@ -444,7 +443,7 @@ def feasible_at(
     alive = np.flatnonzero(footprint_free(scene, planner.robot, xy, yaw))
     if not P:
         return np.zeros(M, bool), thetas, grasp
-    _, solids, boxes, Rz_T = _tray_world(planner, scene, tray, yaw)
+    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
     env = Envelope.empty(scene.floor.min, scene.floor.max)
     for k, gs in enumerate(planner.grasps(scene, tray)):
         if len(alive) == 0 or len(gs.Ts_world_tool) == 0:

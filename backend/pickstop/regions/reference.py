@@ -23,8 +23,14 @@ import shapely
 
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
-from pickstop.regions.arm import nearby, screen_arm
-from pickstop.regions.base_region import CellGrid, RegionPlanner, TrayRegion, footprint_free
+from pickstop.regions.arm import screen_arm
+from pickstop.regions.base_region import (
+    CellGrid,
+    RegionPlanner,
+    TrayRegion,
+    footprint_free,
+    tray_world,
+)
 from pickstop.robot.kinematics import fk, fk_soa
 from pickstop.robot.screen import screen
 from pickstop.scene.grasps import GraspSet
@@ -187,9 +193,7 @@ class _Setup:
 def _setup(
     planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float, cand: Candidates
 ) -> _Setup:
-    tc = np.array([tray.pose.x, tray.pose.y])
-    reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
-    solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
+    _, solids, boxes, _ = tray_world(planner, scene, tray, yaw)
     return _Setup(
         planner,
         tray,
@@ -197,7 +201,7 @@ def _setup(
         cand,
         planner.grasps(scene, tray),
         solids,
-        BoxArrays.of(solids),
+        boxes,
         ReachBound.of(planner.solver),
         {"ik_problems": 0, "ik_converged": 0, "exact_checks": 0},
     )

@@ -12,7 +12,7 @@ import json
 import math
 import warnings
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -68,7 +68,6 @@ class RobotModel:
     tool_frame_id: int
     joints: tuple[ArmJoint, ...]
     robot_hash: str
-    mesh_files: tuple[Path, ...] = field(default=())
 
     @property
     def name(self) -> str:
@@ -319,7 +318,6 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
         tool_frame_id=tool_id,
         joints=tuple(joints),
         robot_hash=_hash(config, files),
-        mesh_files=tuple(sorted(set(meshes))),
     )
 
 

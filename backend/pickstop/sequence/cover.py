@@ -109,10 +109,10 @@ def select_stops(
         best = round(solver.objective_value)
         model.add(n_stops == best)
         model.minimize(route)
+        for c in range(N):  # warm start from the first phase's stops
+            model.add_hint(x[c], bool(solver.value(x[c])))
     else:
         model.minimize(route + round(stop_cost * SCALE) * n_stops)
-    for c in range(N):  # warm start from the previous phase
-        model.add_hint(x[c], bool(solver.value(x[c])) if objective == "stops" else False)
     status = solver.solve(model)
     _check(status, req)
     optimal &= status == cp_model.OPTIMAL
