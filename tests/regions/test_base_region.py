@@ -181,3 +181,18 @@ def test_parallel_regions_equal_serial(planner, paper_doc):
     for k in serial:
         np.testing.assert_array_equal(serial[k].mask, parallel[k].mask)
         np.testing.assert_allclose(serial[k].thetas, parallel[k].thetas)
+
+
+def test_touching_cells_merge_into_one_polygon():
+    """Cells share bit-identical edges, so a solid block is one polygon with its holes."""
+    import numpy as np
+
+    from pickstop.regions.base_region import CellGrid
+
+    grid = CellGrid(x0=-1.1, y0=0.37, res=0.025, nx=40, ny=30)
+    mask = np.ones((30, 40), bool)
+    mask[10:14, 20:25] = False  # a hole
+    iy, ix = np.nonzero(mask)
+    poly = grid.cells_polygon(iy, ix)
+    assert poly.geom_type == "Polygon" and len(poly.interiors) == 1
+    assert abs(poly.area - mask.sum() * 0.025**2) < 1e-9

@@ -66,9 +66,11 @@ class CellGrid:
         """Union of the cells' squares: polygons with holes, touching cells merged."""
         if len(ix) == 0:
             return shapely.Polygon()
-        x = self.x0 + ix * self.res
-        y = self.y0 + iy * self.res
-        boxes = shapely.box(x, y, x + self.res, y + self.res)
+        # Neighbouring cells must share bit-identical edges for the coverage union to merge
+        # them: compute every edge as x0 + i * res, never as x + res.
+        x, x1 = self.x0 + ix * self.res, self.x0 + (ix + 1) * self.res
+        y, y1 = self.y0 + iy * self.res, self.y0 + (iy + 1) * self.res
+        boxes = shapely.box(x, y, x1, y1)
         return shapely.coverage_union_all(boxes)
 
 
@@ -635,3 +637,86 @@ def _rounds(
         th_out[cell[acc]] = ths_acc
         g_out[cell[acc]] = g[acc]
     return found, th_out, g_out
+
+
+NEIGHBOUR_SEEDS = 6  # witnesses of the nearest feasible cells tried as IK seeds
+SEED_ITERATIONS = 20
+
+
+def feasible_near(
+    planner: RegionPlanner, scene: Scene, region: TrayRegion, xy: np.ndarray, yaw: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`feasible_at`, then, where that fails, IK seeded by the witnesses of the region's
+    nearest feasible cells (exact solutions a few centimetres away), verified the same way.
+
+    Off the grid (a stop's inscribed centre, a Monte Carlo sample) the database's voxels may
+    hold no candidate for a pose whose neighbours were solved; the seeds close that gap.
+    """
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    ok, thetas, grasp = feasible_at(planner, scene, region.tray_id, xy, yaw)
+    todo = np.flatnonzero(~ok)
+    if not len(todo) or not len(region.cells) or abs(region.yaw - yaw) > 0.2:
+        return ok, thetas, grasp
+    free = footprint_free(scene, planner.robot, xy[todo], yaw)
+    todo = todo[free]
+    if not len(todo):
+        return ok, thetas, grasp
+    tray = scene.tray(region.tray_id)
+    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
+    cells_xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
+    S = min(NEIGHBOUR_SEEDS, len(cells_xy))
+    d2 = ((xy[todo, None, :] - cells_xy[None]) ** 2).sum(-1)
+    near = np.argsort(d2, axis=1)[:, :S]  # (T, S) nearest feasible cells
+    alive = np.ones(len(todo), bool)
+    th_new = np.zeros((len(todo), len(tray.parts), planner.robot.dof))
+    g_new = np.zeros((len(todo), len(tray.parts)), int)
+    solver = planner.solver
+    for k, gs in enumerate(planner.grasps(scene, tray)):
+        idx = np.flatnonzero(alive)
+        if not len(idx):
+            break
+        seeds = region.thetas[near[idx], k].reshape(-1, planner.robot.dof)  # (T'S, dof)
+        g = region.grasp_index[near[idx], k].reshape(-1)
+        owner = np.repeat(idx, S)
+        base = np.concatenate([xy[todo[owner]], np.zeros((len(owner), 1))], 1)
+        R_bt = np.einsum("ij,bjk->bik", Rz_T, gs.Ts_world_tool[g, :3, :3])
+        p_bt = (gs.Ts_world_tool[g, :3, 3] - base) @ Rz_T.T
+        res = refine_batch(solver, seeds, R_bt, p_bt, max_iter=SEED_ITERATIONS)
+        good = np.zeros(len(owner), bool)
+        okr = np.flatnonzero(res.success)
+        if len(okr):
+            ths = res.thetas[okr]
+            _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(ths.T), frames=True)
+            env = Envelope.empty(scene.floor.min, scene.floor.max)
+            env_hit = screen_arm(planner.arm, boxes, frames, base[okr, :2], yaw, env)
+            from pickstop.robot.selfcollision import screen
+
+            self_hit = screen(planner.self_spheres, frames)
+            flagged = env_hit | self_hit
+            good[okr] = ~flagged
+            done = set(owner[okr[~flagged]].tolist())  # points with a screen-free solution
+            for j in np.flatnonzero(flagged):
+                o = int(owner[okr[j]])
+                if o in done:  # one verified seed per point is enough
+                    continue
+                x, y = base[okr[j], :2]
+                bad = (self_hit[j] and planner.exact_self.colliding(ths[j][None])[0]) or (
+                    env_hit[j] and planner.exact_arm.colliding(ths[j], x, y, yaw, solids)
+                )
+                good[okr[j]] = not bad
+                if not bad:
+                    done.add(o)
+        hit = np.zeros(len(todo), bool)
+        first = np.full(len(todo), -1)
+        for b in np.flatnonzero(good)[::-1]:  # the first good seed per point wins
+            first[owner[b]] = b
+        hit[first >= 0] = True
+        sel = np.flatnonzero(hit)
+        th_new[sel, k] = res.thetas[first[sel]]
+        g_new[sel, k] = g[first[sel]]
+        alive &= hit
+    win = todo[alive]
+    ok[win] = True
+    thetas[win] = th_new[alive]
+    grasp[win] = g_new[alive]
+    return ok, thetas, grasp
