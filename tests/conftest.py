@@ -36,6 +36,28 @@ def pr2():
     return load(PR2_CONFIG)
 
 
+@pytest.fixture(scope="session")
+def region_db(tmp_path_factory, tiago):
+    from pickstop.reach.build import BuildParams, build
+    from pickstop.reach.database import open_database
+
+    """A 2M-sample TIAGo database for region tests: (data folder, database)."""
+    folder = tmp_path_factory.mktemp("regiondata")
+    row = build(
+        tiago, BuildParams(samples=2_000_000, chunk_size=250_000, seed=11), folder, workers=2
+    )
+    return folder, open_database(folder, tiago, row["id"])
+
+
+@pytest.fixture(scope="session")
+def planner(region_db, tiago):
+    from pickstop.regions.base_region import RegionPlanner
+    from pickstop.settings import cache_dir
+
+    folder, db = region_db
+    return RegionPlanner(tiago, db, cache_dir=cache_dir(folder))
+
+
 @pytest.fixture(scope="session", params=["tiago", "pr2"])
 def robot(request, tiago, pr2):
     return tiago if request.param == "tiago" else pr2

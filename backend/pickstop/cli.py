@@ -247,6 +247,125 @@ def cmd_regions(args: argparse.Namespace) -> int:
     return 0
 
 
+def _plan_options(args: argparse.Namespace) -> Any:
+    from pydantic import ValidationError
+
+    from pickstop.sequence.plan_model import PlanOptions
+
+    fields = {
+        "sigma": args.sigma,
+        "rule": args.rule,
+        "target": args.target,
+        "objective": args.objective,
+        "samples": args.samples,
+        "seed": args.seed,
+        "time_limit": args.time_limit,
+    }
+    try:
+        return PlanOptions(**{k: v for k, v in fields.items() if v is not None})
+    except ValidationError as e:
+        err = e.errors()[0]
+        name = str(err["loc"][0]).replace("_", "-")
+        raise InputError(f"--{name}: {err['msg']}", field=name) from None
+
+
+def _plan_one(path: Path, args: argparse.Namespace, options: Any) -> Any:
+    from pickstop.regions.loader import stop_planner_for
+    from pickstop.scene.model import load_scene
+    from pickstop.settings import data_dir
+
+    scene = load_scene(path)
+    sp = stop_planner_for(scene, path.resolve().parent, data_dir(args.data_dir), args.db)
+    sp.regions.workers = args.workers
+    return sp.plan(scene, options)
+
+
+def _plan_row(plan: Any) -> dict[str, Any]:
+    t = plan.totals
+    return {
+        "trays": len(plan.trays),
+        "stops": t.stops,
+        "naive_stops": len(plan.naive.stops),
+        "length_m": round(t.route_length, 2),
+        "time_s": round(t.time.total, 1),
+        "naive_time_s": round(plan.naive.time.total, 1),
+        "saving": f"{plan.naive.saving_fraction:.1%}",
+        "success": "-" if t.success is None else f"{t.success:.1%}",
+        "seconds": round(plan.timings.total, 2),
+    }
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    options = _plan_options(args)
+    src = Path(args.scene)
+    if src.is_dir():
+        return _plan_batch(src, args, options)
+    plan = _plan_one(src, args, options)
+    doc = plan.model_dump(mode="json")
+    if args.out:
+        out = Path(args.out)
+        if out.is_dir():
+            raise InputError(f"--out {out}: is a folder; give a file for one scene", field="out")
+        _write_json(out, doc)
+        _emit({"scene": plan.scene, "out": str(out), **_plan_row(plan)})
+    else:
+        _emit(doc)
+    return 0
+
+
+def _write_json(path: Path, doc: Any) -> None:
+    """Write atomically: a reader never sees half a file, a failure leaves the old one."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(doc, indent=1, default=_json_default) + "\n")
+    tmp.replace(path)
+
+
+def _plan_batch(folder: Path, args: argparse.Namespace, options: Any) -> int:
+    """Plan every scene file of ``folder``; a summary table on stdout, plans in --out."""
+    scenes = sorted(p for p in folder.glob("*.json") if not p.name.endswith(".plan.json"))
+    if not scenes:
+        raise InputError(f"{folder}: no scene files (*.json) in this folder", field="scene")
+    out = Path(args.out) if args.out else None
+    if out is not None:
+        if out.exists() and not out.is_dir():
+            raise InputError(f"--out {out}: must be a folder when planning a folder", field="out")
+        out.mkdir(parents=True, exist_ok=True)
+    rows: list[dict[str, Any]] = []
+    codes: set[int] = set()
+    for path in scenes:
+        t0 = time.perf_counter()
+        try:
+            plan = _plan_one(path, args, options)
+        except PickStopError as e:
+            codes.add(e.exit_code)
+            rows.append({"scene": path.name, "status": "error", "error": e.message,
+                         "seconds": round(time.perf_counter() - t0, 2)})  # fmt: skip
+            continue
+        if out is not None:
+            _write_json(out / f"{path.stem}.plan.json", plan.model_dump(mode="json"))
+        rows.append({"scene": path.name, "status": "ok", **_plan_row(plan)})
+    if args.json:
+        _emit(rows)
+    else:
+        _print_table(rows)
+    # Exit: 2 if any scene is invalid, else 3 if any is infeasible, else 1 for other failures.
+    return next((c for c in (2, 3) if c in codes), 1 if codes else 0)
+
+
+def _print_table(rows: list[dict[str, Any]]) -> None:
+    cols = ["scene", "status", "trays", "stops", "naive_stops", "length_m", "time_s",
+            "naive_time_s", "saving", "success", "seconds"]  # fmt: skip
+    cells = [[str(r.get(c, "")) for c in cols] for r in rows]
+    widths = [max(len(c), *(len(row[i]) for row in cells)) for i, c in enumerate(cols)]
+    print("  ".join(c.ljust(w) for c, w in zip(cols, widths, strict=True)))
+    for row in cells:
+        print("  ".join(v.ljust(w) for v, w in zip(row, widths, strict=True)))
+    errors = [r for r in rows if r["status"] == "error"]
+    for r in errors:
+        print(f"{r['scene']}: {r['error']}")
+    print(f"{len(rows) - len(errors)} of {len(rows)} scenes planned")
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """The embedded default: the bundled TIAGo, its database (built once), a top-down query."""
     from pickstop.reach.build import BuildParams, build
@@ -303,6 +422,25 @@ def build_parser() -> argparse.ArgumentParser:
     rg.add_argument("--tray", action="append", help="only this tray (repeatable)")
     rg.add_argument("--db", help="reachability database id (default: newest for the robot)")
     rg.set_defaults(func=cmd_regions)
+
+    pl = sub.add_parser("plan", help="plan stops and route for a scene (or a folder of scenes)")
+    pl.add_argument("scene", help="scene JSON file, or a folder: plan every *.json in it")
+    pl.add_argument(
+        "--sigma", type=_finite_float, help="base positioning error [m] (default: the scene's)"
+    )
+    pl.add_argument("--rule", choices=["sigma", "success"], help="candidate rule (default: sigma)")
+    pl.add_argument("--target", type=_finite_float, help="success rate per stop for --rule success")
+    pl.add_argument("--objective", choices=["stops", "time"], help="default: stops, then route")
+    pl.add_argument(
+        "--samples", type=int, help="Monte Carlo samples per stop (default 1000; 0: none)"
+    )
+    pl.add_argument("--seed", type=int, help="Monte Carlo seed")
+    pl.add_argument("--time-limit", type=_finite_float, help="stop selection time limit [s]")
+    pl.add_argument("--out", help="write the plan here (a folder when planning a folder)")
+    pl.add_argument("--json", action="store_true", help="folder: the summary as JSON, not a table")
+    pl.add_argument("--db", help="reachability database id (default: the largest for the robot)")
+    pl.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1)
+    pl.set_defaults(func=cmd_plan)
 
     reach = sub.add_parser("reach", help="reachability databases").add_subparsers(
         dest="reach_command", required=True

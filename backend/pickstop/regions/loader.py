@@ -9,9 +9,11 @@ from pickstop.regions.base_region import RegionPlanner
 from pickstop.robot.config import load_config, resolve_robot
 from pickstop.robot.model import load_robot
 from pickstop.scene.model import Scene
+from pickstop.sequence.plan import StopPlanner
 from pickstop.settings import cache_dir
 
 _PLANNERS: dict[tuple[str, str, str], RegionPlanner] = {}
+_STOP_PLANNERS: dict[int, StopPlanner] = {}
 
 
 def planner_for(
@@ -35,3 +37,14 @@ def planner_for(
     planner = RegionPlanner(robot, db, cache_dir=cache_dir(data_dir))
     _PLANNERS[key] = planner
     return planner
+
+
+def stop_planner_for(
+    scene: Scene, scene_root: Path | None, data_dir: Path, db_id: str | None = None
+) -> StopPlanner:
+    """The stop planner (with its caches) over the scene's region planner."""
+    regions = planner_for(scene, scene_root, data_dir, db_id)
+    sp = _STOP_PLANNERS.get(id(regions))
+    if sp is None or sp.regions is not regions:
+        sp = _STOP_PLANNERS[id(regions)] = StopPlanner(regions)
+    return sp

@@ -1,0 +1,631 @@
+"""From a scene to the plan a factory runs: regions, candidates, stops, route, time, success.
+
+1. Base regions of the task's trays (cached by the region planner).
+2. Every connected component of every k-th order intersection is a candidate stop at its
+   largest inscribed circle's centre; the rule (the paper's sigma, or a target success rate)
+   decides which are kept, and candidates the start cannot reach are dropped.
+3. Shortest floor paths between start, goal and every candidate; CP-SAT picks the fewest
+   stops, then the shortest route (or the least time).
+4. Each chosen stop is verified at its centre by the exact pipeline (that gives the witness
+   arm configurations) and, with the success rule, confirmed by the Monte Carlo; a stop that
+   fails is rejected with its reason and the selection runs again.
+5. The naive plan (one stop per tray) through the same route solver, for comparison.
+
+Anything impossible raises :class:`InfeasiblePlanError` naming the trays and numbers involved.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import math
+import time
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import shapely
+from shapely.geometry import Point, Polygon
+
+from pickstop.regions.base_region import RegionPlanner, TrayRegion, feasible_near
+from pickstop.scene.model import Scene
+from pickstop.scene.world import scene_solids
+from pickstop.sequence import plan_model as pm
+from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
+from pickstop.sequence.intersections import Candidate, intersections
+from pickstop.sequence.route import FloorMap, Paths, shortest_paths
+from pickstop.sequence.success import (
+    Rate,
+    combined,
+    disc_probability,
+    monte_carlo,
+    radius_for,
+    sample_errors,
+)
+from pickstop.sequence.timing import TimeBreakdown, leg_time, plan_time
+
+MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
+SHAPE_SAMPLES = 4000  # samples of the region-shape success estimate ('success' rule)
+DUPLICATE = 1e-3  # [m] candidates of the same trays this close are one
+
+
+def _digest(obj: Any) -> str:
+    return hashlib.sha256(repr(obj).encode()).hexdigest()[:20]
+
+
+class _Lru(OrderedDict[Any, Any]):
+    def __init__(self, size: int) -> None:
+        super().__init__()
+        self.size = size
+
+    def put(self, key: Any, value: Any) -> Any:
+        self[key] = value
+        self.move_to_end(key)
+        while len(self) > self.size:
+            self.popitem(last=False)
+        return value
+
+    def hit(self, key: Any) -> Any:
+        if key in self:
+            self.move_to_end(key)
+            return self[key]
+        return None
+
+
+@dataclass(frozen=True)
+class _Floor:
+    fmap: FloorMap
+    outlines: list[tuple[str, Polygon]]  # obstacle id -> floor outline
+
+
+class StopPlanner:
+    """Plans stops and routes for scenes of one robot and database, caching what it can.
+
+    A change of sigma, rule or objective reuses the regions, the candidates, the floor paths
+    and the exact checks at candidate centres; moving a tray recomputes only what it affects.
+    """
+
+    def __init__(self, regions: RegionPlanner, cache_size: int = 64) -> None:
+        self.regions = regions
+        self._candidates = _Lru(cache_size)
+        self._floors = _Lru(cache_size)
+        self._paths = _Lru(cache_size)
+        self._checks = _Lru(4096)
+        self._rates = _Lru(4096)
+
+    # -- pieces ------------------------------------------------------------------------------
+    def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Candidate]:
+        """All intersection components of the regions, per yaw, duplicates dropped."""
+        key = tuple(
+            sorted(
+                (t, y, r.key, hashlib.sha1(r.mask.tobytes()).hexdigest())
+                for (t, y), r in regions.items()
+            )
+        )
+        hit = self._candidates.hit(key)
+        if hit is not None:
+            return list(hit)
+        out: list[Candidate] = []
+        for yaw in sorted({y for _, y in regions}):
+            polys = {t: r.polygon for (t, y), r in regions.items() if y == yaw}
+            for c in intersections(polys, yaw):
+                if not any(
+                    o.trays == c.trays
+                    and o.yaw == c.yaw
+                    and math.dist(o.centre, c.centre) < DUPLICATE
+                    for o in out
+                ):
+                    out.append(c)
+        return list(self._candidates.put(key, tuple(out)))
+
+    def floor(self, scene: Scene) -> _Floor:
+        """Where the base may drive: the floor minus obstacles inflated by the footprint."""
+        fp = self.regions.robot.config.footprint
+        solids = [s for s in scene_solids(scene) if s.aabb()[0][2] < fp.height]
+        key = (
+            scene.floor.model_dump_json(),
+            fp.bounding_radius,
+            tuple((s.owner, s.T_world_solid.tobytes(), s.half.tobytes()) for s in solids),
+        )
+        hit = self._floors.hit(key)
+        if hit is not None:
+            return hit
+        outlines = [(s.owner, _outline(s)) for s in solids]
+        fmap = FloorMap.build(
+            (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], fp.bounding_radius
+        )
+        return self._floors.put(key, _Floor(fmap, outlines))
+
+    def paths(self, floor: _Floor, points: np.ndarray) -> Paths:
+        key = (id(floor), points.tobytes())
+        hit = self._paths.hit(key)
+        if hit is not None and hit[0] is floor:
+            return hit[1]
+        p = shortest_paths(floor.fmap, points)
+        self._paths.put(key, (floor, p))
+        return p
+
+    def check(
+        self, scene: Scene, world_key: str, region: TrayRegion, xy: tuple[float, float]
+    ) -> tuple[bool, np.ndarray, np.ndarray]:
+        """The exact region test for one tray at one base pose (cached)."""
+        key = (world_key, region.tray_id, xy, region.yaw)
+        hit = self._checks.hit(key)
+        if hit is None:
+            ok, th, g = feasible_near(self.regions, scene, region, np.array([xy]), region.yaw)
+            hit = self._checks.put(key, (bool(ok[0]), th[0], g[0]))
+        return hit
+
+    def success(
+        self,
+        scene: Scene,
+        world_key: str,
+        regions: list[TrayRegion],
+        xy: tuple[float, float],
+        sigma: float,
+        samples: int,
+        seed: int,
+    ) -> Rate:
+        """Monte Carlo success rate of stopping at ``xy`` to pick the regions' trays (cached)."""
+        em = scene.error_model
+        trays = tuple(r.tray_id for r in regions)
+        yaw = regions[0].yaw
+        key = (world_key, trays, xy, yaw, em.kind, em.yaw_sigma, sigma, samples, seed)
+        hit = self._rates.hit(key)
+        if hit is not None:
+            return hit
+
+        def evaluate(pts: np.ndarray, yaw_: float) -> np.ndarray:
+            ok = np.ones(len(pts), bool)
+            for r in regions:
+                idx = np.flatnonzero(ok)
+                if not len(idx):
+                    break
+                ok[idx] = feasible_near(self.regions, scene, r, pts[idx], yaw_)[0]
+            return ok
+
+        rng = np.random.default_rng([seed, int.from_bytes(_digest((trays, xy)).encode()[:4])])
+        rate = monte_carlo(evaluate, xy, yaw, em.kind, sigma, em.yaw_sigma, samples, rng)
+        return self._rates.put(key, rate)
+
+    # -- the plan ------------------------------------------------------------------------------
+    def plan(self, scene: Scene, options: pm.PlanOptions | None = None) -> pm.Plan:
+        opts = options or pm.PlanOptions()
+        return _Planning(self, scene, opts).run()
+
+
+def world_key(scene: Scene) -> str:
+    """What feasibility at a base pose depends on: everything but task, start, goal, sigma."""
+    keep = scene.model_dump(
+        exclude={"name", "description", "task", "start", "goal", "sigma", "error_model", "motion"}
+    )
+    return _digest(sorted(keep.items()))
+
+
+def scene_hash(scene: Scene) -> str:
+    return hashlib.sha256(scene.model_dump_json().encode()).hexdigest()
+
+
+def _outline(solid: Any) -> Polygon:
+    T, h = solid.T_world_solid, solid.half
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
+    pts = (corners @ T[:3, :3].T + T[:3, 3])[:, :2]
+    return shapely.MultiPoint(pts).convex_hull
+
+
+def _ring(poly: Polygon) -> list[list[tuple[float, float]]]:
+    rings = [poly.exterior, *poly.interiors]
+    return [[(round(x, 4), round(y, 4)) for x, y in r.coords] for r in rings]
+
+
+def _time(tb: TimeBreakdown) -> pm.TimeTotals:
+    return pm.TimeTotals(travel=tb.travel, stops=tb.stops, picks=tb.picks, total=tb.total)
+
+
+class _Planning:
+    """One planning request; holds its intermediate results."""
+
+    def __init__(self, sp: StopPlanner, scene: Scene, opts: pm.PlanOptions) -> None:
+        self.sp, self.scene, self.opts = sp, scene, opts
+        self.sigma = scene.sigma if opts.sigma is None else opts.sigma
+        self.kind = scene.error_model.kind
+        self.required = scene.task_trays
+        self.world = world_key(scene)
+        self.t: dict[str, float] = dict.fromkeys(
+            ["regions", "intersections", "routing", "selection", "verification", "monte_carlo",
+             "naive"], 0.0
+        )  # fmt: skip
+        self.rejected: dict[int, str] = {}
+        self.predicted: dict[int, float] = {}
+
+    def _clock(self, name: str, t0: float) -> float:
+        now = time.perf_counter()
+        self.t[name] += now - t0
+        return now
+
+    def run(self) -> pm.Plan:
+        t_start = t0 = time.perf_counter()
+        scene, sp = self.scene, self.sp
+        regions = sp.regions.regions(scene)
+        t0 = self._clock("regions", t0)
+        self._empty_regions(regions)
+        cands = sp.candidates(regions)
+        t0 = self._clock("intersections", t0)
+
+        floor = sp.floor(scene)
+        self._check_endpoints(floor)
+        points = np.array(
+            [[scene.start.x, scene.start.y], [scene.goal.x, scene.goal.y]]
+            + [list(c.centre) for c in cands],
+            float,
+        )
+        paths = sp.paths(floor, points)
+        if not np.isfinite(paths.dist[0, 1]):
+            raise InfeasiblePlanError(
+                f"the goal ({scene.goal.x:.2f}, {scene.goal.y:.2f}) cannot be reached from the "
+                f"start ({scene.start.x:.2f}, {scene.start.y:.2f}): obstacles close every way",
+                field="goal",
+            )
+        t0 = self._clock("routing", t0)
+
+        threshold = self._apply_rule(cands, paths)
+        sel, witnesses, rates = self._select_verified(regions, cands, paths)
+        t0 = time.perf_counter()
+        naive = self._naive(regions, cands, paths, sel)
+        self._clock("naive", t0)
+        return self._assemble(cands, paths, sel, witnesses, rates, naive, threshold, t_start)
+
+    # -- checks and explanations --------------------------------------------------------------
+    def _empty_regions(self, regions: dict[tuple[str, float], TrayRegion]) -> None:
+        empty = []
+        for t in self.required:
+            mine = [r for (tt, _), r in regions.items() if tt == t]
+            if all(len(r.cells) == 0 for r in mine):
+                why = "; ".join(
+                    f"yaw {math.degrees(r.yaw):.0f} deg: {r.reason or 'no feasible cell'}"
+                    for r in mine
+                )
+                empty.append(f"tray {t} has an empty base region ({why})")
+        if empty:
+            raise InfeasiblePlanError("; ".join(empty), field="trays")
+
+    def _check_endpoints(self, floor: _Floor) -> None:
+        radius = self.sp.regions.robot.config.footprint.bounding_radius
+        for name in ("start", "goal"):
+            p = getattr(self.scene, name)
+            if floor.fmap.is_free((p.x, p.y)):
+                continue
+            pt = Point(p.x, p.y)
+            near = [oid for oid, o in floor.outlines if o.distance(pt) < radius + 0.01]
+            where = (
+                f"within the footprint radius {radius:.2f} m of obstacle(s) {', '.join(near)}"
+                if near
+                else f"closer than the footprint radius {radius:.2f} m to the floor's edge"
+            )
+            raise InfeasiblePlanError(
+                f"the {name} ({p.x:.2f}, {p.y:.2f}) is not a valid base position: {where}",
+                field=name,
+            )
+
+    def _apply_rule(self, cands: list[Candidate], paths: Paths) -> float:
+        """Reject candidates by the rule and by reachability; returns the threshold radius."""
+        opts, sigma = self.opts, self.sigma
+        if opts.rule == "sigma":
+            threshold = sigma
+        else:
+            threshold = radius_for(self.kind, sigma, opts.target) if sigma > 0 else 0.0
+            rng = np.random.default_rng(opts.seed)
+            dxy, _ = sample_errors(self.kind, sigma, 0.0, SHAPE_SAMPLES, rng)
+        for i, c in enumerate(cands):
+            if not np.isfinite(paths.dist[0, i + 2]):
+                self.rejected[i] = "obstacles cut it off from the start"
+                continue
+            if opts.rule == "sigma":
+                if c.radius < sigma:
+                    self.rejected[i] = (
+                        f"inscribed radius {c.radius:.3f} m is below sigma {sigma:.3f} m"
+                    )
+                continue
+            p = float(
+                shapely.contains_xy(c.polygon, c.centre[0] + dxy[:, 0], c.centre[1] + dxy[:, 1])
+                .mean()
+            ) if sigma > 0 else 1.0  # fmt: skip
+            self.predicted[i] = max(p, disc_probability(self.kind, sigma, c.radius))
+            if c.radius < threshold and self.predicted[i] < opts.target:
+                self.rejected[i] = (
+                    f"predicted success {self.predicted[i]:.1%} is below the target "
+                    f"{opts.target:.0%} (inscribed radius {c.radius:.3f} m, "
+                    f"{threshold:.3f} m would guarantee it)"
+                )
+        return threshold
+
+    def _explain_uncovered(self, cands: list[Candidate], missing: list[str]) -> None:
+        parts = []
+        for t in missing:
+            mine = [(i, c) for i, c in enumerate(cands) if t in c.trays]
+            i, best = max(mine, key=lambda ic: ic[1].radius)
+            parts.append(
+                f"tray {t}: all {len(mine)} candidate stop(s) serving it are rejected; the "
+                f"widest (trays {', '.join(sorted(best.trays))} at ({best.centre[0]:.2f}, "
+                f"{best.centre[1]:.2f})): {self.rejected[i]}"
+            )
+        rule = (
+            f"sigma = {self.sigma:.3f} m"
+            if self.opts.rule == "sigma"
+            else f"target success {self.opts.target:.0%} at sigma = {self.sigma:.3f} m "
+            f"({self.kind} error)"
+        )
+        raise InfeasiblePlanError(f"no plan with {rule}: " + "; ".join(parts), field="sigma")
+
+    # -- selection with verification ----------------------------------------------------------
+    def _select_verified(
+        self,
+        regions: dict[tuple[str, float], TrayRegion],
+        cands: list[Candidate],
+        paths: Paths,
+    ) -> tuple[Selection, dict[int, list[pm.Witness]], dict[int, Rate]]:
+        opts, sp, scene = self.opts, self.sp, self.scene
+        for _ in range(MAX_VERIFY_ROUNDS):
+            t0 = time.perf_counter()
+            kept = [i for i in range(len(cands)) if i not in self.rejected]
+            missing = [t for t in self.required if not any(t in cands[i].trays for i in kept)]
+            if missing:
+                self._explain_uncovered(cands, missing)
+            sel = self._solve([cands[i].trays for i in kept], kept, paths)
+            t0 = self._clock("selection", t0)
+            serves: dict[int, list[str]] = {}
+            for t, c in sel.serves.items():
+                serves.setdefault(c, []).append(t)
+            failed = False
+            witnesses: dict[int, list[pm.Witness]] = {}
+            rates: dict[int, Rate] = {}
+            for c in sel.order:
+                cand = cands[c]
+                trays = tuple(t for t in self.required if t in serves[c])
+                ws = []
+                for t in trays:
+                    ok, th, g = sp.check(scene, self.world, regions[t, cand.yaw], cand.centre)
+                    if not ok:
+                        self.rejected[c] = (
+                            f"the exact check at its centre failed for tray {t} (the region's "
+                            "grid cells around it are feasible, the centre itself is not)"
+                        )
+                        failed = True
+                        break
+                    tray = scene.tray(t)
+                    ws += [
+                        pm.Witness(
+                            tray_id=t, part_id=p.id, grasp_index=int(g[k]), theta=th[k].tolist()
+                        )
+                        for k, p in enumerate(tray.parts)
+                    ]
+                witnesses[c] = ws
+            t0 = self._clock("verification", t0)
+            if failed:
+                continue
+            if opts.samples > 0 and self.sigma > 0:
+                for c in sel.order:
+                    trays = tuple(t for t in self.required if t in serves[c])
+                    rate = sp.success(
+                        scene, self.world, [regions[t, cands[c].yaw] for t in trays],
+                        cands[c].centre, self.sigma, opts.samples, opts.seed,
+                    )  # fmt: skip
+                    rates[c] = rate
+                    if opts.rule == "success" and rate.rate < opts.target:
+                        lo, hi = rate.interval
+                        self.rejected[c] = (
+                            f"Monte Carlo success {rate.rate:.1%} (95% interval {lo:.1%} to "
+                            f"{hi:.1%}) is below the target {opts.target:.0%}"
+                        )
+                        failed = True
+                self._clock("monte_carlo", t0)
+            if not failed:
+                return sel, witnesses, rates
+        raise InfeasiblePlanError(
+            f"no verified plan after {MAX_VERIFY_ROUNDS} rounds of selection: "
+            + "; ".join(f"candidate {i}: {why}" for i, why in sorted(self.rejected.items())[-5:])
+        )
+
+    def _solve(self, trays_of: list[frozenset[str]], idx: list[int], paths: Paths) -> Selection:
+        """Stop selection over candidates ``idx``; the result is in global candidate indices."""
+        nodes = [0, 1, *(i + 2 for i in idx)]
+        dist = paths.dist[np.ix_(nodes, nodes)]
+        motion = self.scene.motion
+        if self.opts.objective == "time":
+            cost = leg_time(dist, motion.max_speed, motion.max_acceleration)
+            cost = np.where(np.isfinite(dist), cost, np.inf)
+        else:
+            cost = dist
+        sel = select_stops(
+            trays_of,
+            self.required,
+            cost,
+            objective=self.opts.objective,
+            stop_cost=motion.stop_time,
+            time_limit=self.opts.time_limit,
+        )
+        return Selection(
+            tuple(idx[c] for c in sel.order),
+            {t: idx[c] for t, c in sel.serves.items()},
+            sel.cost,
+            sel.optimal,
+            sel.seconds,
+            sel.pruned,
+        )
+
+    # -- naive plan and the document ----------------------------------------------------------
+    def _naive(
+        self,
+        regions: dict[tuple[str, float], TrayRegion],
+        cands: list[Candidate],
+        paths: Paths,
+        sel: Selection,
+    ) -> tuple[list[int], Selection]:
+        """One stop per tray at the centre of its region's widest reachable component."""
+        best: list[int] = []
+        for t in self.required:
+            mine = [
+                i
+                for i, c in enumerate(cands)
+                if c.trays == frozenset([t]) and np.isfinite(paths.dist[0, i + 2])
+            ]
+            if not mine:  # every component is cut off: the plan above would have failed
+                raise InfeasiblePlanError(f"tray {t}: no reachable component of its region")
+            best.append(max(mine, key=lambda i: cands[i].radius))
+        naive = self._solve([cands[i].trays for i in best], best, paths)
+        return best, naive
+
+    def _legs(self, paths: Paths, order: tuple[int, ...]) -> tuple[list[pm.Leg], list[float]]:
+        motion = self.scene.motion
+        nodes = [0, *(c + 2 for c in order), 1]
+        names = ["start", *(f"stop {k}" for k in range(len(order))), "goal"]
+        legs, lengths = [], []
+        for (a, b), (na, nb) in zip(
+            itertools.pairwise(nodes), itertools.pairwise(names), strict=True
+        ):
+            length = float(paths.dist[a, b])
+            line = paths.polyline(a, b)
+            lengths.append(length)
+            legs.append(
+                pm.Leg(
+                    start=na,
+                    end=nb,
+                    length=length,
+                    time=float(leg_time(length, motion.max_speed, motion.max_acceleration)),
+                    polyline=[(float(x), float(y)) for x, y in line],
+                )
+            )
+        return legs, lengths
+
+    def _times(self, lengths: list[float], n_stops: int) -> TimeBreakdown:
+        m = self.scene.motion
+        n_parts = sum(len(self.scene.tray(t).parts) for t in self.required)
+        return plan_time(
+            lengths, n_stops, n_parts, m.max_speed, m.max_acceleration, m.stop_time, m.pick_time
+        )
+
+    def _assemble(
+        self,
+        cands: list[Candidate],
+        paths: Paths,
+        sel: Selection,
+        witnesses: dict[int, list[pm.Witness]],
+        rates: dict[int, Rate],
+        naive: tuple[list[int], Selection],
+        threshold: float,
+        t_start: float,
+    ) -> pm.Plan:
+        scene, opts, sp = self.scene, self.opts, self.sp
+        robot = sp.regions.robot
+        stops = []
+        for k, c in enumerate(sel.order):
+            cand = cands[c]
+            rate = rates.get(c)
+            stops.append(
+                pm.Stop(
+                    index=k,
+                    x=cand.centre[0],
+                    y=cand.centre[1],
+                    yaw=cand.yaw,
+                    trays=[t for t in self.required if sel.serves[t] == c],
+                    region_trays=sorted(cand.trays),
+                    inscribed_radius=cand.radius,
+                    candidate=c,
+                    witnesses=witnesses[c],
+                    success=None
+                    if rate is None
+                    else pm.Success(
+                        samples=rate.samples,
+                        successes=rate.successes,
+                        rate=rate.rate,
+                        interval=rate.interval,
+                    ),
+                )
+            )
+        legs, lengths = self._legs(paths, sel.order)
+        route: list[tuple[float, float]] = []
+        for leg in legs:
+            route += leg.polyline if not route else leg.polyline[1:]
+        tb = self._times(lengths, len(sel.order))
+        success, interval = (None, None)
+        if rates:
+            success, interval = combined([rates[c] for c in sel.order])
+
+        best, nsel = naive
+        _, nlengths = self._legs(paths, nsel.order)
+        ntb = self._times(nlengths, len(best))
+        chosen = set(sel.order)
+        m = scene.motion
+        return pm.Plan(
+            scene=scene.name,
+            scene_hash=scene_hash(scene),
+            database=sp.regions.db.id,
+            robot=robot.name,
+            robot_hash=robot.robot_hash,
+            joints=[j.name for j in robot.joints],
+            trays=list(self.required),
+            parameters=pm.Parameters(
+                sigma=self.sigma,
+                rule=opts.rule,
+                target=opts.target,
+                threshold_radius=threshold,
+                objective=opts.objective,
+                error_model=self.kind,
+                yaw_sigma=scene.error_model.yaw_sigma,
+                samples=opts.samples,
+                seed=opts.seed,
+                base_yaws=scene.base_yaw.yaws,
+                grid_resolution=scene.base_grid.resolution,
+                max_speed=m.max_speed,
+                max_acceleration=m.max_acceleration,
+                stop_time=m.stop_time,
+                pick_time=m.pick_time,
+            ),
+            stops=stops,
+            route=route,
+            legs=legs,
+            totals=pm.Totals(
+                stops=len(stops),
+                route_length=float(sum(lengths)),
+                time=_time(tb),
+                success=success,
+                success_interval=interval,
+            ),
+            naive=pm.Naive(
+                stops=[
+                    pm.NaiveStop(
+                        tray=next(iter(cands[i].trays)),
+                        x=cands[i].centre[0],
+                        y=cands[i].centre[1],
+                        inscribed_radius=cands[i].radius,
+                    )
+                    for i in nsel.order
+                ],
+                route_length=float(sum(nlengths)),
+                time=_time(ntb),
+                saving_time=ntb.total - tb.total,
+                saving_fraction=(ntb.total - tb.total) / ntb.total if ntb.total > 0 else 0.0,
+                saving_stops=len(best) - len(stops),
+            ),
+            optimal=sel.optimal,
+            candidates=[
+                pm.CandidateInfo(
+                    index=i,
+                    trays=sorted(c.trays),
+                    yaw=c.yaw,
+                    x=c.centre[0],
+                    y=c.centre[1],
+                    inscribed_radius=c.radius,
+                    area=c.polygon.area,
+                    status="chosen"
+                    if i in chosen
+                    else ("rejected" if i in self.rejected else "kept"),
+                    reason=self.rejected.get(i),
+                    predicted_success=self.predicted.get(i),
+                    polygon=_ring(c.polygon),
+                )
+                for i, c in enumerate(cands)
+            ],
+            timings=pm.Timings(**self.t, total=time.perf_counter() - t_start),
+        )

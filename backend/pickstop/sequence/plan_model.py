@@ -1,0 +1,180 @@
+"""The plan document (JSON, versioned) and the options that produce it.
+
+Both are pydantic models, so the CLI, the REST API and the 3D planner share one definition
+and one JSON Schema. Units: metres, seconds, radians; positions are world ``(x, y)``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+FORMAT = "pickstop.plan"
+VERSION = 1
+
+Point2 = tuple[float, float]
+
+
+class PlanOptions(BaseModel):
+    """How to plan. Unset fields come from the scene (sigma, error model)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    sigma: Annotated[float, Field(ge=0, le=1.0, allow_inf_nan=False)] | None = Field(
+        default=None, description="base positioning error [m]; default: the scene's"
+    )
+    rule: Literal["sigma", "success"] = Field(
+        default="sigma",
+        description="'sigma': the paper's rule, inscribed radius >= sigma; 'success': stops "
+        "must reach `target` success under the error model, confirmed by Monte Carlo",
+    )
+    target: Annotated[float, Field(gt=0.5, lt=1.0)] = Field(
+        default=0.95, description="success rate the 'success' rule requires per stop"
+    )
+    objective: Literal["stops", "time"] = Field(
+        default="stops",
+        description="'stops': fewest stops, then the shortest route; 'time': least predicted "
+        "operation time",
+    )
+    samples: Annotated[int, Field(ge=0, le=100_000)] = Field(
+        default=1000, description="Monte Carlo samples per stop (0: no success estimate)"
+    )
+    seed: int = Field(default=0, description="seed of the Monte Carlo")
+    time_limit: Annotated[float, Field(gt=0, le=600)] = Field(
+        default=10.0, description="time limit of each stop selection solve [s]"
+    )
+
+
+class Witness(BaseModel):
+    """A verified arm configuration that grasps one part from the stop's centre."""
+
+    tray_id: str
+    part_id: str
+    grasp_index: int
+    theta: list[float]  # joint values in the robot's arm joint order [rad or m]
+
+
+class Success(BaseModel):
+    samples: int
+    successes: int
+    rate: float
+    interval: Point2  # 95% Wilson score interval
+
+
+class Stop(BaseModel):
+    index: int  # visiting order, from 0
+    x: float
+    y: float
+    yaw: float
+    trays: list[str]  # the trays picked here
+    region_trays: list[str]  # every tray whose region holds this stop's component
+    inscribed_radius: float
+    candidate: int  # index into ``candidates``
+    witnesses: list[Witness]
+    success: Success | None = None
+
+
+class Leg(BaseModel):
+    start: str  # "start", "stop 0", ...
+    end: str
+    length: float  # [m]
+    time: float  # rest-to-rest travel time [s]
+    polyline: list[Point2]
+
+
+class TimeTotals(BaseModel):
+    travel: float
+    stops: float
+    picks: float
+    total: float
+
+
+class Totals(BaseModel):
+    stops: int
+    route_length: float
+    time: TimeTotals
+    success: float | None = None  # whole plan: product over stops
+    success_interval: Point2 | None = None
+
+
+class NaiveStop(BaseModel):
+    tray: str
+    x: float
+    y: float
+    inscribed_radius: float
+
+
+class Naive(BaseModel):
+    """One stop per tray at its region's inscribed centre, same route solver."""
+
+    stops: list[NaiveStop]
+    route_length: float
+    time: TimeTotals
+    saving_time: float  # naive total time - plan total time [s]
+    saving_fraction: float
+    saving_stops: int
+
+
+class CandidateInfo(BaseModel):
+    index: int
+    trays: list[str]
+    yaw: float
+    x: float
+    y: float
+    inscribed_radius: float
+    area: float
+    status: Literal["chosen", "kept", "rejected"]
+    reason: str | None = None  # why it was rejected
+    predicted_success: float | None = None  # from the region's shape ('success' rule)
+    polygon: list[list[Point2]]  # exterior ring, then holes
+
+
+class Parameters(BaseModel):
+    sigma: float
+    rule: Literal["sigma", "success"]
+    target: float
+    threshold_radius: float  # inscribed radius a candidate needs to be kept outright [m]
+    objective: Literal["stops", "time"]
+    error_model: Literal["bounded", "gaussian"]
+    yaw_sigma: float
+    samples: int
+    seed: int
+    base_yaws: list[float]
+    grid_resolution: float
+    max_speed: float
+    max_acceleration: float
+    stop_time: float
+    pick_time: float
+
+
+class Timings(BaseModel):
+    regions: float
+    intersections: float
+    routing: float
+    selection: float
+    verification: float
+    monte_carlo: float
+    naive: float
+    total: float
+
+
+class Plan(BaseModel):
+    format: Literal["pickstop.plan"] = "pickstop.plan"
+    version: Literal[1] = 1
+    scene: str  # scene name
+    scene_hash: str  # sha256 of the scene document (canonical JSON)
+    database: str
+    robot: str
+    robot_hash: str
+    joints: list[str]
+    trays: list[str]  # the task's trays
+    parameters: Parameters
+    stops: list[Stop]
+    route: list[Point2]  # start, stops and goal joined by the floor paths
+    legs: list[Leg]
+    totals: Totals
+    naive: Naive
+    optimal: bool  # the stop selection was proven optimal
+    candidates: list[CandidateInfo]
+    timings: Timings

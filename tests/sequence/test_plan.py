@@ -1,0 +1,206 @@
+"""Plans of the example scenes: structure, verification, rules and every infeasible case."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+
+from pickstop.regions.base_region import tray_world
+from pickstop.robot.kinematics import fk
+from pickstop.scene.model import parse_scene
+from pickstop.sequence.cover import InfeasiblePlanError
+from pickstop.sequence.plan import StopPlanner
+from pickstop.sequence.plan_model import Plan, PlanOptions
+
+EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
+
+
+@pytest.fixture(scope="module")
+def stop_planner(planner):
+    return StopPlanner(planner)
+
+
+@pytest.fixture()
+def paper_doc():
+    return json.loads((EXAMPLES / "paper_experiment.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def paper_plan(stop_planner):
+    scene = parse_scene(json.loads((EXAMPLES / "paper_experiment.json").read_text()))
+    return scene, stop_planner.plan(scene, PlanOptions(samples=300))
+
+
+def _exactly_verified(planner, scene, stop):
+    """Each witness reaches its grasp from the stop within 1 mm and 0.5 deg, collision-free
+    (coal, against the scene and itself)."""
+    c, s_ = math.cos(stop.yaw), math.sin(stop.yaw)
+    T_world_base = np.eye(4)
+    T_world_base[:2, :2] = [[c, -s_], [s_, c]]
+    T_world_base[:2, 3] = stop.x, stop.y
+    for w in stop.witnesses:
+        tray = scene.tray(w.tray_id)
+        k = [p.id for p in tray.parts].index(w.part_id)
+        target = planner.grasps(scene, tray)[k].Ts_world_tool[w.grasp_index]
+        R, p = fk(planner.solver.chain, np.array([w.theta]))
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R[0], p[0]
+        got = T_world_base @ T
+        assert np.linalg.norm(got[:3, 3] - target[:3, 3]) < 1e-3
+        cos = (np.trace(got[:3, :3].T @ target[:3, :3]) - 1) / 2
+        assert math.degrees(math.acos(min(1.0, cos))) < 0.5
+        _, solids, _, _ = tray_world(planner, scene, tray, stop.yaw)
+        assert not planner.exact_arm.colliding(np.array(w.theta), stop.x, stop.y, stop.yaw, solids)
+        assert not planner.exact_self.colliding(np.array([w.theta]))[0]
+
+
+def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planner):
+    scene, plan = paper_plan
+    served = [t for s in plan.stops for t in s.trays]
+    assert sorted(served) == sorted(scene.task_trays)
+    assert plan.totals.stops == len(plan.stops) <= len(plan.naive.stops) == len(scene.task_trays)
+    for s in plan.stops:
+        assert s.inscribed_radius >= plan.parameters.sigma
+        assert set(s.trays) <= set(s.region_trays)
+        # Every witness is a real IK solution: exact FK reaches one of the part's grasps.
+        parts = {(w.tray_id, w.part_id) for w in s.witnesses}
+        assert parts == {(t, p.id) for t in s.trays for p in scene.tray(t).parts}
+        _exactly_verified(planner, scene, s)
+        assert s.success is not None and s.success.samples == 300
+        lo, hi = s.success.interval
+        assert lo <= s.success.rate <= hi
+
+
+def test_route_joins_start_stops_goal_and_times_add_up(paper_plan):
+    scene, plan = paper_plan
+    assert plan.route[0] == pytest.approx((scene.start.x, scene.start.y))
+    assert plan.route[-1] == pytest.approx((scene.goal.x, scene.goal.y))
+    assert [leg.start for leg in plan.legs] == [
+        "start",
+        *(f"stop {k}" for k in range(len(plan.stops))),
+    ]
+    for leg, s in zip(plan.legs, plan.stops, strict=False):
+        assert leg.polyline[-1] == pytest.approx((s.x, s.y))
+    length = sum(math.dist(a, b) for a, b in zip(plan.route, plan.route[1:], strict=False))
+    assert length == pytest.approx(plan.totals.route_length, rel=1e-9)
+    t = plan.totals.time
+    m = scene.motion
+    n_parts = sum(len(scene.tray(x).parts) for x in scene.task_trays)
+    assert t.stops == pytest.approx(len(plan.stops) * m.stop_time)
+    assert t.picks == pytest.approx(n_parts * m.pick_time)
+    assert t.total == pytest.approx(t.travel + t.stops + t.picks)
+    assert plan.naive.saving_time == pytest.approx(plan.naive.time.total - t.total)
+    assert plan.naive.saving_stops == len(plan.naive.stops) - len(plan.stops)
+
+
+def test_plan_document_round_trips(paper_plan):
+    _, plan = paper_plan
+    doc = json.loads(json.dumps(plan.model_dump(mode="json")))
+    assert Plan.model_validate(doc) == plan
+    assert doc["format"] == "pickstop.plan" and doc["database"]
+
+
+def test_candidates_carry_status_and_reasons(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    plan = stop_planner.plan(scene, PlanOptions(sigma=0.09, samples=0))
+    chosen = {s.candidate for s in plan.stops}
+    for c in plan.candidates:
+        assert (c.status == "chosen") == (c.index in chosen)
+        if c.inscribed_radius < 0.09:
+            assert c.status == "rejected" and "below sigma 0.090" in c.reason
+        poly = shapely.Polygon(c.polygon[0], c.polygon[1:])
+        assert poly.contains(shapely.Point(c.x, c.y))
+
+
+def test_sigma_change_reuses_regions_and_candidates(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    stop_planner.plan(scene, PlanOptions(samples=0))
+    again = stop_planner.plan(scene, PlanOptions(sigma=0.05, samples=0))
+    assert again.timings.regions < 0.2 and again.parameters.sigma == 0.05
+
+
+def test_larger_sigma_never_needs_fewer_stops(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    counts = []
+    for sigma in (0.0, 0.05, 0.1, 0.15):
+        try:
+            counts.append(
+                stop_planner.plan(scene, PlanOptions(sigma=sigma, samples=0)).totals.stops
+            )
+        except InfeasiblePlanError:
+            counts.append(math.inf)
+    assert counts == sorted(counts)
+
+
+def test_success_rule_stops_meet_the_target_or_explain(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    try:
+        plan = stop_planner.plan(scene, PlanOptions(rule="success", target=0.9, samples=400))
+    except InfeasiblePlanError as e:
+        assert "target success 90%" in e.message
+        return
+    for s in plan.stops:
+        assert s.success is not None and s.success.rate >= 0.9
+    for c in plan.candidates:
+        if c.status == "rejected" and c.reason and "predicted" in c.reason:
+            assert c.predicted_success < 0.9
+
+
+def test_bounded_error_with_the_paper_rule_always_succeeds(stop_planner, paper_doc):
+    paper_doc["error_model"] = {"kind": "bounded"}
+    paper_doc["sigma"] = 0.05
+    plan = stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=300))
+    # A disc of radius sigma inside a region of verified cells: misses can only come from
+    # the gaps between cell centres, which the exact test at each sample judges.
+    assert all(s.success.rate >= 0.97 for s in plan.stops)
+
+
+def test_time_objective_is_no_slower(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    by_stops = stop_planner.plan(scene, PlanOptions(samples=0))
+    by_time = stop_planner.plan(scene, PlanOptions(samples=0, objective="time"))
+    assert by_time.totals.time.total <= by_stops.totals.time.total + 1e-6
+
+
+# -- impossible requests: an explanation naming trays and numbers, never a partial plan ------
+def test_sigma_too_large_names_trays_and_radii(stop_planner, paper_doc):
+    with pytest.raises(InfeasiblePlanError) as e:
+        stop_planner.plan(parse_scene(paper_doc), PlanOptions(sigma=0.4, samples=0))
+    msg = e.value.message
+    assert "sigma = 0.400 m" in msg
+    for t in ("tray_1", "tray_2", "tray_4"):
+        assert f"tray {t}:" in msg
+    assert "below sigma 0.400 m" in msg and e.value.field == "sigma"
+
+
+def test_tray_out_of_reach_has_an_empty_region(stop_planner, paper_doc):
+    doc = copy.deepcopy(paper_doc)
+    tray = next(t for t in doc["trays"] if t["id"] == "tray_4")
+    tray["pose"]["z"] = 2.4  # far above the arm's reach
+    with pytest.raises(InfeasiblePlanError) as e:
+        stop_planner.plan(parse_scene(doc), PlanOptions(samples=0))
+    assert "tray tray_4 has an empty base region" in e.value.message
+
+
+def test_start_inside_an_obstacle(stop_planner, paper_doc):
+    paper_doc["start"] = {"x": 1.4, "y": 1.9}  # behind table_a, against it
+    with pytest.raises(InfeasiblePlanError) as e:
+        stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=0))
+    assert "the start (1.40, 1.90) is not a valid base position" in e.value.message
+    assert "table_a" in e.value.message and e.value.field == "start"
+
+
+def test_goal_walled_off(stop_planner, paper_doc):
+    paper_doc["obstacles"].append(
+        {"id": "wall", "geometry": {"shape": "box", "size": [0.1, 4.2, 1.0]},
+         "pose": {"x": 4.15, "y": 1.0}}
+    )  # fmt: skip
+    with pytest.raises(InfeasiblePlanError) as e:
+        stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=0))
+    assert "the goal (4.50, 0.00) cannot be reached from the start" in e.value.message
