@@ -13,6 +13,7 @@ Monte Carlo of a plan (1,000 samples per stop). Times: best of several runs on 2
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import resource
@@ -90,10 +91,8 @@ def main() -> None:
     for k in range(30):
         sigma = 0.02 + 0.004 * (k % 20)
         t0 = time.perf_counter()
-        try:
+        with contextlib.suppress(InfeasiblePlanError):
             sp.plan(paper, PlanOptions(sigma=sigma, samples=0))
-        except InfeasiblePlanError:
-            pass
         times.append(time.perf_counter() - t0)
     print(
         f"re-plan after a sigma change, regions cached (paper scene, no Monte Carlo): "

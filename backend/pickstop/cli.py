@@ -366,6 +366,42 @@ def _print_table(rows: list[dict[str, Any]]) -> None:
     print(f"{len(rows) - len(errors)} of {len(rows)} scenes planned")
 
 
+def cmd_serve(args: argparse.Namespace) -> int:
+    """The REST API under uvicorn (settings from PICKSTOP_* environment variables)."""
+    import uvicorn
+
+    from pickstop.api.app import create_app
+    from pickstop.settings import Settings
+
+    overrides: dict[str, Any] = {}
+    if args.data_dir:
+        overrides["data_dir"] = Path(args.data_dir)
+    for name in ("host", "port"):
+        if getattr(args, name) is not None:
+            overrides[name] = getattr(args, name)
+    settings = Settings(**overrides)
+    if not settings.api_keys:
+        print("pickstop: no API keys configured (PICKSTOP_API_KEYS): the API is read-only; "
+              "make one with `pickstop api-key`", file=sys.stderr)  # fmt: skip
+    app = create_app(settings)
+    print(f"PickStop API on http://{settings.host}:{settings.port}/api/v1 "
+          f"(docs: /api/v1/docs)", file=sys.stderr)  # fmt: skip
+    uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level)
+    return 0
+
+
+def cmd_api_key(args: argparse.Namespace) -> int:
+    """A new random API key and the hash to configure (the service stores only hashes)."""
+    import secrets
+
+    from pickstop.settings import hash_key
+
+    key = secrets.token_urlsafe(32)
+    _emit({"key": key, "hash": hash_key(key),
+           "configure": f"PICKSTOP_API_KEYS='[\"{hash_key(key)}\"]'"})  # fmt: skip
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """The embedded default: the bundled TIAGo, its database (built once), a top-down query."""
     from pickstop.reach.build import BuildParams, build
@@ -441,6 +477,15 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--db", help="reachability database id (default: the largest for the robot)")
     pl.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1)
     pl.set_defaults(func=cmd_plan)
+
+    sv = sub.add_parser("serve", help="run the REST API (uvicorn)")
+    sv.add_argument("--host", help="listen address (default: $PICKSTOP_HOST or 127.0.0.1)")
+    sv.add_argument("--port", type=_positive_int, help="port (default: $PICKSTOP_PORT or 8000)")
+    sv.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
+    sv.set_defaults(func=cmd_serve)
+
+    ak = sub.add_parser("api-key", help="make a new API key and print its hash for the settings")
+    ak.set_defaults(func=cmd_api_key)
 
     reach = sub.add_parser("reach", help="reachability databases").add_subparsers(
         dest="reach_command", required=True

@@ -25,6 +25,28 @@ class Settings(BaseSettings):
     cache_dir: Path | None = Field(
         default=None, description="derived per-robot data (default: <data_dir>/cache)"
     )
+    # -- the REST service -----------------------------------------------------------------
+    host: str = Field(default="127.0.0.1", description="address the API listens on")
+    port: int = Field(default=8000, ge=1, le=65535, description="API port")
+    ui_port: int = Field(default=8080, ge=1, le=65535, description="3D planner port")
+    api_keys: list[str] = Field(
+        default_factory=list,
+        description="accepted API keys, stored hashed as 'sha256:<hex>' (pickstop api-key makes "
+        "one); empty: writes are refused",
+    )
+    read_requires_key: bool = Field(default=False, description="require a key for reads too")
+    max_body_bytes: int = Field(default=2_000_000, ge=1024, description="request body limit")
+    max_grid_cells: int = Field(default=250_000, ge=1, description="base grid cells per scene")
+    max_samples: int = Field(default=50_000_000, ge=1, description="samples per database build")
+    max_batch: int = Field(default=200, ge=1, description="scenes per batch job")
+    max_trays: int = Field(default=40, ge=1, description="trays per scene")
+
+
+def hash_key(key: str) -> str:
+    """How an API key is stored: ``sha256:<hex>`` of the key."""
+    import hashlib
+
+    return "sha256:" + hashlib.sha256(key.encode()).hexdigest()
 
 
 def data_dir(override: str | Path | None = None) -> Path:

@@ -1,1 +1,1 @@
-"""api."""
+"""The REST service: FastAPI under /api/v1."""

@@ -1,0 +1,381 @@
+"""What the REST service holds for its lifetime: settings, records, planners and jobs.
+
+Planners (robot model, reachability database, collision world, caches) are loaded once per
+robot and database and shared by requests; each has a lock, since its caches are not
+thread-safe. CPU-heavy work (regions, plans) runs in a thread pool off the event loop; jobs
+(database builds, batch planning) run one at a time in a worker thread and report progress in
+SQLite, so their state survives a restart (a job cut off by one is marked interrupted).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import queue
+import shutil
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pickstop.api.store import ServiceStore
+from pickstop.errors import InputError, PickStopError, RobotConfigError
+from pickstop.reach.database import list_databases, open_database
+from pickstop.regions.base_region import RegionPlanner
+from pickstop.robot.config import (
+    RobotConfig,
+    example_robot_data_share,
+    parse_config,
+    preset_names,
+    resolve_robot,
+)
+from pickstop.robot.model import RobotModel, _mesh_refs, load_robot, resolve_path
+from pickstop.scene.model import Scene, parse_scene
+from pickstop.sequence.plan import StopPlanner
+from pickstop.sequence.plan_model import Plan, PlanOptions
+from pickstop.settings import Settings, cache_dir
+
+log = logging.getLogger("pickstop.api")
+
+
+class JobCancelled(Exception):
+    pass
+
+
+@dataclass
+class _Slot:
+    planner: StopPlanner
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+
+class Service:
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self.data_dir = Path(settings.data_dir)
+        self.data_dir.mkdir(parents=True, exist_ok=True)
+        self.robot_dir = self.data_dir / "robots"
+        self.robot_dir.mkdir(exist_ok=True)
+        self.store = ServiceStore(self.data_dir)
+        self.interrupted = self.store.interrupt_stale_jobs()
+        self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="pickstop-plan")
+        self._slots: dict[tuple[str, str], _Slot] = {}
+        self._slots_lock = threading.Lock()
+        self._jobs: queue.Queue[str | None] = queue.Queue()
+        self._cancel: set[str] = set()
+        self._job_thread = threading.Thread(
+            target=self._job_loop, name="pickstop-jobs", daemon=True
+        )
+        self._job_thread.start()
+
+    def close(self) -> None:
+        self._jobs.put(None)
+        self._job_thread.join(timeout=10)
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        for slot in self._slots.values():
+            slot.planner.regions.close()
+
+    # -- robots ------------------------------------------------------------------------------
+    def allowed_roots(self) -> list[Path]:
+        return [self.robot_dir.resolve(), example_robot_data_share().resolve()]
+
+    def robot_config(self, name: str) -> tuple[RobotConfig, Path]:
+        """A preset or a registered robot, by name."""
+        if name in preset_names():
+            return resolve_robot(name)
+        rows = self.store.rows("SELECT config FROM robots WHERE name = ?", [name])
+        if not rows:
+            known = preset_names() + [r["name"] for r in self.store.robots()]
+            raise InputError(
+                f"unknown robot {name!r}; known: {', '.join(known)}", field="robot.preset"
+            )
+        return parse_config(json.loads(rows[0]["config"]), f"robot {name}"), self.robot_dir
+
+    def register_robot(self, data: dict[str, Any]) -> RobotModel:
+        """Validate a robot config whose files lie in the allowed folders, and keep it."""
+        config = parse_config(data, "robot")
+        if config.name in preset_names() or self.store.rows(
+            "SELECT 1 FROM robots WHERE name = ?", [config.name]
+        ):
+            raise InputError(f"robot {config.name!r} already exists", field="name")
+        self.confine(config)
+        robot = load_robot(config, self.robot_dir)
+        self.store.add_robot(config.name, config.model_dump(mode="json"))
+        return robot
+
+    def confine(self, config: RobotConfig) -> None:
+        """Refuse any file of the config (URDF, SRDF, meshes, package dirs) outside the allowed
+        folders: relative paths start at the data folder's robots/, package:// resolves only to
+        allowed roots."""
+        roots = self.allowed_roots()
+
+        def inside(p: Path) -> bool:
+            rp = p.resolve()
+            return any(rp.is_relative_to(r) for r in roots)
+
+        pkg = []
+        for i, d in enumerate(config.package_dirs):
+            p = (self.robot_dir / d).resolve()
+            if not inside(p):
+                raise RobotConfigError(
+                    f"package_dirs[{i}] {d!r} lies outside the allowed folders",
+                    field=f"package_dirs.{i}",
+                )
+            pkg.append(str(p))
+        pkg.append(str(example_robot_data_share()))
+        for what, ref in (("urdf", config.urdf), ("srdf", config.srdf)):
+            if ref is None:
+                continue
+            if not ref.startswith("package://") and not inside(self.robot_dir / ref):
+                raise RobotConfigError(
+                    f"{what} {ref!r} lies outside the allowed folders", field=what
+                )
+            path = resolve_path(ref, self.robot_dir, pkg, what)
+            if not inside(path):
+                raise RobotConfigError(
+                    f"{what} {ref!r} lies outside the allowed folders", field=what
+                )
+            if what == "urdf":
+                for mesh in _mesh_refs(path, pkg)[1]:
+                    if not inside(mesh):
+                        raise RobotConfigError(
+                            f"mesh {mesh.name!r} of the URDF lies outside the allowed folders",
+                            field="urdf",
+                        )
+
+    def robots(self) -> list[dict[str, Any]]:
+        out = [{"name": n, "kind": "preset"} for n in preset_names()]
+        out += [
+            {"name": r["name"], "kind": "registered", "created": r["created"]}
+            for r in self.store.robots()
+        ]
+        return out
+
+    # -- scenes and planners -----------------------------------------------------------------
+    def parse(self, doc: Any) -> Scene:
+        scene = parse_scene(doc, "scene")
+        s = self.settings
+        problems = []
+        if scene.robot.config is not None:
+            problems.append(
+                (
+                    "robot.config",
+                    "file paths are not accepted over the API; "
+                    "register the robot (POST /api/v1/robots) and name it in robot.preset",
+                )
+            )
+        from pickstop.regions.base_region import CellGrid
+
+        g = CellGrid.of(scene)
+        if g.nx * g.ny > s.max_grid_cells:
+            problems.append(
+                (
+                    "base_grid",
+                    f"{g.nx} x {g.ny} = {g.nx * g.ny} cells exceeds the "
+                    f"limit of {s.max_grid_cells}; coarsen the resolution or the extent",
+                )
+            )
+        if len(scene.trays) > s.max_trays:
+            problems.append(
+                ("trays", f"{len(scene.trays)} trays exceed the limit of {s.max_trays}")
+            )
+        if problems:
+            from pickstop.scene.model import SceneError
+
+            raise SceneError(problems)
+        return scene
+
+    def slot(self, scene: Scene, db_id: str | None = None) -> _Slot:
+        config, root = self.robot_config(scene.robot.ref)
+        robot = load_robot(config, root)
+        key = (robot.robot_hash, db_id or "")
+        with self._slots_lock:
+            slot = self._slots.get(key)
+            if slot is None:
+                db = open_database(self.data_dir, robot, db_id)
+                rp = RegionPlanner(robot, db, cache_dir=cache_dir(self.data_dir))
+                slot = self._slots[key] = _Slot(StopPlanner(rp))
+            return slot
+
+    def preload(self) -> None:
+        """Load the default robot's planner if it has a database (at start-up)."""
+        try:
+            config, root = resolve_robot("tiago")
+            robot = load_robot(config, root)
+            if any(
+                r["robot_hash"] == robot.robot_hash and r["state"] == "complete"
+                for r in list_databases(self.data_dir)
+            ):
+                db = open_database(self.data_dir, robot)
+                rp = RegionPlanner(robot, db, cache_dir=cache_dir(self.data_dir))
+                self._slots[(robot.robot_hash, "")] = _Slot(StopPlanner(rp))
+        except PickStopError as e:
+            log.warning("default planner not loaded: %s", e.message)
+
+    @property
+    def loaded(self) -> list[dict[str, Any]]:
+        return [
+            {"robot": s.planner.regions.robot.name, "database": s.planner.regions.db.id}
+            for s in self._slots.values()
+        ]
+
+    def plan(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
+        slot = self.slot(scene, db_id)
+        with slot.lock:
+            return slot.planner.plan(scene, options)
+
+    def regions(self, scene: Scene, sigma: float | None, db_id: str | None) -> dict[str, Any]:
+        from pickstop.regions.geojson import region_feature
+
+        slot = self.slot(scene, db_id)
+        with slot.lock:
+            sp = slot.planner
+            regions = sp.regions.regions(scene)
+            cands = sp.candidates(regions)
+        sigma = scene.sigma if sigma is None else sigma
+        names = {t.id: t.name for t in scene.trays}
+        return {
+            "database": sp.regions.db.id,
+            "sigma": sigma,
+            "regions": {
+                "type": "FeatureCollection",
+                "features": [region_feature(r, names.get(r.tray_id, "")) for r in regions.values()],
+            },
+            "intersections": {
+                "type": "FeatureCollection",
+                "features": [
+                    {
+                        "type": "Feature",
+                        "geometry": json.loads(__import__("shapely").to_geojson(c.polygon)),
+                        "properties": {
+                            "trays": sorted(c.trays),
+                            "order": c.order,
+                            "yaw": c.yaw,
+                            "centre": list(c.centre),
+                            "inscribed_radius": c.radius,
+                            "area_m2": c.polygon.area,
+                            "kept": c.radius >= sigma,
+                        },
+                    }
+                    for c in cands
+                ],
+            },
+        }
+
+    # -- jobs --------------------------------------------------------------------------------
+    def submit(self, kind: str, params: dict[str, Any]) -> dict[str, Any]:
+        job = self.store.add_job(kind, params)
+        self._jobs.put(job["id"])
+        return job
+
+    def cancel(self, job_id: str) -> dict[str, Any] | None:
+        job = self.store.job(job_id)
+        if job is None:
+            return None
+        if job["state"] == "queued":
+            self.store.set_job(job_id, state="cancelled", error="cancelled before it started")
+        elif job["state"] == "running":
+            self._cancel.add(job_id)
+        return self.store.job(job_id)
+
+    def _job_loop(self) -> None:
+        while True:
+            job_id = self._jobs.get()
+            if job_id is None:
+                return
+            job = self.store.job(job_id)
+            if job is None or job["state"] != "queued":
+                continue
+            self.store.set_job(job_id, state="running")
+            try:
+                params = json.loads(job["params"])
+                if job["kind"] == "build":
+                    result = self._run_build(job_id, params)
+                else:
+                    result = self._run_batch(job_id, params)
+                self.store.set_job(job_id, state="done", progress=1.0, result=result)
+            except JobCancelled:
+                self.store.set_job(job_id, state="cancelled", error="cancelled while running")
+            except PickStopError as e:
+                self.store.set_job(job_id, state="failed", error=e.message)
+            except Exception as e:  # a job must never stay 'running'
+                log.exception("job %s failed", job_id)
+                self.store.set_job(job_id, state="failed", error=f"{type(e).__name__}: {e}")
+            finally:
+                self._cancel.discard(job_id)
+
+    def _check_cancel(self, job_id: str) -> None:
+        if job_id in self._cancel:
+            raise JobCancelled(job_id)
+
+    def _run_build(self, job_id: str, params: dict[str, Any]) -> dict[str, Any]:
+        from pickstop.reach.build import BuildParams, build
+
+        config, root = self.robot_config(params.pop("robot"))
+        robot = load_robot(config, root)
+        bp = BuildParams(**params)
+        bp.validate()
+        last = [0.0]
+
+        def progress(done: int, total: int) -> None:
+            self._check_cancel(job_id)
+            frac = done / total if total else 1.0
+            if frac - last[0] >= 0.01 or done == total:
+                last[0] = frac
+                self.store.set_job(job_id, progress=frac)
+
+        row = build(robot, bp, self.data_dir, workers=2, progress=progress)
+        return {"database": row["id"], "robot": robot.name, "samples": row["samples"]}
+
+    def _run_batch(self, job_id: str, params: dict[str, Any]) -> dict[str, Any]:
+        options = PlanOptions(**params.get("options", {}))
+        items = params["scenes"]
+        results = []
+        for k, item in enumerate(items):
+            self._check_cancel(job_id)
+            scene_id, doc = item.get("scene_id"), item.get("scene")
+            revision = None
+            try:
+                if scene_id is not None:
+                    row = self.store.scene(scene_id)
+                    if row is None:
+                        raise InputError(f"scene {scene_id} does not exist", field="scene_id")
+                    doc, revision = json.loads(row["doc"]), row["revision"]
+                scene = self.parse(doc)
+                plan = self.plan(scene, options, params.get("database"))
+                rec = self.store.add_plan(
+                    scene_id, revision, doc, options.model_dump(), plan.model_dump(mode="json")
+                )
+                results.append(
+                    {
+                        "index": k,
+                        "scene_id": scene_id,
+                        "plan_id": rec["id"],
+                        "stops": plan.totals.stops,
+                        "time": plan.totals.time.total,
+                    }
+                )
+            except PickStopError as e:
+                results.append({"index": k, "scene_id": scene_id, "error": e.message})
+            self.store.set_job(job_id, progress=(k + 1) / len(items))
+        return {
+            "plans": results,
+            "planned": sum("plan_id" in r for r in results),
+            "failed": sum("error" in r for r in results),
+        }
+
+    def delete_database(self, db_id: str) -> bool:
+        cat = self.store.catalog
+        rows = cat.query("SELECT id FROM reach_databases WHERE id = ?", [db_id])
+        if not rows:
+            return False
+        with self._slots_lock:
+            for key, slot in list(self._slots.items()):
+                if slot.planner.regions.db.id == db_id:
+                    slot.planner.regions.close()
+                    del self._slots[key]
+        with self.store.transaction() as c:
+            c.execute("DELETE FROM reach_shards WHERE db_id = ?", [db_id])
+            c.execute("DELETE FROM reach_databases WHERE id = ?", [db_id])
+        shutil.rmtree(self.data_dir / "reach" / db_id, ignore_errors=True)
+        return True

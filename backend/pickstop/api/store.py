@@ -1,0 +1,229 @@
+"""The service's records in the SQLite catalog: scenes, plans, jobs, robots.
+
+One connection per thread (SQLite connections are not shared across threads); WAL mode lets
+readers run while a writer commits. Updates that must not race (a scene's ETag check and
+write) run in one ``BEGIN IMMEDIATE`` transaction.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from pickstop.store.catalog import Catalog
+
+
+def now() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+def new_id(prefix: str) -> str:
+    return f"{prefix}_{secrets.token_hex(8)}"
+
+
+class Conflict(Exception):
+    """The record changed since the caller read it (ETag mismatch)."""
+
+    def __init__(self, current: str) -> None:
+        super().__init__(current)
+        self.current = current
+
+
+class ServiceStore:
+    def __init__(self, data_dir: Path) -> None:
+        self.data_dir = Path(data_dir)
+        self._local = threading.local()
+        _ = self.catalog  # migrate now, in the constructing thread
+
+    @property
+    def catalog(self) -> Catalog:
+        cat = getattr(self._local, "catalog", None)
+        if cat is None:
+            cat = self._local.catalog = Catalog(self.data_dir)
+        return cat
+
+    @contextmanager
+    def transaction(self) -> Iterator[Any]:
+        conn = self.catalog.db.conn
+        conn.execute("BEGIN IMMEDIATE")
+        try:
+            yield conn
+        except BaseException:
+            conn.execute("ROLLBACK")
+            raise
+        conn.execute("COMMIT")
+
+    def rows(self, sql: str, params: Any = ()) -> list[dict[str, Any]]:
+        return self.catalog.query(sql, params)
+
+    # -- scenes ------------------------------------------------------------------------------
+    def create_scene(self, doc: dict[str, Any], name: str) -> dict[str, Any]:
+        t = now()
+        row = {
+            "id": new_id("scn"),
+            "name": name,
+            "doc": json.dumps(doc),
+            "etag": _etag(),
+            "revision": 1,
+            "created": t,
+            "updated": t,
+        }
+        with self.transaction() as c:
+            c.execute(
+                "INSERT INTO scenes (id, name, doc, etag, revision, created, updated) "
+                "VALUES (:id, :name, :doc, :etag, :revision, :created, :updated)",
+                row,
+            )
+        return row
+
+    def scene(self, scene_id: str) -> dict[str, Any] | None:
+        rows = self.rows("SELECT * FROM scenes WHERE id = ?", [scene_id])
+        return rows[0] if rows else None
+
+    def scenes(self, limit: int, offset: int) -> list[dict[str, Any]]:
+        return self.rows(
+            "SELECT id, name, etag, revision, created, updated FROM scenes "
+            "ORDER BY created, id LIMIT ? OFFSET ?",
+            [limit, offset],
+        )
+
+    def update_scene(
+        self, scene_id: str, doc: dict[str, Any], name: str, if_match: str
+    ) -> dict[str, Any] | None:
+        """Replace the document if its ETag is still ``if_match``; None if the scene is gone."""
+        with self.transaction() as c:
+            cur = c.execute("SELECT etag, revision FROM scenes WHERE id = ?", [scene_id]).fetchone()
+            if cur is None:
+                return None
+            if cur[0] != if_match:
+                raise Conflict(cur[0])
+            etag, rev, t = _etag(), cur[1] + 1, now()
+            c.execute(
+                "UPDATE scenes SET doc = ?, name = ?, etag = ?, revision = ?, updated = ? "
+                "WHERE id = ?",
+                [json.dumps(doc), name, etag, rev, t, scene_id],
+            )
+        return self.scene(scene_id)
+
+    def delete_scene(self, scene_id: str, if_match: str | None) -> bool:
+        with self.transaction() as c:
+            cur = c.execute("SELECT etag FROM scenes WHERE id = ?", [scene_id]).fetchone()
+            if cur is None:
+                return False
+            if if_match is not None and cur[0] != if_match:
+                raise Conflict(cur[0])
+            c.execute("DELETE FROM scenes WHERE id = ?", [scene_id])
+        return True
+
+    # -- plans -------------------------------------------------------------------------------
+    def add_plan(
+        self,
+        scene_id: str | None,
+        revision: int | None,
+        scene_doc: dict[str, Any],
+        options: dict[str, Any],
+        doc: dict[str, Any],
+    ) -> dict[str, Any]:
+        row = {
+            "id": new_id("pln"),
+            "scene_id": scene_id,
+            "scene_revision": revision,
+            "scene_doc": json.dumps(scene_doc),
+            "options": json.dumps(options),
+            "doc": json.dumps(doc),
+            "created": now(),
+        }
+        with self.transaction() as c:
+            c.execute(
+                "INSERT INTO plans (id, scene_id, scene_revision, scene_doc, options, doc, "
+                "created) VALUES (:id, :scene_id, :scene_revision, :scene_doc, :options, :doc, "
+                ":created)",
+                row,
+            )
+        return row
+
+    def plan(self, plan_id: str) -> dict[str, Any] | None:
+        rows = self.rows("SELECT * FROM plans WHERE id = ?", [plan_id])
+        return rows[0] if rows else None
+
+    def plans(self, scene_id: str | None, limit: int, offset: int) -> list[dict[str, Any]]:
+        where, params = ("WHERE scene_id = ?", [scene_id]) if scene_id else ("", [])
+        return self.rows(
+            "SELECT id, scene_id, scene_revision, options, created, "
+            "json_extract(doc, '$.totals.stops') AS stops, "
+            "json_extract(doc, '$.totals.time.total') AS time "
+            f"FROM plans {where} ORDER BY created, id LIMIT ? OFFSET ?",
+            [*params, limit, offset],
+        )
+
+    # -- jobs --------------------------------------------------------------------------------
+    def add_job(self, kind: str, params: dict[str, Any]) -> dict[str, Any]:
+        t = now()
+        row = {
+            "id": new_id("job"),
+            "kind": kind,
+            "state": "queued",
+            "progress": 0.0,
+            "params": json.dumps(params),
+            "created": t,
+            "updated": t,
+        }
+        with self.transaction() as c:
+            c.execute(
+                "INSERT INTO jobs (id, kind, state, progress, params, created, updated) "
+                "VALUES (:id, :kind, :state, :progress, :params, :created, :updated)",
+                row,
+            )
+        job = self.job(str(row["id"]))
+        assert job is not None
+        return job
+
+    def job(self, job_id: str) -> dict[str, Any] | None:
+        rows = self.rows("SELECT * FROM jobs WHERE id = ?", [job_id])
+        return rows[0] if rows else None
+
+    def jobs(self, limit: int, offset: int) -> list[dict[str, Any]]:
+        return self.rows(
+            "SELECT * FROM jobs ORDER BY created, id LIMIT ? OFFSET ?", [limit, offset]
+        )
+
+    def set_job(self, job_id: str, **fields: Any) -> None:
+        fields["updated"] = now()
+        for k in ("result",):
+            if k in fields and not isinstance(fields[k], str | None):
+                fields[k] = json.dumps(fields[k])
+        sets = ", ".join(f"{k} = :{k}" for k in fields)
+        with self.transaction() as c:
+            c.execute(f"UPDATE jobs SET {sets} WHERE id = :id", {**fields, "id": job_id})
+
+    def interrupt_stale_jobs(self) -> int:
+        """Jobs left queued or running by a previous run of the service: mark interrupted."""
+        with self.transaction() as c:
+            cur = c.execute(
+                "UPDATE jobs SET state = 'interrupted', error = 'the service stopped while the "
+                "job was queued or running; start it again', updated = ? "
+                "WHERE state IN ('queued', 'running')",
+                [now()],
+            )
+            return int(cur.rowcount)
+
+    # -- robots ------------------------------------------------------------------------------
+    def add_robot(self, name: str, config: dict[str, Any]) -> None:
+        with self.transaction() as c:
+            c.execute(
+                "INSERT INTO robots (name, config, created) VALUES (?, ?, ?)",
+                [name, json.dumps(config), now()],
+            )
+
+    def robots(self) -> list[dict[str, Any]]:
+        return self.rows("SELECT name, config, created FROM robots ORDER BY name")
+
+
+def _etag() -> str:
+    return secrets.token_hex(10)
