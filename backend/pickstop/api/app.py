@@ -8,6 +8,7 @@ from __future__ import annotations
 import asyncio
 import hmac
 import json
+import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Annotated, Any, Literal
@@ -80,6 +81,8 @@ PROBLEMS: dict[int | str, dict[str, Any]] = {
         (428, "If-Match is required"),
     ]
 }
+
+
 class SceneRecord(BaseModel):
     id: str
     name: str
@@ -215,6 +218,9 @@ def create_app(settings: Settings | None = None, preload: bool = True) -> FastAP
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        # Planning threads hold the GIL in long stretches; switching more often keeps the
+        # event loop (health, reads) responsive while a plan computes.
+        sys.setswitchinterval(0.001)
         svc = Service(settings)
         if preload:
             await asyncio.get_running_loop().run_in_executor(None, svc.preload)
@@ -515,22 +521,19 @@ def _router(settings: Settings) -> APIRouter:
 
     @r.get("/plans/{plan_id}", tags=["plans"], dependencies=R)
     async def get_plan(request: Request, plan_id: str, include_scene: bool = False) -> Response:
-        row = svc(request).store.plan(plan_id)
-        if row is None:
+        s = svc(request)
+        headers = {"Cache-Control": "public, max-age=31536000, immutable"}
+        if include_scene:
+            row = s.store.plan(plan_id)
+            body = s.plan_body(plan_id)
+            if row is None or body is None:
+                raise Problem(404, "Not found", f"no plan {plan_id!r}")
+            full = body[:-1] + b',"scene":' + row["scene_doc"].encode() + b"}"
+            return Response(full, media_type="application/json", headers=headers)
+        cached = s.plan_body(plan_id)
+        if cached is None:
             raise Problem(404, "Not found", f"no plan {plan_id!r}")
-        # Stored JSON is sent as it is: a plan is immutable, no need to re-validate it.
-        body = (
-            f'{{"id":"{row["id"]}","scene_id":{json.dumps(row["scene_id"])},'
-            f'"scene_revision":{json.dumps(row["scene_revision"])},"created":"{row["created"]}",'
-            f'"options":{row["options"]},"plan":{row["doc"]}'
-            + (f',"scene":{row["scene_doc"]}' if include_scene else "")
-            + "}"
-        )
-        return Response(
-            body,
-            media_type="application/json",
-            headers={"Cache-Control": "public, max-age=31536000, immutable"},
-        )
+        return Response(cached, media_type="application/json", headers=headers)
 
     # jobs --------------------------------------------------------------------------------------
     @r.post("/jobs/batch", tags=["jobs"], dependencies=W, status_code=202)

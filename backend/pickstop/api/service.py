@@ -63,6 +63,7 @@ class Service:
         self._slots_lock = threading.Lock()
         self._jobs: queue.Queue[str | None] = queue.Queue()
         self._cancel: set[str] = set()
+        self._plan_bodies: dict[str, bytes] = {}
         self._job_thread = threading.Thread(
             target=self._job_loop, name="pickstop-jobs", daemon=True
         )
@@ -219,6 +220,24 @@ class Service:
             for s in self._slots.values()
         ]
 
+    def plan_body(self, plan_id: str) -> bytes | None:
+        """A stored plan record as JSON bytes; plans are immutable, so they are cached."""
+        hit = self._plan_bodies.get(plan_id)
+        if hit is not None:
+            return hit
+        row = self.store.plan(plan_id)
+        if row is None:
+            return None
+        body = (
+            f'{{"id":"{row["id"]}","scene_id":{json.dumps(row["scene_id"])},'
+            f'"scene_revision":{json.dumps(row["scene_revision"])},"created":"{row["created"]}",'
+            f'"options":{row["options"]},"plan":{row["doc"]}}}'
+        ).encode()
+        if len(self._plan_bodies) >= 512:
+            self._plan_bodies.pop(next(iter(self._plan_bodies)))
+        self._plan_bodies[plan_id] = body
+        return body
+
     def plan(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
         slot = self.slot(scene, db_id)
         with slot.lock:
@@ -324,7 +343,8 @@ class Service:
                 last[0] = frac
                 self.store.set_job(job_id, progress=frac)
 
-        row = build(robot, bp, self.data_dir, workers=2, progress=progress)
+        # Two worker processes at lower priority: interactive requests come first.
+        row = build(robot, bp, self.data_dir, workers=2, progress=progress, nice=10)
         return {"database": row["id"], "robot": robot.name, "samples": row["samples"]}
 
     def _run_batch(self, job_id: str, params: dict[str, Any]) -> dict[str, Any]:

@@ -189,9 +189,11 @@ def compute_chunk(kernel: BuildKernel, chunk: int, data_dir: Path, db_id: str) -
 _WORKER_KERNEL: BuildKernel | None = None
 
 
-def _init_worker(kernel: BuildKernel) -> None:
+def _init_worker(kernel: BuildKernel, nice: int = 0) -> None:
     global _WORKER_KERNEL
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    if nice:
+        os.nice(nice)
     _WORKER_KERNEL = kernel
 
 
@@ -291,16 +293,23 @@ ChunkRunner = Callable[[BuildKernel, list[int], Path, str], Iterable[ChunkResult
 
 
 def run_local(
-    kernel: BuildKernel, chunks: list[int], data_dir: Path, db_id: str, workers: int
+    kernel: BuildKernel,
+    chunks: list[int],
+    data_dir: Path,
+    db_id: str,
+    workers: int,
+    nice: int = 0,
 ) -> Iterable[ChunkResult]:
-    """Compute ``chunks`` in this process (``workers == 1``) or a pool of processes."""
+    """Compute ``chunks`` in this process (``workers == 1``) or a pool of processes.
+
+    nice: lower the workers' priority by this much (a service building in the background)."""
     if workers <= 1:
         for c in chunks:
             yield compute_chunk(kernel, c, data_dir, db_id)
         return
     ctx = get_context("spawn")
     with ProcessPoolExecutor(
-        workers, mp_context=ctx, initializer=_init_worker, initargs=(kernel,)
+        workers, mp_context=ctx, initializer=_init_worker, initargs=(kernel, nice)
     ) as ex:
         pending: set[Future[ChunkResult]] = set()
         todo = list(chunks)
@@ -325,6 +334,7 @@ def build(
     progress: Callable[[int, int], None] | None = None,
     max_chunks: int | None = None,
     runner: ChunkRunner | None = None,
+    nice: int = 0,
 ) -> dict[str, Any]:
     """Build (or resume) the database of ``robot`` with ``params``; return its catalog row.
 
@@ -352,7 +362,9 @@ def build(
         progress(samples_done, params.samples)
     kernel = make_kernel(robot, params, data_dir)
     workers = workers or os.cpu_count() or 1
-    run = runner or (lambda k, c, d, i: run_local(k, c, d, i, min(workers, max(len(c), 1))))
+    run = runner or (
+        lambda k, c, d, i: run_local(k, c, d, i, min(workers, max(len(c), 1)), nice=nice)
+    )
     try:
         for res in run(kernel, todo, data_dir, db_id):
             _record(catalog, db_id, res)
