@@ -20,6 +20,7 @@ import socket
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -129,10 +130,12 @@ def main() -> None:
     args = ap.parse_args()
     port = _port()
     env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]'}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "pickstop.cli", "serve", "--port", str(port), "--log-level",
-         "warning"], env=env, stderr=open("/tmp/serve_bench.log", "w"),
-    )  # fmt: skip
+    log_path = Path(tempfile.gettempdir()) / "pickstop-bench-serve.log"
+    with log_path.open("w") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "pickstop.cli", "serve", "--port", str(port), "--log-level",
+             "warning"], env=env, stderr=log,
+        )  # fmt: skip
     url = f"http://127.0.0.1:{port}"
     try:
         t0 = time.time()

@@ -21,7 +21,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 from pickstop import __version__
 from pickstop.api.problems import Problem, install, problem_response
 from pickstop.api.service import Service
-from pickstop.api.store import Conflict
+from pickstop.api.store import Conflict, now
 from pickstop.reach.database import list_databases
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.settings import Settings, hash_key
@@ -100,6 +100,9 @@ class PlanRequest(BaseModel):
     options: PlanOptions = PlanOptions()
     database: str | None = Field(default=None, description="reachability database id")
     mode: Literal["sync", "job"] = Field(default="sync", description="'job': run as a batch job")
+    store: bool = Field(
+        default=True, description="keep the plan as a record (false: a preview, not stored)"
+    )
 
     @model_validator(mode="after")
     def _one(self) -> PlanRequest:
@@ -109,7 +112,7 @@ class PlanRequest(BaseModel):
 
 
 class PlanRecord(BaseModel):
-    id: str
+    id: str | None  # None for a preview that was not stored
     scene_id: str | None
     scene_revision: int | None
     created: str
@@ -497,6 +500,16 @@ def _router(settings: Settings) -> APIRouter:
         plan = await asyncio.get_running_loop().run_in_executor(
             s.pool, s.plan, scene, body.options, body.database
         )
+        if not body.store:
+            response.status_code = 200
+            return PlanRecord(
+                id=None,
+                scene_id=body.scene_id,
+                scene_revision=revision,
+                created=now(),
+                options=body.options.model_dump(),
+                plan=plan,
+            )
         rec = s.store.add_plan(
             body.scene_id, revision, doc, body.options.model_dump(), plan.model_dump(mode="json")
         )

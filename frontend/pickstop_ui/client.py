@@ -1,0 +1,96 @@
+"""A typed client of the PickStop REST API (the 3D planner is one more client of it)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import httpx
+
+from pickstop.sequence.plan_model import Plan
+
+API = "/api/v1"
+
+
+class ApiProblem(Exception):
+    """An error answer of the API (RFC 9457 problem details)."""
+
+    def __init__(self, status: int, title: str, detail: str, field: str | None = None) -> None:
+        super().__init__(f"{title}: {detail}")
+        self.status, self.title, self.detail, self.field = status, title, detail, field
+
+
+@dataclass(frozen=True)
+class StoredScene:
+    id: str
+    etag: str
+    revision: int
+    doc: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    plan: Plan
+    id: str | None  # stored plan id, or None for a preview
+    seconds: float  # round trip [s]
+
+
+class PickStopClient:
+    def __init__(self, base_url: str, api_key: str | None = None, timeout: float = 300) -> None:
+        self.base_url = base_url.rstrip("/")
+        headers = {"Authorization": f"Bearer {api_key}"} if api_key else {}
+        self.http = httpx.Client(base_url=self.base_url, headers=headers, timeout=timeout)
+
+    def close(self) -> None:
+        self.http.close()
+
+    def _check(self, r: httpx.Response) -> httpx.Response:
+        if r.status_code >= 400:
+            try:
+                body = r.json()
+            except ValueError:
+                body = {"title": r.reason_phrase, "detail": r.text[:500]}
+            raise ApiProblem(
+                r.status_code, body.get("title", "Error"), body.get("detail", ""), body.get("field")
+            )
+        return r
+
+    def health(self) -> dict[str, Any]:
+        return dict(self._check(self.http.get(f"{API}/health")).json())
+
+    def scene(self, scene_id: str) -> StoredScene:
+        r = self._check(self.http.get(f"{API}/scenes/{scene_id}"))
+        body = r.json()
+        return StoredScene(body["id"], _etag(r), body["revision"], body["scene"])
+
+    def create_scene(self, doc: dict[str, Any]) -> StoredScene:
+        r = self._check(self.http.post(f"{API}/scenes", json=doc))
+        body = r.json()
+        return StoredScene(body["id"], _etag(r), body["revision"], body["scene"])
+
+    def save_scene(self, scene_id: str, doc: dict[str, Any], etag: str) -> StoredScene:
+        """Replace the stored scene; ApiProblem 412 if someone changed it since ``etag``."""
+        r = self._check(
+            self.http.put(f"{API}/scenes/{scene_id}", json=doc, headers={"If-Match": f'"{etag}"'})
+        )
+        body = r.json()
+        return StoredScene(body["id"], _etag(r), body["revision"], body["scene"])
+
+    def plan(
+        self, scene: dict[str, Any], options: dict[str, Any], store: bool = False
+    ) -> PlanResult:
+        """Plan an inline scene document (a preview unless ``store``)."""
+        r = self._check(
+            self.http.post(
+                f"{API}/plans", json={"scene": scene, "options": options, "store": store}
+            )
+        )
+        body = r.json()
+        return PlanResult(Plan.model_validate(body["plan"]), body["id"], r.elapsed.total_seconds())
+
+    def plan_url(self, plan_id: str) -> str:
+        return f"{self.base_url}{API}/plans/{plan_id}"
+
+
+def _etag(r: httpx.Response) -> str:
+    return r.headers.get("etag", "").strip('"')
