@@ -61,3 +61,62 @@ def planner(region_db, tiago):
 @pytest.fixture(scope="session", params=["tiago", "pr2"])
 def robot(request, tiago, pr2):
     return tiago if request.param == "tiago" else pr2
+
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+LIVE_KEY = "test-key-0123456789"
+
+
+@pytest.fixture(scope="session")
+def live_api(region_db, tmp_path_factory):
+    """``pickstop serve`` under uvicorn on 127.0.0.1 over the test database: its base URL."""
+    import subprocess
+    import sys
+    import time
+
+    import httpx
+
+    from pickstop.settings import hash_key
+
+    folder, _ = region_db
+    port = free_port()
+    env = {
+        **os.environ,
+        "PICKSTOP_DATA_DIR": str(folder),
+        "PICKSTOP_API_KEYS": f'["{hash_key(LIVE_KEY)}"]',
+        "PICKSTOP_MAX_SAMPLES": "40000",
+        "PICKSTOP_MAX_BATCH": "3",
+        "PICKSTOP_MAX_BODY_BYTES": "200000",
+    }
+    log = (tmp_path_factory.mktemp("live") / "serve.log").open("w")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pickstop.cli", "serve", "--host", "127.0.0.1", "--port",
+         str(port), "--log-level", "warning"],
+        env=env, stdout=log, stderr=subprocess.STDOUT,
+    )  # fmt: skip
+    url = f"http://127.0.0.1:{port}"
+    t0 = time.time()
+    while True:
+        try:
+            if httpx.get(f"{url}/api/v1/health", timeout=2).status_code == 200:
+                break
+        except httpx.HTTPError:
+            pass
+        if proc.poll() is not None or time.time() - t0 > 120:
+            proc.kill()
+            raise RuntimeError(f"the service did not start; see {log.name}")
+        time.sleep(0.3)
+    yield url
+    proc.terminate()
+    try:
+        proc.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+    log.close()

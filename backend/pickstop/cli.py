@@ -390,6 +390,37 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_ui(args: argparse.Namespace) -> int:
+    """The 3D planner, a client of a running API."""
+    from pickstop_ui.app import run
+    from pickstop_ui.client import ApiProblem, PickStopClient
+
+    key = args.key or os.environ.get("PICKSTOP_UI_KEY")
+    scene_id = args.scene
+    if args.scene_file:
+        from pickstop.scene.model import load_scene
+
+        load_scene(args.scene_file)  # a bad file fails here, with its field
+        doc = json.loads(Path(args.scene_file).read_text(encoding="utf-8"))
+        try:
+            scene_id = PickStopClient(args.api, key).create_scene(doc).id
+        except ApiProblem as e:
+            raise PickStopError(f"{args.api}: {e.title}: {e.detail}") from None
+    if not scene_id:
+        raise InputError("give --scene SCENE_ID or --scene-file FILE", field="scene")
+    try:
+        app = run(args.api, scene_id, key, args.host, args.port)
+    except ApiProblem as e:
+        raise PickStopError(f"{args.api}: {e.title}: {e.detail}") from None
+    print(f"PickStop 3D planner on http://{args.host}:{app.port}/ (scene {scene_id})",
+          file=sys.stderr, flush=True)  # fmt: skip
+    try:
+        while True:
+            time.sleep(3600)
+    finally:
+        app.close()
+
+
 def cmd_api_key(args: argparse.Namespace) -> int:
     """A new random API key and the hash to configure (the service stores only hashes)."""
     import secrets
@@ -483,6 +514,15 @@ def build_parser() -> argparse.ArgumentParser:
     sv.add_argument("--port", type=_positive_int, help="port (default: $PICKSTOP_PORT or 8000)")
     sv.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
     sv.set_defaults(func=cmd_serve)
+
+    ui = sub.add_parser("ui", help="run the 3D planner against a running API")
+    ui.add_argument("--api", default="http://127.0.0.1:8000", help="the API's base URL")
+    ui.add_argument("--scene", help="id of a stored scene")
+    ui.add_argument("--scene-file", help="or a scene file: stored through the API first")
+    ui.add_argument("--key", help="API key for saving (default: $PICKSTOP_UI_KEY)")
+    ui.add_argument("--host", default="127.0.0.1")
+    ui.add_argument("--port", type=_positive_int, default=8080)
+    ui.set_defaults(func=cmd_ui)
 
     ak = sub.add_parser("api-key", help="make a new API key and print its hash for the settings")
     ak.set_defaults(func=cmd_api_key)

@@ -56,6 +56,7 @@ GREY = (150, 150, 150)
 KEPT = (40, 200, 90)
 REJECTED = (220, 40, 40)
 ROUTE = (255, 200, 0)
+STALE = (140, 140, 175)  # the last valid plan while the current request has none
 MC_SAMPLES = 300
 
 
@@ -132,8 +133,9 @@ class PlannerApp:
         cy = 0.5 * (fl["min"][1] + fl["max"][1])
         span = max(fl["max"][0] - fl["min"][0], fl["max"][1] - fl["min"][1])
         client.camera.up_direction = (0.0, 0.0, 1.0)
-        client.camera.position = (cx, cy - 0.55 * span, 0.75 * span)
-        client.camera.look_at = (cx, cy, 0.0)
+        # The panel covers the right of the window: look a little right of the centre.
+        client.camera.position = (cx + 0.12 * span, cy - 0.45 * span, 0.6 * span)
+        client.camera.look_at = (cx + 0.12 * span, cy + 0.1 * span, 0.0)
 
     # -- the scene ---------------------------------------------------------------------------
     def _draw_scene(self) -> None:
@@ -201,9 +203,10 @@ class PlannerApp:
                 position=(0, 0, g["height"] / 2),
             )
 
-        @ctl.on_drag_end
-        def _(_: Any) -> None:
-            self._moved("obstacles", ob["id"], ctl)
+        @ctl.on_update
+        def _(event: Any) -> None:
+            if event.phase == "end":  # replan on release, not on every pose while dragging
+                self._moved("obstacles", ob["id"], ctl)
 
     def _draw_tray(self, index: int, tray: dict[str, Any]) -> None:
         sc, p = self.server.scene, tray["pose"]
@@ -259,9 +262,10 @@ class PlannerApp:
                 )
         sc.add_label(f"{root}/label", tray.get("name") or tray["id"], position=(0, 0, 0.15))
 
-        @ctl.on_drag_end
-        def _(_: Any) -> None:
-            self._moved("trays", tray["id"], ctl)
+        @ctl.on_update
+        def _(event: Any) -> None:
+            if event.phase == "end":
+                self._moved("trays", tray["id"], ctl)
 
     def _moved(self, kind: str, oid: str, ctl: Any) -> None:
         """A drag ended: keep x, y and yaw (the height stays), then replan."""
@@ -467,77 +471,82 @@ class PlannerApp:
         self._grey_out()
 
     def _grey_out(self) -> None:
-        sc = self.server.scene
-        for name in ("/plan/regions", "/plan/route", "/plan/circles", "/plan/outlines"):
-            sc.add_frame(name, show_axes=False, visible=False)  # hides the children
-        for g in self._ghosts:
-            g[0].visible = False
+        """The last valid plan stays on screen in one stale colour; its ghosts go."""
+        plan = self.state.plan
+        with self.server.atomic():
+            if plan is not None:
+                self._draw_geometry(plan, self.state.doc, stale=True)
+            for g in self._ghosts:
+                g[0].visible = False
 
     # -- drawing a plan ------------------------------------------------------------------------
     def _draw_plan(self, req: _Request, plan: Plan, final: bool) -> None:
-        sc = self.server.scene
-        doc = req.scene
-        colours = {t["id"]: tray_colour(i, t) for i, t in enumerate(doc["trays"])}
         with self.server.atomic():
-            sc.add_frame("/plan", show_axes=False)
-            for name in ("/plan/regions", "/plan/route", "/plan/circles", "/plan/outlines"):
-                sc.add_frame(name, show_axes=False, visible=True)
-            # Regions: each tray's own components, translucent in its colour.
-            for k, tid in enumerate(plan.trays):
-                polys = [_poly(c.polygon) for c in plan.candidates if c.trays == [tid]]
-                v, f = patch_mesh(polys, 0.004 + 0.001 * k)
-                if len(f):
-                    sc.add_mesh_simple(
-                        f"/plan/regions/{tid}",
-                        v,
-                        f,
-                        color=colours.get(tid, GREY),
-                        opacity=0.35,
-                        side="double",
-                        cast_shadow=False,
-                        receive_shadow=False,
-                    )
-                else:
-                    sc.add_frame(f"/plan/regions/{tid}", show_axes=False, visible=False)
-            # Intersections (order >= 2): outlined; circles: kept solid, rejected dashed red.
-            segs: list[np.ndarray] = []
-            circ_ok: list[np.ndarray] = []
-            circ_bad: list[np.ndarray] = []
-            for c in plan.candidates:
-                poly = _poly(c.polygon)
-                if len(c.trays) >= 2:
-                    segs.append(ring_segments(np.asarray(poly.exterior.coords), 0.02))
-                rejected = c.status == "rejected"
-                ring = circle_segments((c.x, c.y), c.inscribed_radius, 0.025, dashed=rejected)
-                (circ_bad if rejected else circ_ok).append(ring)
-            _segments(sc, "/plan/outlines/intersections", segs, (255, 255, 255), 0.012)
-            _segments(sc, "/plan/circles/kept", circ_ok, KEPT, 0.012)
-            _segments(sc, "/plan/circles/rejected", circ_bad, REJECTED, 0.008)
-            sc.add_point_cloud(
-                "/plan/circles/centres",
-                np.array([[c.x, c.y, 0.03] for c in plan.candidates] or [[0, 0, -1]], np.float32),
-                colors=np.array(
-                    [KEPT if c.status != "rejected" else REJECTED for c in plan.candidates]
-                    or [GREY],
-                    np.uint8,
-                ),
-                point_size=0.04,
-            )
-            _segments(sc, "/plan/route/line", [route_segments(plan.route, 0.05)], ROUTE, 0.025)
-            for k, s in enumerate(plan.stops):
-                ok = "" if s.success is None else f", {s.success.rate:.0%} success"
-                sc.add_label(
-                    f"/plan/route/stop{k}",
-                    f"stop {k + 1}: {', '.join(s.trays)}{ok}",
-                    position=(s.x, s.y, 1.3),
-                )
-            for k in range(len(plan.stops), 32):
-                sc.add_frame(f"/plan/route/stop{k}", show_axes=False, visible=False)
+            self._draw_geometry(plan, req.scene, stale=False)
             self._place_ghosts(plan)
             self.state.plan, self.state.error, self.state.drawn_seq = plan, None, req.seq
             self.state.busy = not final
             self.state.last_ms = (time.perf_counter() - req.t0) * 1e3
             self._panel(plan, req, final)
+
+    def _draw_geometry(self, plan: Plan, doc: dict[str, Any], stale: bool) -> None:
+        """Regions, intersections, circles and route; all in one grey-blue when ``stale``."""
+        sc = self.server.scene
+        colours = {t["id"]: tray_colour(i, t) for i, t in enumerate(doc["trays"])}
+        kept, rejected_c, route = (STALE, STALE, STALE) if stale else (KEPT, REJECTED, ROUTE)
+        sc.add_frame("/plan", show_axes=False)
+        for name in ("/plan/regions", "/plan/route", "/plan/circles", "/plan/outlines"):
+            sc.add_frame(name, show_axes=False, visible=True)
+        # Regions: each tray's own components, translucent in its colour.
+        for k, tid in enumerate(plan.trays):
+            polys = [_poly(c.polygon) for c in plan.candidates if c.trays == [tid]]
+            v, f = patch_mesh(polys, 0.004 + 0.001 * k)
+            if len(f):
+                sc.add_mesh_simple(
+                    f"/plan/regions/{tid}",
+                    v,
+                    f,
+                    color=STALE if stale else colours.get(tid, GREY),
+                    opacity=0.35,
+                    side="double",
+                    cast_shadow=False,
+                    receive_shadow=False,
+                )
+            else:
+                sc.add_frame(f"/plan/regions/{tid}", show_axes=False, visible=False)
+        # Intersections (order >= 2): outlined; circles: kept solid, rejected dashed red.
+        segs: list[np.ndarray] = []
+        circ_ok: list[np.ndarray] = []
+        circ_bad: list[np.ndarray] = []
+        for c in plan.candidates:
+            poly = _poly(c.polygon)
+            if len(c.trays) >= 2:
+                segs.append(ring_segments(np.asarray(poly.exterior.coords), 0.02))
+            rejected = c.status == "rejected"
+            ring = circle_segments((c.x, c.y), c.inscribed_radius, 0.025, dashed=rejected)
+            (circ_bad if rejected else circ_ok).append(ring)
+        _segments(sc, "/plan/outlines/intersections", segs, (255, 255, 255), 0.012)
+        _segments(sc, "/plan/circles/kept", circ_ok, kept, 0.012)
+        _segments(sc, "/plan/circles/rejected", circ_bad, rejected_c, 0.008)
+        sc.add_point_cloud(
+            "/plan/circles/centres",
+            np.array([[c.x, c.y, 0.03] for c in plan.candidates] or [[0, 0, -1]], np.float32),
+            colors=np.array(
+                [kept if c.status != "rejected" else rejected_c for c in plan.candidates] or [GREY],
+                np.uint8,
+            ),
+            point_size=0.04,
+        )
+        _segments(sc, "/plan/route/line", [route_segments(plan.route, 0.05)], route, 0.025)
+        for k, s in enumerate(plan.stops):
+            ok = "" if s.success is None else f", {s.success.rate:.0%} success"
+            sc.add_label(
+                f"/plan/route/stop{k}",
+                f"stop {k + 1}: {', '.join(s.trays)}{ok}",
+                position=(s.x, s.y, 1.3),
+            )
+        for k in range(len(plan.stops), 32):
+            sc.add_frame(f"/plan/route/stop{k}", show_axes=False, visible=False)
 
     def _place_ghosts(self, plan: Plan) -> None:
         if self._urdf is None:

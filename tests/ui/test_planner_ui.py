@@ -1,0 +1,273 @@
+"""The 3D planner in real headless Chromium (Debian's), driven by Playwright with the mouse.
+
+The API runs under uvicorn on 127.0.0.1; the planner runs in this process so the test can
+read the camera it set and project world points to the pixels to drag. Screenshots are kept
+in tests/artifacts/ui/. Times from mouse release to the redrawn panel are measured in the
+page (pointerup and a MutationObserver, both on performance.now()) and printed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import LIVE_KEY, free_port
+
+playwright = pytest.importorskip("playwright.sync_api")
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = [
+    "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--no-first-run",
+]  # fmt: skip
+ARTIFACTS = Path(__file__).parents[1] / "artifacts" / "ui"
+SCENE = Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.json"
+ROUTE = np.array([231, 205, 71])  # (255, 200, 0) as lit and shaded in the view
+REJECTED = np.array([222, 38, 40])
+KEPT = np.array([40, 200, 90])
+STALE = np.array([140, 140, 175])
+TRAY4_PATCH = np.array([254, 238, 213])  # tray_4 orange, translucent over the white floor
+
+pytestmark = pytest.mark.skipif(
+    shutil.which("chromium") is None, reason="Debian's chromium is not installed"
+)
+
+
+@pytest.fixture(scope="module")
+def planner_app(live_api):
+    from pickstop_ui.app import PlannerApp, load_robot_urdf
+    from pickstop_ui.client import PickStopClient
+
+    client = PickStopClient(live_api, LIVE_KEY)
+    doc = json.loads(SCENE.read_text())
+    stored = client.create_scene(doc)
+    app = PlannerApp(client, stored.id, port=free_port(), robot_urdf=load_robot_urdf())
+    yield app
+    app.close()
+
+
+@pytest.fixture(scope="module")
+def ui_page(planner_app):
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    with playwright.sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        pg = browser.new_page(viewport={"width": 1280, "height": 800})
+        pg.goto(f"http://127.0.0.1:{planner_app.port}/")
+        pg.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=120_000)
+        _close_notifications(pg)
+        time.sleep(3)  # let the software renderer finish the first frames
+        yield pg
+        browser.close()
+
+
+def _close_notifications(pg) -> None:
+    for button in pg.locator(".mantine-Notification-closeButton").all():
+        button.click()
+
+
+def _shot(pg, name: str) -> np.ndarray:
+    import imageio.v3 as iio
+
+    path = ARTIFACTS / f"{name}.png"
+    pg.screenshot(path=str(path))
+    return iio.imread(path)[..., :3].astype(int)
+
+
+def _read(name: str) -> np.ndarray:
+    import imageio.v3 as iio
+
+    return iio.imread(ARTIFACTS / f"{name}.png")[..., :3].astype(int)
+
+
+def _pixels(img: np.ndarray, rgb: np.ndarray, tol: int = 40) -> np.ndarray:
+    """(N, 2) pixel coordinates (x, y) of the 3D view (left of the panel) close to ``rgb``."""
+    view = img[:, :860]
+    hit = np.all(np.abs(view - rgb) <= tol, axis=-1)
+    ys, xs = np.nonzero(hit)
+    return np.column_stack([xs, ys])
+
+
+def _arm_timer(pg) -> None:
+    """In the page: note the next pointerup and every text change after it, with times."""
+    pg.evaluate(
+        """() => {
+            window.__t = {up: null, changes: []};
+            addEventListener('pointerup', () => { window.__t.up = performance.now(); },
+                             {capture: true, once: true});
+            const obs = new MutationObserver(() => {
+                if (window.__t.up !== null) {
+                    window.__t.changes.push([performance.now(), document.body.innerText]);
+                }
+            });
+            obs.observe(document.body, {subtree: true, childList: true, characterData: true});
+        }"""
+    )
+
+
+def _elapsed_ms(pg, marker: str) -> float:
+    """Milliseconds from the pointerup to the first page text that shows ``marker``."""
+    pg.wait_for_function(
+        "m => window.__t.changes.some(c => c[1].includes(m))", arg=marker, timeout=60_000
+    )
+    t = pg.evaluate("window.__t")
+    done = next(c[0] for c in t["changes"] if marker in c[1])
+    return float(done - t["up"])
+
+
+def _settled_sigma(app) -> float:
+    """The slider's value once the drag's last update has reached the planner."""
+    time.sleep(0.5)
+    return round(float(app.sigma.value), 3)
+
+
+def _project(cam, p) -> tuple[float, float]:
+    """World point -> pixel, from the camera the browser reported (OpenCV frame, vertical fov)."""
+    from viser import transforms as tf
+
+    R = tf.SO3(np.asarray(cam.wxyz)).as_matrix()
+    pc = R.T @ (np.asarray(p, float) - np.asarray(cam.position))
+    f = (cam.image_height / 2) / math.tan(cam.fov / 2)
+    return cam.image_width / 2 + f * pc[0] / pc[2], cam.image_height / 2 + f * pc[1] / pc[2]
+
+
+def _drag(pg, a, b, steps: int = 12) -> None:
+    pg.mouse.move(*a)
+    pg.mouse.down()
+    for k in range(1, steps + 1):
+        pg.mouse.move(a[0] + (b[0] - a[0]) * k / steps, a[1] + (b[1] - a[1]) * k / steps)
+        time.sleep(0.03)
+    pg.mouse.up()
+
+
+def _set_slider(pg, index: int, value: float, lo: float, hi: float) -> None:
+    """Drag slider ``index`` of the panel from its thumb to ``value``."""
+    root = pg.locator(".mantine-Slider-root").nth(index)
+    box = root.bounding_box()
+    thumb = root.locator("[role=slider]").bounding_box()
+    start = (thumb["x"] + thumb["width"] / 2, thumb["y"] + thumb["height"] / 2)
+    end = (box["x"] + (value - lo) / (hi - lo) * box["width"], start[1])
+    _drag(pg, start, end)
+
+
+def test_page_connects_and_draws_the_scene_and_plan(ui_page, planner_app):
+    text = ui_page.inner_text("body")
+    assert f"Stops: {len(planner_app.state.plan.stops)} (naive 3)" in text
+    assert "σ = 0.100 m" in text
+    img = _shot(ui_page, "01-initial")
+    route = _pixels(img, ROUTE)
+    assert len(route) > 300, "the route is drawn in its colour"
+    # Route pixels lie between the start and the goal on screen.
+    cam = next(iter(planner_app.server.get_clients().values())).camera
+    sx, _ = _project(cam, (0.0, 0.0, 0.0))
+    assert route[:, 0].min() < sx + 80
+    # tray_4's region patch shows in its colour (orange, translucent).
+    assert len(_pixels(img, TRAY4_PATCH, tol=8)) > 200
+
+
+def _sigma_splitting_a_stop(plan) -> float:
+    """A sigma just above a shared stop's radius, below every tray's widest candidate:
+    that stop is rejected, the plan stays feasible with one stop more."""
+    shared = min(s.inscribed_radius for s in plan.stops if len(s.trays) >= 2)
+    widest = min(
+        max(c.inscribed_radius for c in plan.candidates if c.trays == [t]) for t in plan.trays
+    )
+    target = math.ceil((shared + 1e-3) / 0.005) * 0.005  # the slider's step is 5 mm
+    assert shared < target < widest, "the example must have a stop serving two trays"
+    return target
+
+
+def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app):
+    plan = planner_app.state.plan
+    n_stops = len(plan.stops)
+    target = _sigma_splitting_a_stop(plan)
+    before = _shot(ui_page, "02-sigma-before")
+    green_before = len(_pixels(before, KEPT, tol=35))
+    _arm_timer(ui_page)
+    _set_slider(ui_page, 0, target, 0.0, 0.25)
+    sigma = _settled_sigma(planner_app)
+    assert sigma == pytest.approx(target, abs=1e-6)
+    ms = _elapsed_ms(ui_page, f"σ = {sigma:.3f} m")
+    print(f"\nslider release -> redrawn plan (sigma {sigma:.3f}): {ms:.0f} ms")
+    ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
+    text = ui_page.inner_text("body")
+    assert f"Stops: {n_stops + 1} (naive" in text  # the shared stop's circle is now too small
+    assert f"below sigma {sigma:.3f} m" in text
+    time.sleep(1.5)
+    after = _shot(ui_page, "03-sigma-raised")
+    # The shared stop's solid green circle is gone (now dashed red, under the ghost robots).
+    assert green_before > 40 and len(_pixels(after, KEPT, tol=35)) < green_before / 2
+    _arm_timer(ui_page)
+    _set_slider(ui_page, 0, 0.10, 0.0, 0.25)
+    sigma = _settled_sigma(planner_app)
+    ms = _elapsed_ms(ui_page, f"σ = {sigma:.3f} m")
+    print(f"slider release -> redrawn plan (sigma {sigma:.3f}): {ms:.0f} ms")
+    ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
+    assert f"Stops: {n_stops} (naive" in ui_page.inner_text("body")
+
+
+def test_dragging_a_tray_replans_and_moves_its_region(ui_page, planner_app):
+    ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
+    tray = next(t for t in planner_app.state.doc["trays"] if t["id"] == "tray_4")
+    x0 = tray["pose"]["x"]
+    stop_x = next(s.x for s in planner_app.state.plan.stops if "tray_4" in s.trays)
+    before = _shot(ui_page, "04-drag-before")
+    cam = next(iter(planner_app.server.get_clients().values())).camera
+    base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
+    # Grab the gizmo's x arrow (0.3 m long) at 70% and pull it 0.4 m along +x.
+    a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
+    b = _project(cam, base + np.array([0.61, 0.0, 0.0]))
+    seq = planner_app.state.seq
+    _arm_timer(ui_page)
+    _drag(ui_page, a, b)
+    ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
+    assert planner_app.state.seq == seq + 1  # one replan, on release
+    ms = _elapsed_ms(ui_page, f"plan #{seq + 1} in")
+    print(f"\ndrag release -> redrawn plan: {ms:.0f} ms")
+    moved = next(t for t in planner_app.state.doc["trays"] if t["id"] == "tray_4")
+    assert moved["pose"]["x"] == pytest.approx(x0 + 0.4, abs=0.1)
+    assert moved["pose"]["z"] == tray["pose"]["z"] and abs(moved["pose"]["yaw"]) < 1e-6
+    new_stop_x = next(s.x for s in planner_app.state.plan.stops if "tray_4" in s.trays)
+    assert new_stop_x - stop_x == pytest.approx(moved["pose"]["x"] - x0, abs=0.06)
+    time.sleep(1.5)
+    after = _shot(ui_page, "05-drag-after")
+    px0, px1 = _pixels(before, TRAY4_PATCH, 8), _pixels(after, TRAY4_PATCH, 8)
+    assert px1[:, 0].mean() > px0[:, 0].mean() + 10, "tray_4's region moved right on screen"
+
+
+def test_infeasible_layout_shows_the_explanation(ui_page, planner_app):
+    _set_slider(ui_page, 0, 0.25, 0.0, 0.25)
+    sigma = _settled_sigma(planner_app)
+    marker = f"no plan with sigma = {sigma:.3f} m"
+    ui_page.wait_for_function("m => document.body.innerText.includes(m)", arg=marker,
+                              timeout=60_000)  # fmt: skip
+    text = ui_page.inner_text("body")
+    assert "Status: ⚠ Infeasible plan" in text and "last valid plan is shown greyed" in text
+    assert "tray tray_1:" in text  # the explanation names the trays and their numbers
+    time.sleep(1.5)
+    img = _shot(ui_page, "06-infeasible")
+    initial = _pixels(_read("01-initial"), ROUTE)
+    assert len(_pixels(img, ROUTE)) < len(initial) / 2, "the route is no longer yellow"
+    assert len(_pixels(img, STALE, tol=25)) > 200, "the last plan is drawn greyed out"
+    _set_slider(ui_page, 0, 0.10, 0.0, 0.25)
+    ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
+
+
+def test_save_conflict_is_reported(ui_page, planner_app, live_api):
+    from pickstop_ui.client import PickStopClient
+
+    other = PickStopClient(live_api, LIVE_KEY)
+    sid = planner_app.state.stored.id
+    theirs = other.scene(sid)
+    doc = dict(theirs.doc, description="changed by someone else")
+    other.save_scene(sid, doc, theirs.etag)
+    ui_page.get_by_role("button", name="Save scene").click()
+    ui_page.wait_for_function("document.body.innerText.includes('Save conflict')", timeout=30_000)
+    assert other.scene(sid).doc["description"] == "changed by someone else"  # not overwritten
+    _shot(ui_page, "07-save-conflict")
