@@ -134,7 +134,7 @@ def main() -> None:
     with log_path.open("w") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "pickstop.cli", "serve", "--port", str(port), "--log-level",
-             "warning"], env=env, stderr=log,
+             "warning", "--no-ui"], env=env, stderr=log,
         )  # fmt: skip
     url = f"http://127.0.0.1:{port}"
     try:

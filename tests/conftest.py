@@ -98,7 +98,7 @@ def live_api(region_db, tmp_path_factory):
     log = (tmp_path_factory.mktemp("live") / "serve.log").open("w")
     proc = subprocess.Popen(
         [sys.executable, "-m", "pickstop.cli", "serve", "--host", "127.0.0.1", "--port",
-         str(port), "--log-level", "warning"],
+         str(port), "--log-level", "warning", "--no-ui"],
         env=env, stdout=log, stderr=subprocess.STDOUT,
     )  # fmt: skip
     url = f"http://127.0.0.1:{port}"

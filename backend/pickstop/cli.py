@@ -130,10 +130,19 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
     folder = data_dir(args.data_dir)
     bar = _Progress(not args.quiet)
     t0 = time.perf_counter()
+    client = None
+    runner = None
+    if args.dask:
+        from pickstop.distributed import client_for, dask_runner
+
+        client = client_for(args.dask)
+        runner = dask_runner(client)
     try:
-        row = build(robot, params, folder, workers=args.workers, progress=bar)
+        row = build(robot, params, folder, workers=args.workers, progress=bar, runner=runner)
     finally:
         bar.close()
+        if client is not None:
+            client.close()
     elapsed = time.perf_counter() - t0
     info = next(r for r in list_databases(folder) if r["id"] == row["id"])
     out = _db_summary(info)
@@ -332,6 +341,8 @@ def _plan_batch(folder: Path, args: argparse.Namespace, options: Any) -> int:
         out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
     codes: set[int] = set()
+    if args.dask:
+        return _plan_batch_dask(scenes, args, options, out)
     for path in scenes:
         t0 = time.perf_counter()
         try:
@@ -352,6 +363,48 @@ def _plan_batch(folder: Path, args: argparse.Namespace, options: Any) -> int:
     return next((c for c in (2, 3) if c in codes), 1 if codes else 0)
 
 
+def _plan_batch_dask(
+    scenes: list[Path], args: argparse.Namespace, options: Any, out: Path | None
+) -> int:
+    """The folder's scenes as Dask tasks; the same table and files as the local batch."""
+    from pickstop.distributed import client_for, plan_batch
+    from pickstop.sequence.plan_model import Plan
+    from pickstop.settings import data_dir
+
+    rows: list[dict[str, Any] | None] = [None] * len(scenes)
+    codes: set[int] = set()
+    items = []
+    for k, path in enumerate(scenes):
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as e:
+            codes.add(2)
+            rows[k] = {"scene": path.name, "status": "error", "error": f"not valid JSON: {e}"}
+            continue
+        items.append((k, path, doc))
+    client = client_for(args.dask)
+    try:
+        work = [(p.name, doc, p.resolve().parent) for _, p, doc in items]
+        for j, res in plan_batch(client, work, options.model_dump(), data_dir(args.data_dir),
+                                 args.db):  # fmt: skip
+            k, path, _ = items[j]
+            if "error" in res:
+                codes.add(int(res["exit_code"]))
+                rows[k] = {"scene": path.name, "status": "error", "error": res["error"]}
+                continue
+            if out is not None:
+                _write_json(out / f"{path.stem}.plan.json", res)
+            rows[k] = {"scene": path.name, "status": "ok", **_plan_row(Plan.model_validate(res))}
+    finally:
+        client.close()
+    done = [r for r in rows if r is not None]
+    if args.json:
+        _emit(done)
+    else:
+        _print_table(done)
+    return next((c for c in (2, 3) if c in codes), 1 if codes else 0)
+
+
 def _print_table(rows: list[dict[str, Any]]) -> None:
     cols = ["scene", "status", "trays", "stops", "naive_stops", "length_m", "time_s",
             "naive_time_s", "saving", "success", "seconds"]  # fmt: skip
@@ -367,26 +420,37 @@ def _print_table(rows: list[dict[str, Any]]) -> None:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    """The REST API under uvicorn (settings from PICKSTOP_* environment variables)."""
-    import uvicorn
-
-    from pickstop.api.app import create_app
+    """The REST API under uvicorn and, unless --no-ui, the 3D planner beside it."""
+    from pickstop import stack
     from pickstop.settings import Settings
 
     overrides: dict[str, Any] = {}
     if args.data_dir:
         overrides["data_dir"] = Path(args.data_dir)
-    for name in ("host", "port"):
+    for name in ("host", "port", "ui_port"):
         if getattr(args, name) is not None:
             overrides[name] = getattr(args, name)
     settings = Settings(**overrides)
     if not settings.api_keys:
-        print("pickstop: no API keys configured (PICKSTOP_API_KEYS): the API is read-only; "
+        print("pickstop: no API keys configured (PICKSTOP_API_KEYS): the API refuses writes; "
               "make one with `pickstop api-key`", file=sys.stderr)  # fmt: skip
-    app = create_app(settings)
-    print(f"PickStop API on http://{settings.host}:{settings.port}/api/v1 "
-          f"(docs: /api/v1/docs)", file=sys.stderr)  # fmt: skip
-    uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level)
+    if args.scene_file:
+        from pickstop.scene.model import load_scene
+
+        load_scene(args.scene_file)  # a bad file fails here, naming its field
+    run = stack.start(
+        settings,
+        ui=not args.no_ui,
+        scene_id=args.scene,
+        scene_file=Path(args.scene_file) if args.scene_file else None,
+        log_level=args.log_level,
+    )
+    print(f"PickStop API on {run.api_url}/api/v1 (docs: {run.api_url}/api/v1/docs)",
+          file=sys.stderr, flush=True)  # fmt: skip
+    if run.ui_url:
+        print(f"PickStop 3D planner on {run.ui_url} (scene {run.scene_id})", file=sys.stderr,
+              flush=True)  # fmt: skip
+    run.wait()
     return 0
 
 
@@ -434,39 +498,46 @@ def cmd_api_key(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """The embedded default: the bundled TIAGo, its database (built once), a top-down query."""
+    """The embedded default: the bundled TIAGo's database (built once), the paper-like scene,
+    the API and the 3D planner; prints the URLs and a first plan."""
+    from pickstop import stack
     from pickstop.reach.build import BuildParams, build
-    from pickstop.reach.database import open_database
-    from pickstop.reach.ik import refine_many
-    from pickstop.reach.so3 import quats_to_matrices
     from pickstop.robot.model import load
-    from pickstop.settings import data_dir
+    from pickstop.settings import Settings, data_dir
 
+    t0 = time.perf_counter()
     folder = data_dir(args.data_dir)
     robot = load("tiago")
     bar = _Progress(True)
     try:
-        row = build(robot, BuildParams(samples=args.samples), folder, progress=bar)
+        build(robot, BuildParams(samples=args.samples), folder, progress=bar)
     finally:
         bar.close()
-    db = open_database(folder, robot, row["id"])
-    p = np.array([0.65, -0.15, 0.75])
-    q = np.array([0.70710678, 0.0, 0.70710678, 0.0])  # top-down grasp (approach +x points down)
-    cands = db.query(p, q, neighbours=True)
-    res = refine_many(robot, cands.thetas[:20], quats_to_matrices(q), p)
-    _emit(
-        {
-            "database": _db_summary(row),
-            "loaded_configurations": len(db),
-            "voxels": db.n_voxels,
-            "top_down_grasp": {
-                "position": p,
-                "quaternion_wxyz": q,
-                "candidates": len(cands.rows),
-                "refined": {"success": res.success, "theta": res.theta, "pos_err_m": res.pos_err},
-            },
-        }
+    overrides: dict[str, Any] = {"data_dir": folder, "ui_port": args.ui_port}
+    if args.port is not None:
+        overrides["port"] = args.port
+    run = stack.start(Settings(**overrides), ui=True)
+    client = run.ui.api  # the planner's own client, with this run's key
+    doc = client.scene(run.scene_id or "").doc
+    from pickstop_ui.client import ApiProblem
+
+    try:
+        p = client.plan(doc, {"samples": 300}).plan
+        first = (
+            f"{p.totals.stops} stops (naive {len(p.naive.stops)}), {p.totals.time.total:.1f} s "
+            f"predicted (naive {p.naive.time.total:.1f} s), success {p.totals.success or 0:.1%}"
+        )
+    except ApiProblem as e:
+        first = f"{e.title}: {e.detail}"
+    print(
+        f"\nPickStop demo ({time.perf_counter() - t0:.1f} s to the first plan)\n"
+        f"  3D planner: {run.ui_url}\n"
+        f"  REST API:   {run.api_url}/api/v1/docs\n"
+        f"  scene {run.scene_id} '{doc.get('name', '')}': {first}\n"
+        "Press Ctrl-C to stop.",
+        flush=True,
     )
+    run.wait()
     return 0
 
 
@@ -481,6 +552,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo = sub.add_parser("demo", help="the embedded default: bundled TIAGo and example scene")
     demo.add_argument("--samples", type=_positive_int, default=DEFAULT_SAMPLES)
+    demo.add_argument("--port", type=_positive_int, help="API port (default 8000, or a free one)")
+    demo.add_argument("--ui-port", type=_positive_int, default=8080, help="3D planner port")
     demo.set_defaults(func=cmd_demo)
 
     rg = sub.add_parser("regions", help="base regions of a scene's trays, as GeoJSON")
@@ -507,12 +580,17 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--json", action="store_true", help="folder: the summary as JSON, not a table")
     pl.add_argument("--db", help="reachability database id (default: the largest for the robot)")
     pl.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1)
+    pl.add_argument("--dask", help="folder: one Dask task per scene ('local' or tcp://host:8786)")
     pl.set_defaults(func=cmd_plan)
 
     sv = sub.add_parser("serve", help="run the REST API (uvicorn)")
     sv.add_argument("--host", help="listen address (default: $PICKSTOP_HOST or 127.0.0.1)")
     sv.add_argument("--port", type=_positive_int, help="port (default: $PICKSTOP_PORT or 8000)")
     sv.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
+    sv.add_argument("--ui-port", type=_positive_int, help="3D planner port (default 8080)")
+    sv.add_argument("--no-ui", action="store_true", help="the API alone")
+    sv.add_argument("--scene", help="scene the planner opens (default: the first stored one)")
+    sv.add_argument("--scene-file", help="or a scene file, stored first")
     sv.set_defaults(func=cmd_serve)
 
     ui = sub.add_parser("ui", help="run the 3D planner against a running API")
@@ -545,6 +623,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     b.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1)
     b.add_argument("--quiet", action="store_true", help="no progress bar")
+    b.add_argument("--dask", help="run chunks on Dask: 'local' or a scheduler tcp://host:8786")
     b.set_defaults(func=cmd_reach_build)
 
     i = reach.add_parser("info", help="list databases as JSON")

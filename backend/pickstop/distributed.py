@@ -1,0 +1,130 @@
+"""Scale-out on Dask (distributed): database builds and batch planning.
+
+``--dask tcp://host:8786`` uses a running scheduler, ``--dask local`` starts a local cluster
+(2 worker processes, one thread each). Workers must see the same data folder (a shared volume).
+
+- Build: each sample chunk is a task; the worker writes its shard atomically (temporary file,
+  then rename) and returns its checksum; only the client records shards in the catalog, after a
+  task's result has arrived, so the catalog never names an incomplete shard. A worker that dies
+  loses only its running chunks: Dask reruns them (``retries``), and chunks are deterministic, so
+  the rerun writes the same bytes.
+- Batch: one task per scene, keyed by the scene's position; a worker keeps its planner (robot,
+  database, caches) between tasks. Results are gathered by key, so a task rerun after a worker
+  died still yields its plan once.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from pickstop.errors import InputError, PickStopError
+from pickstop.reach.build import BuildKernel, ChunkResult, ChunkRunner, compute_chunk
+
+RETRIES = 3
+
+
+def client_for(address: str) -> Any:
+    """A Dask client: ``local`` (a new local cluster of 2 processes) or a scheduler address."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError(
+            "--dask needs Dask: pip install 'dask[distributed]' (or the [dask] extra)",
+            field="dask",
+        ) from None
+    if address == "local":
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                               dashboard_address=None)  # fmt: skip
+        return Client(cluster)
+    if not address.startswith(("tcp://", "tls://", "inproc://")):
+        raise InputError(f"--dask {address!r}: give 'local' or a scheduler address "
+                         "like tcp://host:8786", field="dask")  # fmt: skip
+    try:
+        return Client(address, timeout=30)
+    except OSError as e:
+        raise PickStopError(f"--dask {address}: cannot reach the scheduler: {e}") from None
+
+
+def _chunk_task(kernel: BuildKernel, chunk: int, data_dir: str, db_id: str) -> ChunkResult:
+    import os
+
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    return compute_chunk(kernel, chunk, Path(data_dir), db_id)
+
+
+def dask_runner(client: Any) -> ChunkRunner:
+    """A build runner that computes chunks as Dask tasks and yields results as they finish."""
+    from distributed import as_completed
+
+    def run(
+        kernel: BuildKernel, chunks: list[int], data_dir: Path, db_id: str
+    ) -> Iterator[ChunkResult]:
+        if not chunks:
+            return
+        [kf] = client.scatter([kernel], broadcast=True)
+        futures = [
+            client.submit(_chunk_task, kf, c, str(data_dir), db_id, key=f"chunk-{db_id}-{c}",
+                          retries=RETRIES, pure=False)
+            for c in chunks
+        ]  # fmt: skip
+        try:
+            for fut in as_completed(futures):
+                yield fut.result()
+        finally:
+            client.cancel(futures)
+
+    return run
+
+
+# -- batch planning ------------------------------------------------------------------------
+def plan_task(
+    doc: dict[str, Any], options: dict[str, Any], root: str, data_dir: str, db_id: str | None
+) -> dict[str, Any]:
+    """Plan one scene; a plan document or ``{"error": ..., "exit_code": ...}``."""
+    import os
+
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    from pickstop.regions.loader import stop_planner_for
+    from pickstop.scene.model import parse_scene
+    from pickstop.sequence.plan_model import PlanOptions
+
+    try:
+        scene = parse_scene(doc, root)
+        sp = stop_planner_for(scene, Path(root), Path(data_dir), db_id)
+        return sp.plan(scene, PlanOptions(**options)).model_dump(mode="json")
+    except PickStopError as e:
+        return {"error": e.message, "exit_code": e.exit_code}
+
+
+def plan_batch(
+    client: Any,
+    items: list[tuple[str, dict[str, Any], Path]],
+    options: dict[str, Any],
+    data_dir: Path,
+    db_id: str | None,
+) -> Iterator[tuple[int, dict[str, Any]]]:
+    """Plan ``items`` (name, scene document, folder its paths start from) on the cluster;
+    yields ``(index, result)`` once per item, in completion order."""
+    from distributed import as_completed
+
+    futures = {
+        client.submit(plan_task, doc, options, str(root), str(data_dir), db_id,
+                      key=f"plan-{k}-{name}-{_digest(doc)}", retries=RETRIES, pure=False): k
+        for k, (name, doc, root) in enumerate(items)
+    }  # fmt: skip
+    seen: set[int] = set()
+    for fut in as_completed(list(futures)):
+        k = futures[fut]
+        if k in seen:  # a rerun's duplicate result: each scene is reported once
+            continue
+        seen.add(k)
+        yield k, fut.result()
+
+
+def _digest(doc: dict[str, Any]) -> str:
+    import hashlib
+
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:12]

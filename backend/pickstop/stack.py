@@ -1,0 +1,119 @@
+"""The API (uvicorn) and the 3D planner (viser) together in one process.
+
+The planner talks to the API over HTTP like any other client. It gets a key made for this run
+(its hash is added to the accepted keys in memory, the key itself is never stored or printed),
+so an engineer in the browser can save scenes; both listen on 127.0.0.1 unless told otherwise.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pickstop.errors import PickStopError
+from pickstop.settings import Settings, hash_key
+
+EXAMPLE_SCENE = (
+    Path(__file__).resolve().parents[2] / "examples" / "scenes" / "paper_experiment.json"
+)
+
+
+def port_free(host: str, port: int) -> bool:
+    with socket.socket() as s:
+        try:
+            s.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
+def free_port(host: str) -> int:
+    with socket.socket() as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Stack:
+    api_url: str
+    ui_url: str | None
+    scene_id: str | None
+    server: Any
+    ui: Any
+
+    def wait(self) -> None:
+        """Block until interrupted (Ctrl-C) or the API stops."""
+        try:
+            while not self.server.should_exit:
+                time.sleep(0.5)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self.ui is not None:
+            self.ui.close()
+        self.server.should_exit = True
+
+
+def start(
+    settings: Settings,
+    *,
+    ui: bool = True,
+    scene_id: str | None = None,
+    scene_file: Path | None = None,
+    log_level: str = "warning",
+) -> Stack:
+    """Start the API in a thread, then (``ui``) the planner on a stored or example scene."""
+    import uvicorn
+
+    from pickstop.api.app import create_app
+
+    host, port = settings.host, settings.port
+    if not port_free(host, port):
+        new = free_port(host)
+        print(f"pickstop: port {port} is busy; the API takes {new}", file=sys.stderr)
+        port = new
+    ui_key = secrets.token_urlsafe(24) if ui else None
+    keys = list(settings.api_keys) + ([hash_key(ui_key)] if ui_key else [])
+    settings = settings.model_copy(update={"port": port, "api_keys": keys})
+    server = uvicorn.Server(
+        uvicorn.Config(create_app(settings), host=host, port=port, log_level=log_level)
+    )
+    thread = threading.Thread(target=server.run, name="pickstop-api", daemon=True)
+    thread.start()
+    t0 = time.time()
+    while not server.started:
+        if not thread.is_alive() or time.time() - t0 > 300:
+            raise PickStopError(f"the API did not start on {host}:{port}")
+        time.sleep(0.1)
+    api_url = f"http://{host}:{port}"
+    if not ui:
+        return Stack(api_url, None, None, server, None)
+
+    from pickstop_ui.app import PlannerApp, load_robot_urdf
+    from pickstop_ui.client import PickStopClient
+
+    client = PickStopClient(api_url, ui_key)
+    if scene_id is None:
+        if scene_file is not None:
+            doc = json.loads(Path(scene_file).read_text(encoding="utf-8"))
+            scene_id = client.create_scene(doc).id
+        else:
+            stored = client.http.get("/api/v1/scenes", params={"limit": 1}).json()
+            if stored:
+                scene_id = stored[0]["id"]
+            else:
+                doc = json.loads(EXAMPLE_SCENE.read_text(encoding="utf-8"))
+                scene_id = client.create_scene(doc).id
+    app = PlannerApp(client, scene_id, host=host, port=settings.ui_port,
+                     robot_urdf=load_robot_urdf())  # fmt: skip
+    return Stack(api_url, f"http://{host}:{app.port}/", scene_id, server, app)
