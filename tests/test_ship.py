@@ -89,3 +89,11 @@ def test_compose_ports_and_volume_match_the_readme(compose):
     assert "docker compose up" in readme and "--profile dask" in readme
     dockerfile = (ROOT / "Dockerfile").read_text()
     assert "pip install" in dockerfile and "pyproject.toml" in dockerfile
+
+
+def test_ci_runs_exactly_the_readme_test_command():
+    readme = (ROOT / "README.md").read_text()
+    blocks = re.findall(r"```bash\n(.*?)\n```", readme, flags=re.S)
+    assert blocks[0] == "pip install -e . && pickstop demo"
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
+    assert blocks[1] == ci and ci.endswith("python -m pytest")
