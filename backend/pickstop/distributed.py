@@ -88,11 +88,11 @@ def plan_task(
 
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from pickstop.regions.loader import stop_planner_for
-    from pickstop.scene.model import parse_scene
+    from pickstop.scene.model import parse_scene, resolve_mesh_paths
     from pickstop.sequence.plan_model import PlanOptions
 
     try:
-        scene = parse_scene(doc, root)
+        scene = parse_scene(resolve_mesh_paths(doc, Path(root), source=root), root)
         sp = stop_planner_for(scene, Path(root), Path(data_dir), db_id)
         return sp.plan(scene, PlanOptions(**options)).model_dump(mode="json")
     except PickStopError as e:

@@ -266,3 +266,14 @@ def test_unknown_paths_are_problems(client):
     _problem(client.get("/api/v1/plans/nope"), 404)
     _problem(client.get("/api/v1/nothing"), 404)
     _problem(client.get("/api/v1/scenes", params={"limit": 0}), 422)
+
+
+def test_mesh_paths_outside_the_data_folder_are_refused(client, paper_doc):
+    before = _count(client, "/api/v1/scenes")
+    doc = copy.deepcopy(paper_doc)
+    mesh = {"shape": "mesh", "path": "../../../etc/passwd"}
+    doc["obstacles"].append({"id": "evil", "geometry": mesh, "pose": {"x": 2.5, "y": 0.0}})
+    body = _problem(client.post("/api/v1/scenes", json=doc, headers=AUTH), 422)
+    assert body["field"] == "obstacles.2.geometry.path"
+    assert "outside the allowed folders" in body["detail"]
+    assert _count(client, "/api/v1/scenes") == before

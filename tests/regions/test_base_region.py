@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -196,3 +197,28 @@ def test_touching_cells_merge_into_one_polygon():
     poly = grid.cells_polygon(iy, ix)
     assert poly.geom_type == "Polygon" and len(poly.interiors) == 1
     assert abs(poly.area - mask.sum() * 0.025**2) < 1e-9
+
+
+def test_a_mesh_obstacle_from_a_relative_path_blocks_base_cells(planner, tmp_path):
+    import json as _json
+
+    from pickstop.scene.model import load_scene
+    from tests.scene.test_scene_model import write_box_stl
+
+    doc = _json.loads(
+        (Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.json").read_text()
+    )
+    (tmp_path / "scene.json").write_text(_json.dumps(doc))
+    before = planner.tray_region(load_scene(tmp_path / "scene.json"), "tray_4")
+    write_box_stl(tmp_path / "pillar.stl", 0.3, 0.3, 1.5)
+    doc["obstacles"].append({"id": "pillar", "geometry": {"shape": "mesh", "path": "pillar.stl"},
+                             "pose": {"x": 3.6, "y": 0.8}})  # fmt: skip
+    (tmp_path / "scene.json").write_text(_json.dumps(doc))
+    after = planner.tray_region(load_scene(tmp_path / "scene.json"), "tray_4")
+    assert 0 < len(after.cells) < len(before.cells)
+    centres = after.grid.centres(after.cells[:, 1], after.cells[:, 0])
+    # The footprint (radius 0.275 m) stays clear of the pillar (2 mm: the buffer's polygon).
+    import shapely
+
+    pillar = shapely.box(3.45, 0.65, 3.75, 0.95)
+    assert shapely.distance(pillar, shapely.points(centres)).min() > 0.275 - 2e-3

@@ -123,3 +123,46 @@ def test_missing_and_broken_files(tmp_path):
     (tmp_path / "bad.json").write_text("{")
     with pytest.raises(InputError, match="not valid JSON"):
         load_scene(tmp_path / "bad.json")
+
+
+def write_box_stl(path, sx, sy, sz):
+    """An ASCII STL box centred on x, y with its bottom at z = 0."""
+    import itertools
+
+    v = {c: (c[0] * sx / 2, c[1] * sy / 2, (c[2] + 1) * sz / 2)
+         for c in itertools.product((-1, 1), repeat=3)}  # fmt: skip
+    quads = [((-1, -1, -1), (-1, 1, -1), (1, 1, -1), (1, -1, -1)),
+             ((-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)),
+             ((-1, -1, -1), (1, -1, -1), (1, -1, 1), (-1, -1, 1)),
+             ((-1, 1, -1), (-1, 1, 1), (1, 1, 1), (1, 1, -1)),
+             ((-1, -1, -1), (-1, -1, 1), (-1, 1, 1), (-1, 1, -1)),
+             ((1, -1, -1), (1, 1, -1), (1, 1, 1), (1, -1, 1))]  # fmt: skip
+    lines = ["solid box"]
+    for a, b, c, d in quads:
+        for tri in ((a, b, c), (a, c, d)):
+            lines.append(" facet normal 0 0 0\n  outer loop")
+            lines += [f"   vertex {v[p][0]} {v[p][1]} {v[p][2]}" for p in tri]
+            lines.append("  endloop\n endfacet")
+    lines.append("endsolid box")
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_relative_mesh_paths_start_at_the_scene_file(tmp_path):
+    from pickstop.scene.model import load_scene
+
+    (tmp_path / "meshes").mkdir()
+    write_box_stl(tmp_path / "meshes" / "pillar.stl", 0.3, 0.3, 1.5)
+    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
+    mesh = {"shape": "mesh", "path": "meshes/pillar.stl"}
+    doc["obstacles"].append({"id": "pillar", "geometry": mesh, "pose": {"x": 2.5, "y": 0.0}})
+    (tmp_path / "scene.json").write_text(json.dumps(doc))
+    scene = load_scene(tmp_path / "scene.json")
+    mesh = next(o for o in scene.obstacles if o.id == "pillar").geometry
+    assert mesh.path == str((tmp_path / "meshes" / "pillar.stl").resolve())
+    doc["obstacles"][-1]["geometry"]["path"] = "meshes/missing.stl"
+    (tmp_path / "scene.json").write_text(json.dumps(doc))
+    with pytest.raises(SceneError) as e:
+        load_scene(tmp_path / "scene.json")
+    assert e.value.problems == [
+        ("obstacles.2.geometry.path", "mesh file 'meshes/missing.stl' not found")
+    ]

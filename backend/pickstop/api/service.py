@@ -154,7 +154,11 @@ class Service:
 
     # -- scenes and planners -----------------------------------------------------------------
     def parse(self, doc: Any) -> Scene:
-        scene = parse_scene(doc, "scene")
+        """A scene from a request: mesh files only from the data folder's meshes/."""
+        from pickstop.scene.model import resolve_mesh_paths
+
+        meshes = self.data_dir / "meshes"
+        scene = parse_scene(resolve_mesh_paths(doc, meshes, [meshes]), "scene")
         s = self.settings
         problems = []
         if scene.robot.config is not None:

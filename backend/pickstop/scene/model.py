@@ -277,7 +277,44 @@ def parse_scene(data: Any, source: str = "scene") -> Scene:
     return scene
 
 
+def resolve_mesh_paths(
+    data: Any, root: Path, allowed: list[Path] | None = None, source: str = "scene"
+) -> Any:
+    """A copy of a scene document whose mesh paths are absolute (relative ones start at
+    ``root``); with ``allowed``, a mesh outside those folders is refused, as is a missing one."""
+    if not isinstance(data, dict):
+        return data
+    out = json.loads(json.dumps(data))
+    problems: list[tuple[str, str]] = []
+
+    def fix(geom: Any, loc: str) -> None:
+        if not isinstance(geom, dict) or geom.get("shape") != "mesh":
+            return
+        ref = geom.get("path")
+        if not isinstance(ref, str) or not ref:
+            return  # the schema check names it
+        p = Path(ref)
+        p = (p if p.is_absolute() else root / p).resolve()
+        if allowed is not None and not any(p.is_relative_to(a.resolve()) for a in allowed):
+            problems.append((f"{loc}.path", f"mesh {ref!r} lies outside the allowed folders"))
+        elif not p.is_file():
+            problems.append((f"{loc}.path", f"mesh file {ref!r} not found"))
+        geom["path"] = str(p)
+
+    for i, ob in enumerate(out.get("obstacles") or []):
+        if isinstance(ob, dict):
+            fix(ob.get("geometry"), f"obstacles.{i}.geometry")
+    for i, tray in enumerate(out.get("trays") or []):
+        for k, part in enumerate((tray or {}).get("parts") or [] if isinstance(tray, dict) else []):
+            if isinstance(part, dict):
+                fix(part.get("geometry"), f"trays.{i}.parts.{k}.geometry")
+    if problems:
+        raise SceneError(problems, source)
+    return out
+
+
 def load_scene(path: str | Path) -> Scene:
+    """A scene file; its relative mesh paths start at the file's folder."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: scene file not found", field="scene")
@@ -285,6 +322,7 @@ def load_scene(path: str | Path) -> Scene:
         data = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not valid JSON: {e}", field="scene") from None
+    data = resolve_mesh_paths(data, path.resolve().parent, source=str(path))
     return parse_scene(data, str(path))
 
 
