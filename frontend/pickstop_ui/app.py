@@ -58,6 +58,7 @@ REJECTED = (220, 40, 40)
 ROUTE = (255, 200, 0)
 STALE = (140, 140, 175)  # the last valid plan while the current request has none
 MC_SAMPLES = 300
+MC_QUIET = 0.4  # [s] without a newer request before the Monte Carlo starts
 
 
 def tray_colour(index: int, tray: dict[str, Any]) -> tuple[int, int, int]:
@@ -143,6 +144,8 @@ class PlannerApp:
         fl = doc["floor"]
         w, h = fl["max"][0] - fl["min"][0], fl["max"][1] - fl["min"][1]
         sc.set_up_direction("+z")
+        # No shadow pass: it doubles the cost of every frame in a browser without a GPU.
+        sc.configure_default_lights(enabled=True, cast_shadow=False)
         sc.add_grid(
             "/floor",
             width=w,
@@ -445,7 +448,11 @@ class PlannerApp:
             if self._newer(req):
                 continue
             self._draw_plan(req, res.plan, final=False)
-            # Then the success rates (Monte Carlo), unless something newer is waiting.
+            # Then the success rates (Monte Carlo), once the engineer has paused: while a
+            # slider or a tray is still moving, a running Monte Carlo would hold up the next
+            # quick plan.
+            if self._wake.wait(MC_QUIET) or self._newer(req):
+                continue
             try:
                 mc = self.api.plan(req.scene, {**req.options, "samples": MC_SAMPLES})
             except ApiProblem:
@@ -557,11 +564,15 @@ class PlannerApp:
         while len(self._ghosts) < len(plan.stops):
             k = len(self._ghosts)
             frame = sc.add_frame(f"/ghosts/{k}", show_axes=False)
+            # Ghosts show the collision meshes: far fewer triangles than the visual ones, so
+            # a browser without a GPU keeps up while sigma or a tray moves.
             ghost = ViserUrdf(
                 self.server,
                 self._urdf,
                 root_node_name=f"/ghosts/{k}",
-                mesh_color_override=(0.55, 0.6, 0.95, 0.45),
+                load_meshes=False,
+                load_collision_meshes=True,
+                collision_mesh_color_override=(0.55, 0.6, 0.95, 0.5),
             )
             self._ghosts.append((frame, ghost))
         for k, (frame, urdf) in enumerate(self._ghosts):
@@ -725,7 +736,12 @@ def load_robot_urdf(name: str = "tiago") -> Any:
         return fname
 
     return yourdfpy.URDF.load(
-        str(path), filename_handler=handler, load_meshes=True, build_scene_graph=True
+        str(path),
+        filename_handler=handler,
+        load_meshes=True,
+        build_scene_graph=True,
+        load_collision_meshes=True,
+        build_collision_scene_graph=True,
     )
 
 

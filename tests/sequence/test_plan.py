@@ -204,3 +204,16 @@ def test_goal_walled_off(stop_planner, paper_doc):
     with pytest.raises(InfeasiblePlanError) as e:
         stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=0))
     assert "the goal (4.50, 0.00) cannot be reached from the start" in e.value.message
+
+
+def test_prefetched_checks_make_a_sigma_change_need_no_verification(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    stop_planner.plan(scene, PlanOptions(samples=0))
+    stop_planner.prefetch_checks(scene)
+    assert stop_planner.prefetch_checks(scene) == 0  # everything is checked now
+    for sigma in (0.0, 0.06, 0.11):
+        try:
+            plan = stop_planner.plan(scene, PlanOptions(sigma=sigma, samples=0))
+        except InfeasiblePlanError:
+            continue
+        assert plan.timings.verification < 0.02

@@ -98,13 +98,14 @@ def _arm_timer(pg) -> None:
     """In the page: note the next pointerup and every text change after it, with times."""
     pg.evaluate(
         """() => {
-            window.__t = {up: null, changes: []};
+            window.__t = {up: null, move: null, changes: []};
             addEventListener('pointerup', () => { window.__t.up = performance.now(); },
                              {capture: true, once: true});
+            addEventListener('pointermove', () => {
+                if (window.__t.up === null) { window.__t.move = performance.now(); }
+            }, {capture: true});
             const obs = new MutationObserver(() => {
-                if (window.__t.up !== null) {
-                    window.__t.changes.push([performance.now(), document.body.innerText]);
-                }
+                window.__t.changes.push([performance.now(), document.body.innerText]);
             });
             obs.observe(document.body, {subtree: true, childList: true, characterData: true});
         }"""
@@ -112,13 +113,17 @@ def _arm_timer(pg) -> None:
 
 
 def _elapsed_ms(pg, marker: str) -> float:
-    """Milliseconds from the pointerup to the first page text that shows ``marker``."""
+    """Milliseconds from the end of the gesture (the last pointer move before the release)
+    to the first page text that shows ``marker`` after it."""
     pg.wait_for_function(
-        "m => window.__t.changes.some(c => c[1].includes(m))", arg=marker, timeout=60_000
+        "m => window.__t.up !== null && window.__t.changes.some(c => c[1].includes(m))",
+        arg=marker,
+        timeout=60_000,
     )
     t = pg.evaluate("window.__t")
-    done = next(c[0] for c in t["changes"] if marker in c[1])
-    return float(done - t["up"])
+    start = t["move"] if t["move"] is not None else t["up"]
+    done = next(c[0] for c in t["changes"] if marker in c[1] and c[0] >= start)
+    return float(done - start)
 
 
 def _settled_sigma(app) -> float:
@@ -194,7 +199,7 @@ def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app):
     sigma = _settled_sigma(planner_app)
     assert sigma == pytest.approx(target, abs=1e-6)
     ms = _elapsed_ms(ui_page, f"σ = {sigma:.3f} m")
-    print(f"\nslider release -> redrawn plan (sigma {sigma:.3f}): {ms:.0f} ms")
+    print(f"\nslider gesture end -> redrawn plan (sigma {sigma:.3f}): {ms:.0f} ms")
     ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
     text = ui_page.inner_text("body")
     assert f"Stops: {n_stops + 1} (naive" in text  # the shared stop's circle is now too small
@@ -207,7 +212,7 @@ def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app):
     _set_slider(ui_page, 0, 0.10, 0.0, 0.25)
     sigma = _settled_sigma(planner_app)
     ms = _elapsed_ms(ui_page, f"σ = {sigma:.3f} m")
-    print(f"slider release -> redrawn plan (sigma {sigma:.3f}): {ms:.0f} ms")
+    print(f"slider gesture end -> redrawn plan (sigma {sigma:.3f}): {ms:.0f} ms")
     ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
     assert f"Stops: {n_stops} (naive" in ui_page.inner_text("body")
 

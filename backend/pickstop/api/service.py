@@ -245,7 +245,17 @@ class Service:
     def plan(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
         slot = self.slot(scene, db_id)
         with slot.lock:
-            return slot.planner.plan(scene, options)
+            plan = slot.planner.plan(scene, options)
+        # Verify the other candidates' centres in the background, one at a time, so the next
+        # change of sigma (the 3D planner's slider) finds its stops checked.
+        self.pool.submit(self._prefetch, slot, scene)
+        return plan
+
+    def _prefetch(self, slot: _Slot, scene: Scene) -> None:
+        try:
+            slot.planner.prefetch_checks(scene, slot.lock)
+        except Exception:  # a background nicety: never let it disturb a request
+            log.exception("prefetching candidate checks failed")
 
     def regions(self, scene: Scene, sigma: float | None, db_id: str | None) -> dict[str, Any]:
         from pickstop.regions.geojson import region_feature

@@ -189,6 +189,27 @@ class StopPlanner:
         rate = monte_carlo(evaluate, xy, yaw, em.kind, sigma, em.yaw_sigma, samples, rng)
         return self._rates.put(key, rate)
 
+    def prefetch_checks(self, scene: Scene, lock: Any = None) -> int:
+        """Check every candidate's centre for each of its trays ahead of time (one at a time,
+        under ``lock`` if given), so that a later change of sigma or rule finds its stops
+        verified. Returns how many checks were computed."""
+        import contextlib
+
+        guard = lock if lock is not None else contextlib.nullcontext()
+        with guard:
+            regions = self.regions.regions(scene)
+            cands = self.candidates(regions)
+            world = world_key(scene)
+        done = 0
+        for c in sorted(cands, key=lambda c: -c.radius):
+            for t in sorted(c.trays):
+                with guard:
+                    key = (world, t, c.centre, c.yaw)
+                    if self._checks.hit(key) is None:
+                        self.check(scene, world, regions[t, c.yaw], c.centre)
+                        done += 1
+        return done
+
     # -- the plan ------------------------------------------------------------------------------
     def plan(self, scene: Scene, options: pm.PlanOptions | None = None) -> pm.Plan:
         opts = options or pm.PlanOptions()
