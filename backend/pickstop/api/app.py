@@ -93,22 +93,27 @@ class SceneRecord(BaseModel):
     scene: dict[str, Any] | None = None
 
 
-class PlanRequest(BaseModel):
+class BatchItem(BaseModel):
+    """A stored scene by id, or an inline scene document: exactly one of them."""
+
     model_config = ConfigDict(extra="forbid")
     scene_id: str | None = Field(default=None, description="a stored scene")
     scene: dict[str, Any] | None = Field(default=None, description="or an inline scene document")
+
+    @model_validator(mode="after")
+    def _one(self) -> BatchItem:
+        if (self.scene_id is None) == (self.scene is None):
+            raise ValueError("give exactly one of scene_id and scene")
+        return self
+
+
+class PlanRequest(BatchItem):
     options: PlanOptions = PlanOptions()
     database: str | None = Field(default=None, description="reachability database id")
     mode: Literal["sync", "job"] = Field(default="sync", description="'job': run as a batch job")
     store: bool = Field(
         default=True, description="keep the plan as a record (false: a preview, not stored)"
     )
-
-    @model_validator(mode="after")
-    def _one(self) -> PlanRequest:
-        if (self.scene_id is None) == (self.scene is None):
-            raise ValueError("give exactly one of scene_id and scene")
-        return self
 
 
 class PlanRecord(BaseModel):
@@ -119,18 +124,6 @@ class PlanRecord(BaseModel):
     options: dict[str, Any]
     plan: Plan | None = None
     scene: dict[str, Any] | None = None
-
-
-class BatchItem(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    scene_id: str | None = None
-    scene: dict[str, Any] | None = None
-
-    @model_validator(mode="after")
-    def _one(self) -> BatchItem:
-        if (self.scene_id is None) == (self.scene is None):
-            raise ValueError("give exactly one of scene_id and scene")
-        return self
 
 
 class BatchRequest(BaseModel):
