@@ -103,9 +103,10 @@ async def run(url: str, seconds: float, clients: int, planners: int, build: int)
                 WRK, "-t2", f"-c{clients - planners}", f"-d{int(seconds)}s", "--latency",
                 f"{url}/api/v1/plans/{plan_id}", stdout=asyncio.subprocess.PIPE,
             )  # fmt: skip
-            out, _ = await asyncio.gather(proc.communicate(), *(planner(k) for k in
-                                                                range(planners)))  # fmt: skip
-            wrk_out = out[0].decode()
+            results = await asyncio.gather(
+                proc.communicate(), *(planner(k) for k in range(planners))
+            )
+            wrk_out = results[0][0].decode()
         else:
             await asyncio.gather(
                 *(planner(k) for k in range(planners)),
