@@ -22,8 +22,6 @@ import re
 import shutil
 import socket
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -31,6 +29,7 @@ from pathlib import Path
 import httpx
 
 from pickstop.settings import hash_key
+from pickstop.stack import spawn_api
 
 WRK = shutil.which("wrk")  # Debian's wrk; without it, Python clients read
 PYTHON_READERS = os.environ.get("BENCH_PYTHON_READERS") == "1"
@@ -164,23 +163,11 @@ def main() -> None:
     port = _port()
     env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]'}
     log_path = Path(tempfile.gettempdir()) / "pickstop-bench-serve.log"
-    with log_path.open("w") as log:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "pickstop.cli", "serve", "--port", str(port), "--log-level",
-             "warning", "--no-ui"], env=env, stderr=log,
-        )  # fmt: skip
     url = f"http://127.0.0.1:{port}"
+    t0 = time.time()
+    with log_path.open("w") as log:
+        proc = spawn_api(port, env, log)
     try:
-        t0 = time.time()
-        while True:
-            try:
-                if httpx.get(f"{url}/api/v1/health", timeout=2).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if proc.poll() is not None or time.time() - t0 > 180:
-                raise SystemExit("the service did not start")
-            time.sleep(0.5)
         print(f"service up in {time.time() - t0:.1f} s (database loaded at start-up)")
         asyncio.run(run(url, args.seconds, args.clients, args.planners, args.build_samples))
     finally:

@@ -78,12 +78,9 @@ LIVE_KEY = "test-key-0123456789"
 def live_api(region_db, tmp_path_factory):
     """``pickstop serve`` under uvicorn on 127.0.0.1 over the test database: its base URL."""
     import subprocess
-    import sys
-    import time
-
-    import httpx
 
     from pickstop.settings import hash_key
+    from pickstop.stack import spawn_api
 
     folder, _ = region_db
     port = free_port()
@@ -96,23 +93,8 @@ def live_api(region_db, tmp_path_factory):
         "PICKSTOP_MAX_BODY_BYTES": "200000",
     }
     log = (tmp_path_factory.mktemp("live") / "serve.log").open("w")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "pickstop.cli", "serve", "--host", "127.0.0.1", "--port",
-         str(port), "--log-level", "warning", "--no-ui"],
-        env=env, stdout=log, stderr=subprocess.STDOUT,
-    )  # fmt: skip
+    proc = spawn_api(port, env, log, timeout=120)
     url = f"http://127.0.0.1:{port}"
-    t0 = time.time()
-    while True:
-        try:
-            if httpx.get(f"{url}/api/v1/health", timeout=2).status_code == 200:
-                break
-        except httpx.HTTPError:
-            pass
-        if proc.poll() is not None or time.time() - t0 > 120:
-            proc.kill()
-            raise RuntimeError(f"the service did not start; see {log.name}")
-        time.sleep(0.3)
     yield url
     proc.terminate()
     try:

@@ -40,6 +40,32 @@ def free_port(host: str) -> int:
         return int(s.getsockname()[1])
 
 
+def spawn_api(port: int, env: dict[str, str], log: Any, timeout: float = 180.0) -> Any:
+    """``pickstop serve --no-ui`` as a subprocess on 127.0.0.1:``port``, returned once its
+    health check answers (its output goes to the file ``log``). Tests and benchmarks use it."""
+    import subprocess
+
+    import httpx
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pickstop.cli", "serve", "--host", "127.0.0.1", "--port",
+         str(port), "--log-level", "warning", "--no-ui"],
+        env=env, stdout=log, stderr=subprocess.STDOUT,
+    )  # fmt: skip
+    url = f"http://127.0.0.1:{port}/api/v1/health"
+    t0 = time.time()
+    while True:
+        try:
+            if httpx.get(url, timeout=2).status_code == 200:
+                return proc
+        except httpx.HTTPError:
+            pass
+        if proc.poll() is not None or time.time() - t0 > timeout:
+            proc.kill()
+            raise PickStopError(f"the API did not start on port {port}; see {log.name}")
+        time.sleep(0.3)
+
+
 @dataclass
 class Stack:
     api_url: str

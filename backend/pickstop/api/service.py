@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import shapely
+
 from pickstop.api.store import ServiceStore
 from pickstop.errors import InputError, PickStopError, RobotConfigError
 from pickstop.reach.database import list_databases, open_database
@@ -279,7 +281,7 @@ class Service:
                 "features": [
                     {
                         "type": "Feature",
-                        "geometry": json.loads(__import__("shapely").to_geojson(c.polygon)),
+                        "geometry": json.loads(shapely.to_geojson(c.polygon)),
                         "properties": {
                             "trays": sorted(c.trays),
                             "order": c.order,

@@ -279,9 +279,7 @@ def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: fl
     fp = robot.config.footprint
     r = fp.bounding_radius
     geoms = [
-        shapely.Polygon(_floor_outline(s))
-        for s in scene_solids(scene)
-        if s.aabb()[0][2] < fp.height
+        shapely.Polygon(floor_outline(s)) for s in scene_solids(scene) if s.aabb()[0][2] < fp.height
     ]
     x, y = centres[:, 0], centres[:, 1]
     floor = shapely.box(*scene.floor.min, *scene.floor.max).buffer(-r)
@@ -304,7 +302,7 @@ def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: fl
     return ok
 
 
-def _floor_outline(solid: Solid) -> np.ndarray:
+def floor_outline(solid: Solid) -> np.ndarray:
     """Floor-plane outline of a solid (its bounding box corners projected, convex)."""
     T, h = solid.T_world_solid, solid.half
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h

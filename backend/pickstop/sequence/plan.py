@@ -28,7 +28,12 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
-from pickstop.regions.base_region import RegionPlanner, TrayRegion, feasible_near
+from pickstop.regions.base_region import (
+    RegionPlanner,
+    TrayRegion,
+    feasible_near,
+    floor_outline,
+)
 from pickstop.scene.model import Scene
 from pickstop.scene.world import scene_solids
 from pickstop.sequence import plan_model as pm
@@ -131,7 +136,7 @@ class StopPlanner:
         hit = self._floors.hit(key)
         if hit is not None:
             return hit
-        outlines = [(s.owner, _outline(s)) for s in solids]
+        outlines = [(s.owner, Polygon(floor_outline(s))) for s in solids]
         fmap = FloorMap.build(
             (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], fp.bounding_radius
         )
@@ -226,13 +231,6 @@ def world_key(scene: Scene) -> str:
 
 def scene_hash(scene: Scene) -> str:
     return hashlib.sha256(scene.model_dump_json().encode()).hexdigest()
-
-
-def _outline(solid: Any) -> Polygon:
-    T, h = solid.T_world_solid, solid.half
-    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
-    pts = (corners @ T[:3, :3].T + T[:3, 3])[:, :2]
-    return shapely.MultiPoint(pts).convex_hull
 
 
 def _ring(poly: Polygon) -> list[list[tuple[float, float]]]:
