@@ -56,6 +56,7 @@ def test_reads_can_require_a_key(api_settings):
     with TestClient(create_app(settings, preload=False)) as c:
         _problem(c.get("/api/v1/scenes"), 401)
         assert c.get("/api/v1/scenes", headers=AUTH).status_code == 200
+        _problem(c.get("/api/v1/plans/pln_0123"), 401)  # no cached shortcut around the key
 
 
 def test_scene_lifecycle_with_etags(client, paper_doc):
@@ -129,6 +130,10 @@ def test_plan_of_a_stored_scene_is_immutable(client, paper_doc):
     client.put(f"/api/v1/scenes/{sid}", json=changed, headers={**AUTH, "If-Match": etag})
     got = client.get(f"/api/v1/plans/{pid}", params={"include_scene": True}).json()
     assert got["plan"] == rec["plan"] and got["scene"] == paper_doc
+    first, second = client.get(f"/api/v1/plans/{pid}"), client.get(f"/api/v1/plans/{pid}")
+    assert first.content == second.content and second.json()["plan"] == rec["plan"]
+    assert second.headers["content-type"] == "application/json"
+    assert "immutable" in second.headers["cache-control"]
     listed = client.get(f"/api/v1/scenes/{sid}/plans").json()
     assert [p["id"] for p in listed] == [pid] and listed[0]["stops"] == len(rec["plan"]["stops"])
 

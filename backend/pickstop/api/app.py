@@ -208,6 +208,39 @@ class _TooLarge(Exception):
     pass
 
 
+class StoredPlanFastPath:
+    """``GET /api/v1/plans/{id}`` for a plan already in the service's body cache, answered
+    before routing: stored plans are immutable and are the reads an MES makes most. Anything
+    else (a query string, a plan not cached yet, reads that need a key) takes the normal way,
+    which also fills the cache."""
+
+    PREFIX = f"{API}/plans/"
+
+    def __init__(self, app: ASGIApp, settings: Settings) -> None:
+        self.app, self.enabled = app, not settings.read_requires_key
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if (
+            self.enabled
+            and scope["type"] == "http"
+            and scope["method"] == "GET"
+            and not scope.get("query_string")
+            and scope["path"].startswith(self.PREFIX)
+        ):
+            service = getattr(scope["app"].state, "service", None)
+            plan_id = scope["path"][len(self.PREFIX) :]
+            body = service.cached_plan_body(plan_id) if service is not None else None
+            if body is not None:
+                await send({"type": "http.response.start", "status": 200, "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", str(len(body)).encode()),
+                    (b"cache-control", b"public, max-age=31536000, immutable"),
+                ]})  # fmt: skip
+                await send({"type": "http.response.body", "body": body})
+                return
+        await self.app(scope, receive, send)
+
+
 # -- the app --------------------------------------------------------------------------------------
 def create_app(settings: Settings | None = None, preload: bool = True) -> FastAPI:
     settings = settings or Settings()
@@ -235,6 +268,7 @@ def create_app(settings: Settings | None = None, preload: bool = True) -> FastAP
     )
     install(app)
     app.add_middleware(BodyLimit, limit=settings.max_body_bytes)
+    app.add_middleware(StoredPlanFastPath, settings=settings)
     app.include_router(_router(settings), prefix=API)
     return app
 

@@ -226,6 +226,10 @@ class Service:
             for s in self._slots.values()
         ]
 
+    def cached_plan_body(self, plan_id: str) -> bytes | None:
+        """A stored plan's body if it is in memory already (no database access)."""
+        return self._plan_bodies.get(plan_id)
+
     def plan_body(self, plan_id: str) -> bytes | None:
         """A stored plan record as JSON bytes; plans are immutable, so they are cached."""
         hit = self._plan_bodies.get(plan_id)
