@@ -113,6 +113,7 @@ class PlannerApp:
         self._wake = threading.Event()
         self._stop = False
         self._urdf = robot_urdf
+        self._locked = _locked_joints(stored.doc)
         self._ghosts: list[Any] = []
         self._tray_ui: dict[str, Any] = {}
         self._draw_scene()
@@ -588,7 +589,8 @@ class PlannerApp:
         names = urdf.get_actuated_joint_names()
         cfg = np.zeros(len(names))
         values = dict(zip(joints, theta, strict=True))
-        values.setdefault("head_2_joint", -0.6)
+        for name, value in self._locked.items():
+            values.setdefault(name, value)
         for i, n in enumerate(names):
             if n in values:
                 cfg[i] = values[n]
@@ -704,6 +706,19 @@ class PlannerApp:
                     robot.update_cfg(self._cfg(robot, plan.joints, w.theta))
                     time.sleep(0.6)
                 robot.update_cfg(self._cfg(robot, plan.joints, [0.0] * len(plan.joints)))
+
+
+def _locked_joints(doc: dict[str, Any]) -> dict[str, float]:
+    """The robot config's fixed joint values (e.g. TIAGo's head looking down), for drawing."""
+    from pickstop.errors import PickStopError
+    from pickstop.robot.config import resolve_robot
+
+    preset = (doc.get("robot") or {}).get("preset") or "tiago"
+    try:
+        config, _ = resolve_robot(preset)
+    except PickStopError:
+        return {}
+    return {k: float(v) for k, v in config.locked_joints.items() if isinstance(v, int | float)}
 
 
 def _poly(rings: list[list[tuple[float, float]]]) -> Polygon:

@@ -565,7 +565,7 @@ def _router(settings: Settings) -> APIRouter:
         headers = {"Cache-Control": "public, max-age=31536000, immutable"}
         if include_scene:
             row = s.store.plan(plan_id)
-            body = s.plan_body(plan_id)
+            body = s.plan_body(plan_id, row) if row is not None else None
             if row is None or body is None:
                 raise Problem(404, "Not found", f"no plan {plan_id!r}")
             full = body[:-1] + b',"scene":' + row["scene_doc"].encode() + b"}"

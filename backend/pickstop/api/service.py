@@ -193,8 +193,10 @@ class Service:
         return scene
 
     def slot(self, scene: Scene, db_id: str | None = None) -> _Slot:
+        from pickstop.regions.loader import robot_for
+
         config, root = self.robot_config(scene.robot.ref)
-        robot = load_robot(config, root)
+        robot = robot_for(config, root)
         key = (robot.robot_hash, db_id or "")
         with self._slots_lock:
             slot = self._slots.get(key)
@@ -207,8 +209,10 @@ class Service:
     def preload(self) -> None:
         """Load the default robot's planner if it has a database (at start-up)."""
         try:
+            from pickstop.regions.loader import robot_for
+
             config, root = resolve_robot("tiago")
-            robot = load_robot(config, root)
+            robot = robot_for(config, root)
             if any(
                 r["robot_hash"] == robot.robot_hash and r["state"] == "complete"
                 for r in list_databases(self.data_dir)
@@ -230,12 +234,13 @@ class Service:
         """A stored plan's body if it is in memory already (no database access)."""
         return self._plan_bodies.get(plan_id)
 
-    def plan_body(self, plan_id: str) -> bytes | None:
-        """A stored plan record as JSON bytes; plans are immutable, so they are cached."""
+    def plan_body(self, plan_id: str, row: dict[str, Any] | None = None) -> bytes | None:
+        """A stored plan record as JSON bytes; plans are immutable, so they are cached.
+        ``row``: the plan's row if the caller has read it already."""
         hit = self._plan_bodies.get(plan_id)
         if hit is not None:
             return hit
-        row = self.store.plan(plan_id)
+        row = row or self.store.plan(plan_id)
         if row is None:
             return None
         body = (

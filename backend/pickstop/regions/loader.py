@@ -6,13 +6,26 @@ from pathlib import Path
 
 from pickstop.reach.database import open_database
 from pickstop.regions.base_region import RegionPlanner
-from pickstop.robot.config import load_config, resolve_robot
-from pickstop.robot.model import load_robot
+from pickstop.robot.config import RobotConfig, load_config, resolve_robot
+from pickstop.robot.model import RobotModel, load_robot
 from pickstop.scene.model import Scene
 from pickstop.sequence.plan import StopPlanner
 from pickstop.settings import cache_dir
 
+_ROBOTS: dict[tuple[str, str], RobotModel] = {}
 _PLANNERS: dict[tuple[str, str, str], RegionPlanner] = {}
+
+
+def robot_for(config: RobotConfig, root: Path) -> RobotModel:
+    """The robot model of ``config`` (paths from ``root``), built once per process: parsing
+    the URDF and meshes takes about 50 ms, too much for every request."""
+    key = (config.model_dump_json(), str(root))
+    robot = _ROBOTS.get(key)
+    if robot is None:
+        robot = _ROBOTS[key] = load_robot(config, root)
+    return robot
+
+
 _STOP_PLANNERS: dict[int, StopPlanner] = {}
 
 
@@ -28,7 +41,7 @@ def planner_for(
         config, root = load_config(path)
     else:
         config, root = resolve_robot(ref.ref)
-    robot = load_robot(config, root)
+    robot = robot_for(config, root)
     key = (robot.robot_hash, db_id or "", str(data_dir))
     hit = _PLANNERS.get(key)
     if hit is not None:
