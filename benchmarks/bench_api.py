@@ -112,8 +112,13 @@ async def run(url: str, seconds: float, clients: int, planners: int, build: int)
                 *(reader() for _ in range(clients - planners)),
             )
         elapsed = time.perf_counter() - t_start
-        listed = {p["id"] for p in (await c.get(f"/api/v1/scenes/{sid}/plans",
-                                                params={"limit": 500})).json()}  # fmt: skip
+        listed: set[str] = set()
+        while True:  # every page of the scene's plans
+            page = (await c.get(f"/api/v1/scenes/{sid}/plans",
+                                params={"limit": 500, "offset": len(listed)})).json()  # fmt: skip
+            listed |= {p["id"] for p in page}
+            if len(page) < 500:
+                break
         lost = [p for p in stored if p not in listed]
         state = (await c.get(f"/api/v1/jobs/{job['id']}")).json()
         await c.post(f"/api/v1/jobs/{job['id']}/cancel", headers=AUTH)
