@@ -30,13 +30,7 @@ from pickstop.reach.batch_ik import refine_batch
 from pickstop.reach.database import RANK_LENGTH, open_database
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import nearby, screen_arm
-from pickstop.regions.base_region import (
-    MAX_ROUNDS,
-    REFINE_ITERATIONS,
-    WINDOW,
-    CellGrid,
-    RegionPlanner,
-)
+from pickstop.regions.base_region import CellGrid, RegionPlanner
 from pickstop.regions.reference import (
     ORACLE_SEEDS,
     baseline_region,
@@ -45,6 +39,7 @@ from pickstop.regions.reference import (
     oracle_region,
     verify_witnesses,
 )
+from pickstop.regions.solve import MAX_ROUNDS, REFINE_ITERATIONS, WINDOW
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import load
 from pickstop.scene.model import Scene, load_scene, parse_scene

@@ -1,12 +1,9 @@
 """Base region of a tray: every base cell from which each of its parts can be grasped.
 
-For a fixed base yaw the tool targets of a part's grasps, seen from a base cell, differ only by
-a translation, so all cells x grasps are looked up in the reachability database at once (the
-paper's IK by query). Per (cell, part) the candidates are ranked by pose distance and screened
-in windows against the scene with conservative spheres; the best free one is refined to an
-exact IK solution (batched damped least squares) and checked again: screen-free is guaranteed,
-anything the screen flags goes to coal. A cell is feasible only with a verified witness
-configuration for every part.
+Cells the database can serve are solved part by part (:mod:`pickstop.regions.solve`); the
+solved cells then grow into open neighbours from their witnesses. A cell is feasible only with
+a verified witness configuration for every part. Regions are cached per tray and yaw, and
+reused while nothing they looked at has moved (:mod:`pickstop.regions.envelope`).
 """
 
 from __future__ import annotations
@@ -23,23 +20,17 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
-from pickstop.reach.batch_ik import BatchSolver, refine_batch
-from pickstop.reach.database import RANK_LENGTH, ReachDatabase
-from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import ArmSpheres, ExactArm, bound_centres, nearby, screen_arm
+from pickstop.reach.batch_ik import BatchSolver
+from pickstop.reach.database import ReachDatabase
+from pickstop.regions import solve
+from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
+from pickstop.regions.solve import Scene3D, Targets
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
 from pickstop.scene.grasps import GraspSet, grasps_for_part
 from pickstop.scene.model import Scene, Tray
 from pickstop.scene.world import BoxArrays, Solid, scene_solids, tray_body_solids
-
-Bounds = list[tuple[np.ndarray, np.ndarray]]
-WINDOW = 4  # candidates screened per (cell, part) at a time
-MAX_ROUNDS = 5  # refinement rounds per part (1, 2, then 4 candidates per open cell)
-VICINITY_ROUNDS = 3  # the vicinity pass: 1, 2, then 4 candidates per open cell
-VICINITY_DISTANCE = 0.05  # [m] open cells this close to solved ones also query the vicinity
-REFINE_ITERATIONS = 8  # database candidates are close: 2-4 steps; a slow one yields its turn
 
 
 @dataclass(frozen=True)
@@ -140,7 +131,7 @@ class RegionPlanner:
             "gripper": scene.gripper.model_dump(),
             "robot": self.robot.robot_hash,
             "db": self.db.id,
-            "algo": [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, 3],
+            "algo": solve.VERSION,
         }
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
 
@@ -176,9 +167,31 @@ class RegionPlanner:
         tray = scene.tray(tray_id)
         snap = _snapshot(scene, tray.id)
         for entry in self.cache.get(self.own_key(scene, tray, yaw), []):
-            if _still_valid(entry, snap):
+            if self._still_valid(entry, snap):
                 return entry.region
         return None
+
+    def _still_valid(self, entry: _CacheEntry, snap: Snapshot) -> bool:
+        """Is the cached region still the answer for the scene ``snap`` describes?"""
+        env = entry.region.envelope
+        if env is None:
+            return False
+        for k in entry.snapshot.keys() | snap.keys():
+            old, new = entry.snapshot.get(k), snap.get(k)
+            if old is not None and new is not None and old[0] == new[0]:
+                continue
+            if old is not None and (
+                old[2] & env.hit_owners or any(env.touches(*s.aabb()) for s in old[1])
+            ):
+                return False  # where it was, it rejected something or shaped hand or footprint
+            if new is None or new[0] in entry.cleared:
+                continue
+            if any(env.touches(*s.aabb()) for s in new[1]):
+                return False  # where it is, it may block a hand or the footprint
+            if not witnesses_clear(self, entry.region, new[1]):
+                return False  # where it is, it collides with a witness arm
+            entry.cleared.add(new[0])
+        return True
 
     def _store(self, scene: Scene, region: TrayRegion) -> None:
         entries = self.cache.setdefault(region.key, [])
@@ -224,10 +237,15 @@ class RegionPlanner:
         return out
 
 
+#: Every other object of a scene: its definition, its solids and their owner names.
+Snapshot = dict[str, tuple[str, list[Solid], frozenset[str]]]
+
+
 @dataclass(frozen=True)
 class _CacheEntry:
     region: TrayRegion
-    snapshot: dict[str, tuple[str, Bounds, frozenset[str]]]
+    snapshot: Snapshot
+    cleared: set[str] = field(default_factory=set)  # new definitions no witness collides with
 
 
 _POOL_PLANNER: RegionPlanner | None = None  # the planner the forked workers inherited
@@ -240,37 +258,49 @@ def _pool_region(scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
     return compute_tray_region(planner, scene, tray, yaw, planner.own_key(scene, tray, yaw))
 
 
-def _snapshot(scene: Scene, exclude: str) -> dict[str, tuple[str, Bounds, frozenset[str]]]:
-    """Every other object: its definition, the bounds of its solids and their owner names."""
-    from pickstop.scene.world import part_solid, pose_matrix, shape_solid, tray_body_solids
+def _snapshot(scene: Scene, exclude: str) -> Snapshot:
+    """Every object but the tray ``exclude``: definition, solids, owner names."""
+    from pickstop.scene.world import part_solid, pose_matrix, shape_solid
 
     out = {}
     for o in scene.obstacles:
         solid = shape_solid(o.geometry, pose_matrix(o.pose), o.id)
-        out[f"obstacle:{o.id}"] = (o.model_dump_json(), [solid.aabb()], frozenset([o.id]))
+        out[f"obstacle:{o.id}"] = (o.model_dump_json(), [solid], frozenset([o.id]))
     for t in scene.trays:
         if t.id != exclude:
             solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
             owners = frozenset([t.id, *(p.id for p in t.parts)])
-            out[f"tray:{t.id}"] = (t.model_dump_json(), [s.aabb() for s in solids], owners)
+            out[f"tray:{t.id}"] = (t.model_dump_json(), solids, owners)
     return out
 
 
-def _still_valid(entry: _CacheEntry, snap: dict) -> bool:
-    env = entry.region.envelope
-    if env is None:
-        return False
-    for k in entry.snapshot.keys() | snap.keys():
-        old, new = entry.snapshot.get(k), snap.get(k)
-        if old is not None and new is not None and old[0] == new[0]:
-            continue
-        if old is not None and (
-            old[2] & env.hit_owners or any(env.touches(lo, hi, False) for lo, hi in old[1])
-        ):
-            return False  # where it was, it rejected something or shaped the hand or footprint
-        if new is not None and any(env.touches(lo, hi) for lo, hi in new[1]):
-            return False  # where it is, it may block a witness, the hand or the footprint
-    return True
+def witnesses_clear(planner: RegionPlanner, region: TrayRegion, solids: list[Solid]) -> bool:
+    """Is every witness arm of ``region`` free of ``solids``? The sphere screen first, coal
+    for what it flags (the hands and footprints are covered by the region's envelope)."""
+    if not len(region.cells) or not solids:
+        return True
+    K, P, dof = region.thetas.shape
+    xy = np.repeat(region.grid.centres(region.cells[:, 1], region.cells[:, 0]), P, axis=0)
+    lo = np.min([s.aabb()[0] for s in solids], axis=0)
+    hi = np.max([s.aabb()[1] for s in solids], axis=0)
+    reach = planner.reach_xy + float(planner.arm.bound_r.max())
+    near = np.flatnonzero(
+        (xy[:, 0] > lo[0] - reach)
+        & (xy[:, 0] < hi[0] + reach)
+        & (xy[:, 1] > lo[1] - reach)
+        & (xy[:, 1] < hi[1] + reach)
+    )
+    if not len(near):
+        return True
+    th = region.thetas.reshape(K * P, dof)[near]
+    _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    flagged = np.flatnonzero(
+        screen_arm(planner.arm, BoxArrays.of(solids), frames, xy[near], region.yaw)
+    )
+    x, y = xy[near, 0], xy[near, 1]
+    return not any(
+        planner.exact_arm.colliding(th[j], x[j], y[j], region.yaw, solids) for j in flagged
+    )
 
 
 def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: float) -> np.ndarray:
@@ -373,25 +403,37 @@ def compute_tray_region(
         return empty(f"no cell within reach of tray {tray.id!r} has room for the base footprint")
 
     grasp_sets = planner.grasps(scene, tray)
-    alive = np.arange(len(IX))  # indices into the candidate cells still feasible
-    witness = np.zeros((len(IX), len(part_ids), robot.dof))
-    grasp_of = np.zeros((len(IX), len(part_ids)), int)
-    for k, gs in enumerate(grasp_sets):
+    for gs in grasp_sets:
         if len(gs.Ts_world_tool) == 0:
             return empty(
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
                 "fits the open hand without touching the tray, a neighbour or a table"
             )
-        found, th, gi = _solve_part(planner, boxes, solids, gs, cen[alive], Rz_T, yaw, env)
+    world = Scene3D(boxes, solids, yaw, env)
+    targets = [Targets.of(gs, cen, Rz_T) for gs in grasp_sets]
+    # Cells the database cannot serve for some part are left to the growth below.
+    alive = np.flatnonzero(solve.served(planner.db, targets))
+    counts["served"] = len(alive)
+    witness = np.zeros((len(IX), len(part_ids), robot.dof))
+    grasp_of = np.zeros((len(IX), len(part_ids)), int)
+    for k, tg in enumerate(targets):
+        found, th, gi = solve.solve_part(planner, world, tg.take(alive), cen[alive])
         alive = alive[found]
         witness[alive, k] = th[found]
         grasp_of[alive, k] = gi[found]
-        counts[f"feasible_after_{gs.part_id}"] = len(alive)
+        counts[f"feasible_after_{tg.grasps.part_id}"] = len(alive)
         if len(alive) == 0:
             return empty(
-                f"no base cell lets the arm grasp part {gs.part_id!r} of tray {tray.id!r} "
-                f"without collision (of {counts['footprint_free']} reachable free cells)"
+                f"no base cell lets the arm grasp part {tg.grasps.part_id!r} of tray "
+                f"{tray.id!r} without collision (of {counts['footprint_free']} reachable "
+                "free cells)"
             )
+    solved = np.zeros(len(IX), bool)
+    solved[alive] = True
+    counts["grown"] = solve.grow(
+        planner, world, targets, cen, np.stack([IY, IX], 1), solved, witness, grasp_of
+    )
+    alive = np.flatnonzero(solved)
     mask = np.zeros((grid.ny, grid.nx), bool)
     mask[IY[alive], IX[alive]] = True
     cells = np.stack([IY[alive], IX[alive]], 1)
@@ -444,197 +486,17 @@ def feasible_at(
     if not P:
         return np.zeros(M, bool), thetas, grasp
     _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
-    env = Envelope.empty(scene.floor.min, scene.floor.max)
+    world = Scene3D(boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max))
     for k, gs in enumerate(planner.grasps(scene, tray)):
         if len(alive) == 0 or len(gs.Ts_world_tool) == 0:
             return np.zeros(M, bool), thetas, grasp
-        found, th, gi = _solve_part(planner, boxes, solids, gs, xy[alive], Rz_T, yaw, env)
+        found, th, gi = solve.solve_part(planner, world, Targets.of(gs, xy[alive], Rz_T), xy[alive])
         alive = alive[found]
         thetas[alive, k] = th[found]
         grasp[alive, k] = gi[found]
     ok = np.zeros(M, bool)
     ok[alive] = True
     return ok, thetas, grasp
-
-
-def _solve_part(
-    planner: RegionPlanner,
-    boxes: BoxArrays,
-    solids: list[Solid],
-    gs: GraspSet,
-    cen: np.ndarray,
-    Rz_T: np.ndarray,
-    yaw: float,
-    env: Envelope,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,)).
-
-    First the candidates of each target's own voxel; then, for cells still open next to
-    solved ones, the target's vicinity (the 27 surrounding position voxels), as the paper
-    queries it: an empty own voxel at the edge of the sampled set is the usual miss.
-    """
-    M = len(cen)
-    R_bt = np.einsum("ij,gjk->gik", Rz_T, gs.Ts_world_tool[:, :3, :3])  # (G, 3, 3)
-    q_bt = matrices_to_quats(R_bt)
-    rel = gs.Ts_world_tool[None, :, :3, 3] - np.concatenate([cen, np.zeros((M, 1))], 1)[:, None]
-    p_bt = rel @ Rz_T.T  # (M, G, 3)
-    args = (planner, boxes, solids, cen, R_bt, yaw, env)
-    found, th_out, g_out = _rounds(*args, *_gather(planner.db, p_bt, q_bt, False))
-    open_ = np.flatnonzero(~found)
-    if found.any() and len(open_):
-        near = _near_found(cen, found, VICINITY_DISTANCE)
-        sub = open_[near[open_]]
-        if len(sub):
-            f2, th2, g2 = _rounds(
-                planner,
-                boxes,
-                solids,
-                cen[sub],
-                R_bt,
-                yaw,
-                env,
-                *_gather(planner.db, p_bt[sub], q_bt, True),
-            )
-            found[sub[f2]] = True
-            th_out[sub[f2]] = th2[f2]
-            g_out[sub[f2]] = g2[f2]
-    return found, th_out, g_out
-
-
-def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
-    """``(M,)`` True for points within about ``dist`` [m] of a found one (hash grid)."""
-    key = np.floor(cen / dist).astype(np.int64)
-    marked = {(int(a), int(b)) for a, b in key[found]}
-    out = np.zeros(len(cen), bool)
-    for i, (a, b) in enumerate(key.tolist()):
-        out[i] = any((a + da, b + db) in marked for da in (-1, 0, 1) for db in (-1, 0, 1))
-    return out
-
-
-def _gather(
-    db: ReachDatabase, p_bt: np.ndarray, q_bt: np.ndarray, vicinity: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Candidates of targets ``p_bt: (M, G, 3)``, ``q_bt: (G, 4)``, sorted by cell then score.
-
-    Returns rows, cell, grasp, target (cell * G + grasp), rank within the cell and the target
-    positions ``(M * G, 3)``.
-    """
-    M, G = p_bt.shape[:2]
-    ps, qs = p_bt.reshape(-1, 3), np.tile(q_bt, (M, 1))
-    if vicinity:
-        starts, ends = db.lookup_vicinity(ps, qs)  # (M * G, 27)
-        n = (ends - starts).ravel()
-        target = np.repeat(np.repeat(np.arange(M * G), starts.shape[1]), n)
-        starts = starts.ravel()
-    else:
-        starts, ends = db.lookup(ps, qs)
-        n = ends - starts
-        target = np.repeat(np.arange(M * G), n)
-    off = np.repeat(np.cumsum(n) - n, n)
-    rows = np.arange(len(target)) - off + np.repeat(starts, n)
-    cell = target // G
-    g = target % G
-    pos_err = np.linalg.norm(db.positions[rows] - ps[target], axis=1)
-    dot = np.abs(np.einsum("ij,ij->i", db.quats[rows], q_bt[g]))
-    score = pos_err + RANK_LENGTH * 2 * np.arccos(np.minimum(dot, 1.0))
-    order = np.lexsort((score, cell))
-    rows, cell, g, target = rows[order], cell[order], g[order], target[order]
-    first = np.searchsorted(cell, np.arange(M))
-    rank = np.arange(len(cell)) - first[cell]
-    return rows, cell, g, target, rank, ps
-
-
-def _rounds(
-    planner: RegionPlanner,
-    boxes: BoxArrays,
-    solids: list[Solid],
-    cen: np.ndarray,
-    R_bt: np.ndarray,
-    yaw: float,
-    env: Envelope,
-    rows: np.ndarray,
-    cell: np.ndarray,
-    g: np.ndarray,
-    target: np.ndarray,
-    rank: np.ndarray,
-    ps: np.ndarray,
-    rounds: int = MAX_ROUNDS,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Screen, refine and verify candidates per cell in widening rounds."""
-    db, solver = planner.db, planner.solver
-    M = len(cen)
-    state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done
-    screened = np.zeros(M, np.int64)
-    found = np.zeros(M, bool)
-    th_out = np.zeros((M, solver.chain.dof))
-    g_out = np.zeros(M, int)
-    has = np.bincount(cell, minlength=M) > 0
-    attempt = 0
-    for _ in range(rounds):
-        open_cells = np.flatnonzero(~found & has & (screened < np.bincount(cell, minlength=M)))
-        pending = ~found[cell] & (state == 1)
-        ready = np.zeros(M, bool)
-        ready[cell[pending]] = True
-        need = open_cells[~ready[open_cells]]
-        if len(need):
-            sel = np.flatnonzero(
-                np.isin(cell, need) & (rank >= screened[cell]) & (rank < screened[cell] + WINDOW)
-            )
-            screened[need] += WINDOW
-            if len(sel):
-                th = db.thetas(rows[sel])
-                _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
-                hit = screen_arm(planner.arm, boxes, frames, cen[cell[sel]], yaw, env)
-                state[sel] = np.where(hit, 2, 1)
-        cand = np.flatnonzero((state == 1) & ~found[cell])
-        if len(cand) == 0:
-            if not np.any(~found & has & (screened < np.bincount(cell, minlength=M))):
-                break
-            continue
-        # The best untried free candidates per cell (entries are sorted by cell then score):
-        # one in the first round, then more at once, so few rounds settle the hard cells.
-        width = min(1 << attempt, 4)
-        _, first, count = np.unique(cell[cand], return_index=True, return_counts=True)
-        pos = np.arange(len(cand)) - np.repeat(first, count)
-        e = cand[pos < width]
-        state[e] = 2
-        attempt += 1
-        res = refine_batch(
-            solver,
-            db.thetas(rows[e]),
-            R_bt[g[e]],
-            ps[target[e]],
-            max_iter=REFINE_ITERATIONS,
-        )
-        ok = np.flatnonzero(res.success)
-        if len(ok) == 0:
-            continue
-        ths = res.thetas[ok]
-        _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(ths.T), frames=True)
-        env_hit = screen_arm(planner.arm, boxes, frames, cen[cell[e[ok]]], yaw, env)
-        from pickstop.robot.selfcollision import screen
-
-        self_hit = screen(planner.self_spheres, frames)
-        good = np.ones(len(ok), bool)
-        for j in np.flatnonzero(env_hit | self_hit):
-            x, y = cen[cell[e[ok[j]]]]
-            self_bad = self_hit[j] and planner.exact_self.colliding(ths[j][None])[0]
-            env_bad = env_hit[j] and planner.exact_arm.colliding(ths[j], x, y, yaw, solids)
-            good[j] = not (self_bad or env_bad)
-        acc = e[ok[good]]
-        # Several may succeed for a cell: keep its best-ranked (first) one.
-        _, keep = np.unique(cell[acc], return_index=True)
-        acc, ths_acc = acc[keep], ths[good][keep]
-        if len(acc):
-            _, _, fr = fk_soa(solver.chain, np.ascontiguousarray(ths_acc.T), frames=True)
-            env.mark_spheres(
-                bound_centres(planner.arm, fr, cen[cell[acc]], yaw),
-                float(planner.arm.bound_r.max()),
-            )
-        found[cell[acc]] = True
-        th_out[cell[acc]] = ths_acc
-        g_out[cell[acc]] = g[acc]
-    return found, th_out, g_out
 
 
 NEIGHBOUR_SEEDS = 6  # witnesses of the nearest feasible cells tried as IK seeds
@@ -661,6 +523,7 @@ def feasible_near(
         return ok, thetas, grasp
     tray = scene.tray(region.tray_id)
     _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
+    world = Scene3D(boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max))
     cells_xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
     S = min(NEIGHBOUR_SEEDS, len(cells_xy))
     d2 = ((xy[todo, None, :] - cells_xy[None]) ** 2).sum(-1)
@@ -668,50 +531,27 @@ def feasible_near(
     alive = np.ones(len(todo), bool)
     th_new = np.zeros((len(todo), len(tray.parts), planner.robot.dof))
     g_new = np.zeros((len(todo), len(tray.parts)), int)
-    solver = planner.solver
     for k, gs in enumerate(planner.grasps(scene, tray)):
         idx = np.flatnonzero(alive)
         if not len(idx):
             break
-        seeds = region.thetas[near[idx], k].reshape(-1, planner.robot.dof)  # (T'S, dof)
-        g = region.grasp_index[near[idx], k].reshape(-1)
         owner = np.repeat(idx, S)
-        base = np.concatenate([xy[todo[owner]], np.zeros((len(owner), 1))], 1)
-        R_bt = np.einsum("ij,bjk->bik", Rz_T, gs.Ts_world_tool[g, :3, :3])
-        p_bt = (gs.Ts_world_tool[g, :3, 3] - base) @ Rz_T.T
-        res = refine_batch(solver, seeds, R_bt, p_bt, max_iter=SEED_ITERATIONS)
-        good = np.zeros(len(owner), bool)
-        okr = np.flatnonzero(res.success)
-        if len(okr):
-            ths = res.thetas[okr]
-            _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(ths.T), frames=True)
-            env = Envelope.empty(scene.floor.min, scene.floor.max)
-            env_hit = screen_arm(planner.arm, boxes, frames, base[okr, :2], yaw, env)
-            from pickstop.robot.selfcollision import screen
-
-            self_hit = screen(planner.self_spheres, frames)
-            flagged = env_hit | self_hit
-            good[okr] = ~flagged
-            done = set(owner[okr[~flagged]].tolist())  # points with a screen-free solution
-            for j in np.flatnonzero(flagged):
-                o = int(owner[okr[j]])
-                if o in done:  # one verified seed per point is enough
-                    continue
-                x, y = base[okr[j], :2]
-                bad = (self_hit[j] and planner.exact_self.colliding(ths[j][None])[0]) or (
-                    env_hit[j] and planner.exact_arm.colliding(ths[j], x, y, yaw, solids)
-                )
-                good[okr[j]] = not bad
-                if not bad:
-                    done.add(o)
-        hit = np.zeros(len(todo), bool)
-        first = np.full(len(todo), -1)
-        for b in np.flatnonzero(good)[::-1]:  # the first good seed per point wins
-            first[owner[b]] = b
-        hit[first >= 0] = True
-        sel = np.flatnonzero(hit)
-        th_new[sel, k] = res.thetas[first[sel]]
-        g_new[sel, k] = g[first[sel]]
+        g = region.grasp_index[near[idx], k].reshape(-1)
+        tg = Targets.of(gs, xy[todo[owner]], Rz_T)
+        win, th = solve.seeded(
+            planner,
+            world,
+            region.thetas[near[idx], k].reshape(-1, planner.robot.dof),
+            tg.R_bt[g],
+            tg.p_bt[np.arange(len(g)), g],
+            xy[todo[owner]],
+            owner,
+            len(todo),
+            SEED_ITERATIONS,
+        )
+        hit = win >= 0
+        th_new[hit, k] = th[win[hit]]
+        g_new[hit, k] = g[win[hit]]
         alive &= hit
     win = todo[alive]
     ok[win] = True

@@ -1,0 +1,416 @@
+"""One part from many base cells: IK by query, verification, and growth from solved cells.
+
+For a fixed base yaw the tool targets of a part's grasps, seen from a base cell, differ only by
+a translation, so all cells x grasps are looked up in the reachability database at once (the
+paper's IK by query). Per (cell, part) the candidates are ranked by pose distance and screened
+in windows against the scene with conservative spheres; the best free one is refined to an
+exact IK solution (batched damped least squares) and checked again: screen-free is guaranteed,
+anything the screen flags goes to coal.
+
+Where the database's voxels hold no usable candidate (the edge of the sampled set), the
+witnesses of solved neighbouring cells, 2.5 cm away, seed the refinement instead: the region
+grows cell by cell until no neighbour can be solved. Every answer is verified the same way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pickstop.reach.batch_ik import refine_batch
+from pickstop.reach.database import RANK_LENGTH, ReachDatabase
+from pickstop.reach.so3 import matrices_to_quats
+from pickstop.regions.arm import screen_arm
+from pickstop.regions.envelope import Envelope
+from pickstop.robot.kinematics import fk_soa
+from pickstop.robot.selfcollision import screen as screen_self
+from pickstop.scene.grasps import GraspSet
+from pickstop.scene.world import BoxArrays, Solid
+
+if TYPE_CHECKING:
+    from pickstop.regions.base_region import RegionPlanner
+
+WINDOW = 4  # candidates screened per (cell, part) at a time
+MAX_ROUNDS = 2  # refinement rounds per part (1, then 2 candidates per open cell)
+VICINITY_ROUNDS = 1  # the vicinity pass: the best free candidate per open cell
+VICINITY_DISTANCE = 0.05  # [m] open cells this close to solved ones also query the vicinity
+REFINE_ITERATIONS = 6  # database candidates are close: 2-4 steps; a slow one yields its turn
+GROW_SEEDS = 3  # solved neighbours whose witnesses seed an open cell, per wave
+GROW_ITERATIONS = 20  # a seed for another grasp turns the wrist: 0.3 rad per step at most
+REFINE_GIVE_UP = ((3, 0.01),)  # after 3 iterations, candidates still 1 cm off stop
+GROW_GIVE_UP = ((5, 0.02), (10, 0.003))
+GROW_WAVES = 12  # rings of cells grown at most
+
+
+@dataclass(frozen=True)
+class Targets:
+    """Tool targets of one part's grasps from M base cells, in the base frame."""
+
+    grasps: GraspSet
+    R_bt: np.ndarray  # (G, 3, 3) the same from every cell (fixed yaw)
+    q_bt: np.ndarray  # (G, 4) wxyz
+    p_bt: np.ndarray  # (M, G, 3) [m]
+
+    @classmethod
+    def of(cls, gs: GraspSet, cen: np.ndarray, Rz_T: np.ndarray) -> Targets:
+        """``cen: (M, 2)`` base positions [m]; ``Rz_T: (3, 3)`` R_base_world of the yaw."""
+        R_bt = np.einsum("ij,gjk->gik", Rz_T, gs.Ts_world_tool[:, :3, :3])
+        base = np.concatenate([cen, np.zeros((len(cen), 1))], 1)
+        p_bt = (gs.Ts_world_tool[None, :, :3, 3] - base[:, None]) @ Rz_T.T
+        return cls(gs, R_bt, matrices_to_quats(R_bt), p_bt)
+
+    def take(self, idx: np.ndarray) -> Targets:
+        return Targets(self.grasps, self.R_bt, self.q_bt, self.p_bt[idx])
+
+
+@dataclass(frozen=True)
+class Scene3D:
+    """What the arm is checked against near one tray, at one base yaw."""
+
+    boxes: BoxArrays
+    solids: list[Solid]
+    yaw: float  # [rad]
+    env: Envelope
+
+
+def served(db: ReachDatabase, targets: list[Targets]) -> np.ndarray:
+    """``(M,)`` True where every part has a grasp whose voxel or vicinity holds candidates.
+
+    Only such cells can be solved from the database; the rest can only be grown into.
+    """
+    M = targets[0].p_bt.shape[0]
+    ok = np.ones(M, bool)
+    for tg in targets:
+        G = tg.p_bt.shape[1]
+        idx = np.flatnonzero(ok)
+        s, e = db.lookup(tg.p_bt[idx].reshape(-1, 3), np.tile(tg.q_bt, (len(idx), 1)))
+        own = ((e - s).reshape(-1, G) > 0).any(1)
+        rest = idx[~own]
+        if len(rest):
+            s, e = db.lookup_vicinity(
+                tg.p_bt[rest].reshape(-1, 3), np.tile(tg.q_bt, (len(rest), 1))
+            )
+            ok[rest] = ((e - s).reshape(len(rest), -1) > 0).any(1)
+    return ok
+
+
+def solve_part(
+    planner: RegionPlanner, world: Scene3D, tg: Targets, cen: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,)).
+
+    First the candidates of each target's own voxel; then, for cells still open next to
+    solved ones, the target's vicinity (the 27 surrounding position voxels), as the paper
+    queries it: an empty own voxel at the edge of the sampled set is the usual miss.
+    """
+    db = planner.db
+    found, th_out, g_out = _rounds(planner, world, tg, cen, *_gather(db, tg, False), MAX_ROUNDS)
+    open_ = np.flatnonzero(~found)
+    if found.any() and len(open_):
+        sub = open_[_near_found(cen, found, VICINITY_DISTANCE)[open_]]
+        if len(sub):
+            f2, th2, g2 = _rounds(
+                planner,
+                world,
+                tg.take(sub),
+                cen[sub],
+                *_gather(db, tg.take(sub), True),
+                VICINITY_ROUNDS,
+            )
+            found[sub[f2]] = True
+            th_out[sub[f2]] = th2[f2]
+            g_out[sub[f2]] = g2[f2]
+    return found, th_out, g_out
+
+
+def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
+    """``(M,)`` True for points within about ``dist`` [m] of a found one (hash grid)."""
+    key = np.floor(cen / dist).astype(np.int64)
+    marked = {(int(a), int(b)) for a, b in key[found]}
+    out = np.zeros(len(cen), bool)
+    for i, (a, b) in enumerate(key.tolist()):
+        out[i] = any((a + da, b + db) in marked for da in (-1, 0, 1) for db in (-1, 0, 1))
+    return out
+
+
+def _gather(
+    db: ReachDatabase, tg: Targets, vicinity: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Candidates of the targets, sorted by cell then score.
+
+    Returns rows, cell, grasp, target (cell * G + grasp), rank within the cell and the target
+    positions ``(M * G, 3)``.
+    """
+    M, G = tg.p_bt.shape[:2]
+    ps, qs = tg.p_bt.reshape(-1, 3), np.tile(tg.q_bt, (M, 1))
+    if vicinity:
+        starts, ends = db.lookup_vicinity(ps, qs)  # (M * G, 27)
+        n = (ends - starts).ravel()
+        target = np.repeat(np.repeat(np.arange(M * G), starts.shape[1]), n)
+        starts = starts.ravel()
+    else:
+        starts, ends = db.lookup(ps, qs)
+        n = ends - starts
+        target = np.repeat(np.arange(M * G), n)
+    off = np.repeat(np.cumsum(n) - n, n)
+    rows = np.arange(len(target)) - off + np.repeat(starts, n)
+    cell = target // G
+    g = target % G
+    pos_err = np.linalg.norm(db.positions[rows] - ps[target], axis=1)
+    dot = np.abs(np.einsum("ij,ij->i", db.quats[rows], tg.q_bt[g]))
+    score = pos_err + RANK_LENGTH * 2 * np.arccos(np.minimum(dot, 1.0))
+    order = np.lexsort((score, cell))
+    rows, cell, g, target = rows[order], cell[order], g[order], target[order]
+    first = np.searchsorted(cell, np.arange(M))
+    rank = np.arange(len(cell)) - first[cell]
+    return rows, cell, g, target, rank, ps
+
+
+def _rounds(
+    planner: RegionPlanner,
+    world: Scene3D,
+    tg: Targets,
+    cen: np.ndarray,
+    rows: np.ndarray,
+    cell: np.ndarray,
+    g: np.ndarray,
+    target: np.ndarray,
+    rank: np.ndarray,
+    ps: np.ndarray,
+    rounds: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Screen, refine and verify candidates per cell in widening rounds."""
+    db, solver = planner.db, planner.solver
+    M = len(cen)
+    state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done
+    screened = np.zeros(M, np.int64)
+    per_cell = np.bincount(cell, minlength=M)
+    found = np.zeros(M, bool)
+    th_out = np.zeros((M, solver.chain.dof))
+    g_out = np.zeros(M, int)
+    for attempt in range(rounds):
+        open_cells = np.flatnonzero(~found & (screened < per_cell))
+        pending = ~found[cell] & (state == 1)
+        ready = np.zeros(M, bool)
+        ready[cell[pending]] = True
+        need = open_cells[~ready[open_cells]]
+        if len(need):
+            sel = np.flatnonzero(
+                np.isin(cell, need) & (rank >= screened[cell]) & (rank < screened[cell] + WINDOW)
+            )
+            screened[need] += WINDOW
+            if len(sel):
+                th = db.thetas(rows[sel])
+                _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
+                hit = screen_arm(
+                    planner.arm,
+                    world.boxes,
+                    frames,
+                    cen[cell[sel]],
+                    world.yaw,
+                    world.env,
+                )
+                state[sel] = np.where(hit, 2, 1)
+        cand = np.flatnonzero((state == 1) & ~found[cell])
+        if len(cand) == 0:
+            continue
+        # The best untried free candidates per cell (entries are sorted by cell then score):
+        # one in the first round, then more at once, so few rounds settle the hard cells.
+        width = min(1 << attempt, 4)
+        _, first, count = np.unique(cell[cand], return_index=True, return_counts=True)
+        pos = np.arange(len(cand)) - np.repeat(first, count)
+        e = cand[pos < width]
+        state[e] = 2
+        res = refine_batch(
+            solver,
+            db.thetas(rows[e]),
+            tg.R_bt[g[e]],
+            ps[target[e]],
+            max_iter=REFINE_ITERATIONS,
+            give_up=REFINE_GIVE_UP,
+        )
+        ok = np.flatnonzero(res.success)
+        if len(ok) == 0:
+            continue
+        good = verify(planner, world, res.thetas[ok], cen[cell[e[ok]]], cell[e[ok]])
+        acc, ths = e[ok[good]], res.thetas[ok[good]]
+        # Several may succeed for a cell: keep its best-ranked (first) one.
+        _, keep = np.unique(cell[acc], return_index=True)
+        acc, ths = acc[keep], ths[keep]
+        found[cell[acc]] = True
+        th_out[cell[acc]] = ths
+        g_out[cell[acc]] = g[acc]
+    return found, th_out, g_out
+
+
+def verify(
+    planner: RegionPlanner,
+    world: Scene3D,
+    thetas: np.ndarray,
+    base_xy: np.ndarray,
+    owner: np.ndarray | None = None,
+) -> np.ndarray:
+    """``(B,)`` True where ``thetas: (B, dof)`` on a base at ``base_xy: (B, 2)`` is free of the
+    scene and of itself: the sphere screens first, coal for whatever they flag.
+
+    owner: ``(B,)`` the problem each row solves; once one row of a problem is verified, the
+    coal checks of its other flagged rows are skipped (they count as not verified).
+    """
+    p = planner
+    _, _, frames = fk_soa(p.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
+    env_hit = screen_arm(p.arm, world.boxes, frames, base_xy, world.yaw, world.env)
+    self_hit = screen_self(p.self_spheres, frames)
+    flagged = env_hit | self_hit
+    good = ~flagged
+    done = set() if owner is None else set(owner[good].tolist())
+    for j in np.flatnonzero(flagged):
+        o = None if owner is None else int(owner[j])
+        if o in done:
+            continue
+        x, y = base_xy[j]
+        bad = (self_hit[j] and p.exact_self.colliding(thetas[j][None])[0]) or (
+            env_hit[j] and p.exact_arm.colliding(thetas[j], x, y, world.yaw, world.solids)
+        )
+        good[j] = not bad
+        if not bad and o is not None:
+            done.add(o)
+    return good
+
+
+def seeded(
+    planner: RegionPlanner,
+    world: Scene3D,
+    seeds: np.ndarray,
+    Rs_target: np.ndarray,
+    ps_target: np.ndarray,
+    base_xy: np.ndarray,
+    problem: np.ndarray,
+    n_problems: int,
+    max_iter: int,
+    give_up: tuple[tuple[int, float], ...] = (),
+) -> tuple[np.ndarray, np.ndarray]:
+    """Refine ``seeds: (B, dof)`` towards ``T_base_tool`` targets ``(B, 3, 3)``, ``(B, 3)`` on
+    bases at ``base_xy: (B, 2)``, and verify them; rows solve ``problem: (B,)`` ids.
+
+    Returns the winning row of each problem ``(n_problems,)`` (-1 where none verified; the
+    first verified row wins) and the refined configurations ``(B, dof)``.
+    """
+    win = np.full(n_problems, -1)
+    if not len(seeds):
+        return win, seeds
+    res = refine_batch(
+        planner.solver, seeds, Rs_target, ps_target, max_iter=max_iter, give_up=give_up
+    )
+    ok = np.flatnonzero(res.success)
+    if len(ok):
+        good = ok[verify(planner, world, res.thetas[ok], base_xy[ok], problem[ok])]
+        _, first = np.unique(problem[good], return_index=True)
+        win[problem[good[first]]] = good[first]
+    return win, res.thetas
+
+
+_NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 1], [-1, -1]])
+
+
+def grow(
+    planner: RegionPlanner,
+    world: Scene3D,
+    targets: list[Targets],
+    cen: np.ndarray,
+    ij: np.ndarray,
+    found: np.ndarray,
+    thetas: np.ndarray,
+    grasp: np.ndarray,
+) -> int:
+    """Grow the solved cells into their open neighbours, in place; returns how many were added.
+
+    ``cen: (M, 2)`` base positions [m] of grid cells ``ij: (M, 2)`` (iy, ix); ``found: (M,)``,
+    ``thetas: (M, P, dof)`` and ``grasp: (M, P)`` hold the solved cells. An open cell next to
+    a solved one is refined, every part at once, from the solved neighbours' witnesses
+    (4-neighbours first); it joins when every part verifies. Each wave retries only cells
+    next to cells the previous wave added.
+    """
+    if not found.any():
+        return 0
+    lo = ij.min(0)
+    shape = ij.max(0) - lo + 3
+    index = np.full(tuple(shape), -1)
+    index[ij[:, 0] - lo[0] + 1, ij[:, 1] - lo[1] + 1] = np.arange(len(ij))
+    nb = index[
+        ij[:, None, 0] - lo[0] + 1 + _NEIGHBOURS[None, :, 0],
+        ij[:, None, 1] - lo[1] + 1 + _NEIGHBOURS[None, :, 1],
+    ]  # (M, 8) neighbour rows or -1
+    P = len(targets)
+    G = np.array([len(tg.R_bt) for tg in targets])
+    fresh = found.copy()
+    added = 0
+    for _ in range(GROW_WAVES):
+        has_fresh = ((nb >= 0) & fresh[np.maximum(nb, 0)]).any(1)
+        open_ = np.flatnonzero(~found & has_fresh)
+        if not len(open_):
+            break
+        sol = (nb[open_] >= 0) & found[np.maximum(nb[open_], 0)]  # (O, 8) solved neighbours
+        o_loc, k = np.nonzero(sol & (np.cumsum(sol, 1) <= GROW_SEEDS))
+        src = nb[open_[o_loc], k]  # the seeding neighbour of each pair
+        n_open = len(open_)
+        got = np.zeros((n_open, P), bool)
+        th_new = np.zeros((n_open, P, thetas.shape[2]))
+        g_new = np.zeros((n_open, P), int)
+        # The neighbours' own grasps first; then, where a part is still open, every other
+        # grasp from the same seeds: a witness for one grasp often reaches another here (the
+        # wrist turns) where its own grasp runs into a joint limit.
+        for other in (False, True):
+            rows_pair, rows_part, rows_grasp = [], [], []
+            for p in range(P):
+                pair = np.flatnonzero(~got[o_loc, p])
+                shift = np.arange(1, G[p]) if other else np.zeros(1, int)
+                if not len(pair) or not len(shift):
+                    continue
+                rows_pair.append(np.repeat(pair, len(shift)))
+                rows_part.append(np.full(len(pair) * len(shift), p))
+                rows_grasp.append(((grasp[src[pair], p][:, None] + shift) % G[p]).ravel())
+            if not rows_pair:
+                continue
+            pair, part, g = map(np.concatenate, (rows_pair, rows_part, rows_grasp))
+            order = np.argsort(o_loc[pair] * P + part, kind="stable")  # rows grouped by problem
+            pair, part, g = pair[order], part[order], g[order]
+            cell = open_[o_loc[pair]]
+            R_t = np.empty((len(pair), 3, 3))
+            p_t = np.empty((len(pair), 3))
+            for p in range(P):
+                m = part == p
+                R_t[m] = targets[p].R_bt[g[m]]
+                p_t[m] = targets[p].p_bt[cell[m], g[m]]
+            problem = o_loc[pair] * P + part
+            win, ths = seeded(
+                planner,
+                world,
+                thetas[src[pair], part],
+                R_t,
+                p_t,
+                cen[cell],
+                problem,
+                n_open * P,
+                GROW_ITERATIONS,
+                GROW_GIVE_UP,
+            )
+            solved = np.flatnonzero(win >= 0)
+            o, p_ = np.divmod(solved, P)
+            got[o, p_] = True
+            th_new[o, p_] = ths[win[solved]]
+            g_new[o, p_] = g[win[solved]]
+        alive = got.all(1)
+        new = open_[alive]
+        found[new] = True
+        thetas[new] = th_new[alive]
+        grasp[new] = g_new[alive]
+        fresh = np.zeros_like(found)
+        fresh[new] = True
+        added += len(new)
+    return added
+
+
+#: Changes whenever the algorithm's answer may change (part of a cached region's key).
+VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 6]
