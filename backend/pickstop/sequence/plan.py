@@ -337,26 +337,26 @@ class _Planning:
             rng = np.random.default_rng(opts.seed)
             dxy, _ = sample_errors(self.kind, sigma, 0.0, SHAPE_SAMPLES, rng)
         for i, c in enumerate(cands):
-            if not np.isfinite(paths.dist[0, i + 2]):
-                self.rejected[i] = "obstacles cut it off from the start"
-                continue
+            # The rule first: it belongs to the candidate; being cut off depends on the route.
             if opts.rule == "sigma":
                 if c.radius < sigma:
                     self.rejected[i] = (
                         f"inscribed radius {c.radius:.3f} m is below sigma {sigma:.3f} m"
                     )
-                continue
-            p = float(
-                shapely.contains_xy(c.polygon, c.centre[0] + dxy[:, 0], c.centre[1] + dxy[:, 1])
-                .mean()
-            ) if sigma > 0 else 1.0  # fmt: skip
-            self.predicted[i] = max(p, disc_probability(self.kind, sigma, c.radius))
-            if c.radius < threshold and self.predicted[i] < opts.target:
-                self.rejected[i] = (
-                    f"predicted success {self.predicted[i]:.1%} is below the target "
-                    f"{opts.target:.0%} (inscribed radius {c.radius:.3f} m, "
-                    f"{threshold:.3f} m would guarantee it)"
-                )
+            else:
+                p = float(
+                    shapely.contains_xy(c.polygon, c.centre[0] + dxy[:, 0], c.centre[1] + dxy[:, 1])
+                    .mean()
+                ) if sigma > 0 else 1.0  # fmt: skip
+                self.predicted[i] = max(p, disc_probability(self.kind, sigma, c.radius))
+                if c.radius < threshold and self.predicted[i] < opts.target:
+                    self.rejected[i] = (
+                        f"predicted success {self.predicted[i]:.1%} is below the target "
+                        f"{opts.target:.0%} (inscribed radius {c.radius:.3f} m, "
+                        f"{threshold:.3f} m would guarantee it)"
+                    )
+            if i not in self.rejected and not np.isfinite(paths.dist[0, i + 2]):
+                self.rejected[i] = "obstacles cut it off from the start"
         return threshold
 
     def _explain_uncovered(self, cands: list[Candidate], missing: list[str]) -> None:
