@@ -308,6 +308,9 @@ class PlannerApp:
                 "target success", min=0.6, max=0.99, step=0.01, initial_value=0.95
             )
             self.objective = gui.add_dropdown("objective", ("stops", "time"), initial_value="stops")
+            # The robots stand on their stops' circles; hide them to see the circles whole.
+            self.show_robots = gui.add_checkbox("robots at stops", True)
+            self.show_robots.on_update(lambda _: self._robots_visible())
 
         for h in (self.sigma, self.rule, self.target, self.objective):
             h.on_update(self._changed)
@@ -581,9 +584,17 @@ class PlannerApp:
                 frame.visible = False
                 continue
             s = plan.stops[k]
-            frame.position, frame.wxyz, frame.visible = (s.x, s.y, 0.0), yaw_quat(s.yaw), True
+            frame.position, frame.wxyz = (s.x, s.y, 0.0), yaw_quat(s.yaw)
+            frame.visible = self.show_robots.value
             if s.witnesses:
                 urdf.update_cfg(self._cfg(urdf, plan.joints, s.witnesses[0].theta))
+
+    def _robots_visible(self) -> None:
+        st = self.state
+        current = st.plan is not None and st.error is None and st.drawn_seq == st.seq
+        n = len(st.plan.stops) if current and st.plan is not None else 0
+        for k, (frame, _) in enumerate(self._ghosts):
+            frame.visible = self.show_robots.value and k < n
 
     def _cfg(self, urdf: Any, joints: list[str], theta: list[float]) -> np.ndarray:
         names = urdf.get_actuated_joint_names()
