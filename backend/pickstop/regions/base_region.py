@@ -25,6 +25,7 @@ from pickstop.reach.database import ReachDatabase
 from pickstop.regions import solve
 from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
+from pickstop.regions.footprint import footprint_free, upper_body
 from pickstop.regions.solve import Scene3D, Targets
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
@@ -303,43 +304,6 @@ def witnesses_clear(planner: RegionPlanner, region: TrayRegion, solids: list[Sol
     )
 
 
-def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: float) -> np.ndarray:
-    """``(M,)`` True where the base footprint at ``centres: (M, 2)`` is on the floor and clear
-    of every solid reaching below the base body's height (tables, pillars, racks)."""
-    fp = robot.config.footprint
-    r = fp.bounding_radius
-    geoms = [
-        shapely.Polygon(floor_outline(s)) for s in scene_solids(scene) if s.aabb()[0][2] < fp.height
-    ]
-    x, y = centres[:, 0], centres[:, 1]
-    floor = shapely.box(*scene.floor.min, *scene.floor.max).buffer(-r)
-    ok = shapely.contains_xy(floor, x, y) if not floor.is_empty else np.zeros(len(x), bool)
-    if geoms:
-        union = shapely.union_all(geoms)
-        if fp.radius is not None:
-            blocked = union.buffer(fp.radius, quad_segs=8)
-            ok &= ~shapely.contains_xy(blocked, x, y) & ~shapely.intersects_xy(
-                blocked.boundary, x, y
-            )
-        else:
-            # Polygon footprint: exact test per candidate cell near an obstacle.
-            near = ok & shapely.contains_xy(union.buffer(r), x, y)
-            poly = np.asarray(fp.polygon)
-            c, s = math.cos(yaw), math.sin(yaw)
-            rot = poly @ np.array([[c, s], [-s, c]])
-            for i in np.flatnonzero(near):
-                ok[i] = not shapely.Polygon(rot + centres[i]).intersects(union)
-    return ok
-
-
-def floor_outline(solid: Solid) -> np.ndarray:
-    """Floor-plane outline of a solid (its bounding box corners projected, convex)."""
-    T, h = solid.T_world_solid, solid.half
-    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
-    pts = (corners @ T[:3, :3].T + T[:3, 3])[:, :2]
-    return np.asarray(shapely.MultiPoint(pts).convex_hull.exterior.coords)
-
-
 def compute_tray_region(
     planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float, key: str = ""
 ) -> TrayRegion:
@@ -390,8 +354,8 @@ def compute_tray_region(
     near = np.hypot(*(cen - tc).T) <= reach
     IX, IY, cen = IX[near], IY[near], cen[near]
     counts["in_reach"] = len(IX)
-    fp = robot.config.footprint
-    env.mark_columns(cen, fp.bounding_radius, fp.height)
+    base_body = upper_body(robot)
+    env.mark_columns(cen, base_body.radius, base_body.top)
     if len(IX) == 0:
         return empty(
             f"tray {tray.id!r} is farther than the arm reaches ({reach:.2f} m) from every grid cell"

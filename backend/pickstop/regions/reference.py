@@ -28,9 +28,9 @@ from pickstop.regions.base_region import (
     CellGrid,
     RegionPlanner,
     TrayRegion,
-    footprint_free,
     tray_world,
 )
+from pickstop.regions.footprint import footprint_free
 from pickstop.robot.kinematics import fk, fk_soa
 from pickstop.robot.screen import screen
 from pickstop.scene.grasps import GraspSet

@@ -32,8 +32,8 @@ from pickstop.regions.base_region import (
     RegionPlanner,
     TrayRegion,
     feasible_near,
-    floor_outline,
 )
+from pickstop.regions.footprint import floor_outline, upper_body
 from pickstop.scene.model import Scene
 from pickstop.scene.world import scene_solids
 from pickstop.sequence import plan_model as pm
@@ -126,11 +126,13 @@ class StopPlanner:
 
     def floor(self, scene: Scene) -> _Floor:
         """Where the base may drive: the floor minus obstacles inflated by the footprint."""
-        fp = self.regions.robot.config.footprint
-        solids = [s for s in scene_solids(scene) if s.aabb()[0][2] < fp.height]
+        # Driving, the base turns: whatever reaches below the top of the base body (footprint
+        # and base-fixed links) blocks it, grown by the body's farthest horizontal reach.
+        body = upper_body(self.regions.robot)
+        solids = [s for s in scene_solids(scene) if s.aabb()[0][2] < body.top]
         key = (
             scene.floor.model_dump_json(),
-            fp.bounding_radius,
+            body.radius,
             tuple((s.owner, s.T_world_solid.tobytes(), s.half.tobytes()) for s in solids),
         )
         hit = self._floors.hit(key)
@@ -138,7 +140,7 @@ class StopPlanner:
             return hit
         outlines = [(s.owner, Polygon(floor_outline(s))) for s in solids]
         fmap = FloorMap.build(
-            (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], fp.bounding_radius
+            (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], body.radius
         )
         return self._floors.put(key, _Floor(fmap, outlines))
 
@@ -310,7 +312,7 @@ class _Planning:
             raise InfeasiblePlanError("; ".join(empty), field="trays")
 
     def _check_endpoints(self, floor: _Floor) -> None:
-        radius = self.sp.regions.robot.config.footprint.bounding_radius
+        radius = upper_body(self.sp.regions.robot).radius
         for name in ("start", "goal"):
             p = getattr(self.scene, name)
             if floor.fmap.is_free((p.x, p.y)):

@@ -1,0 +1,135 @@
+"""Where the base itself fits: its footprint on the floor and its fixed upper body.
+
+The robot config declares the base as a footprint (a circle or a polygon) up to a height; the
+links fixed to the base above that height (TIAGo's torso column, its antennas) are checked
+too, as their bounding boxes, so that a base under an overhang (a shelf, a table top without
+legs) is never called free when its torso would touch it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from shapely.geometry.base import BaseGeometry
+
+from pickstop.robot.model import RobotModel
+from pickstop.scene.model import Scene
+from pickstop.scene.world import Solid, scene_solids
+
+QUAD_SEGS = 8  # segments per quarter circle of a buffered outline
+
+
+@dataclass(frozen=True)
+class UpperBody:
+    """Boxes ``(N, 2, 3)`` (lo, hi) in the base frame [m] of the base-fixed links above the
+    footprint's height, cut off below it (the footprint covers that part)."""
+
+    boxes: np.ndarray
+    top: float  # [m] highest point of the base body, footprint included
+    radius: float  # [m] farthest horizontal reach of the base body from the base origin
+
+
+_UPPER: dict[str, UpperBody] = {}
+
+
+def upper_body(robot: RobotModel) -> UpperBody:
+    """The robot's base-fixed links above its footprint (computed once per robot)."""
+    hit = _UPPER.get(robot.robot_hash)
+    if hit is not None:
+        return hit
+    from pickstop.robot.link_geometry import collision_links
+
+    fp = robot.config.footprint
+    boxes = []
+    for link in collision_links(robot):
+        if link.joint != 0:
+            continue
+        for gid in link.geometry_ids:
+            obj = robot.geom_model.geometryObjects[gid]
+            obj.geometry.computeLocalAABB()
+            lo = np.asarray(obj.geometry.aabb_local.min_)
+            hi = np.asarray(obj.geometry.aabb_local.max_)
+            M = obj.placement  # joint 0: the base frame
+            c = M.rotation @ ((lo + hi) / 2) + M.translation
+            h = np.abs(M.rotation) @ ((hi - lo) / 2)
+            if c[2] + h[2] > fp.height:
+                boxes.append([np.maximum(c - h, [-np.inf, -np.inf, fp.height]), c + h])
+    arr = np.array(boxes, float).reshape(-1, 2, 3)
+    corners = np.abs(arr[:, :, :2]).max(axis=1) if len(arr) else np.zeros((0, 2))
+    body = UpperBody(
+        arr,
+        float(max([fp.height, *arr[:, 1, 2]])),
+        float(max([fp.bounding_radius, *np.hypot(corners[:, 0], corners[:, 1])])),
+    )
+    _UPPER[robot.robot_hash] = body
+    return body
+
+
+def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: float) -> np.ndarray:
+    """``(M,)`` True where the base at ``centres: (M, 2)`` [m], ``yaw`` [rad] stands on the
+    floor clear of every solid: its footprint clear of whatever reaches below the footprint's
+    height (tables, pillars, racks), its upper body clear of whatever overhangs."""
+    fp = robot.config.footprint
+    r = fp.bounding_radius
+    solids = scene_solids(scene)
+    geoms = [shapely.Polygon(floor_outline(s)) for s in solids if s.aabb()[0][2] < fp.height]
+    x, y = centres[:, 0], centres[:, 1]
+    floor = shapely.box(*scene.floor.min, *scene.floor.max).buffer(-r)
+    ok = shapely.contains_xy(floor, x, y) if not floor.is_empty else np.zeros(len(x), bool)
+    if geoms:
+        union = shapely.union_all(geoms)
+        if fp.radius is not None:
+            # Polygon buffers lie inside the true rounded one by the sagitta: grow to cover it.
+            grow = fp.radius / math.cos(math.pi / (4 * QUAD_SEGS)) + 1e-6
+            ok &= _outside(union.buffer(grow, quad_segs=QUAD_SEGS), x, y)
+        else:
+            # Polygon footprint: exact test per candidate cell near an obstacle.
+            near = ok & shapely.contains_xy(union.buffer(r), x, y)
+            poly = np.asarray(fp.polygon)
+            c, s = math.cos(yaw), math.sin(yaw)
+            rot = poly @ np.array([[c, s], [-s, c]])
+            for i in np.flatnonzero(near):
+                ok[i] = not shapely.Polygon(rot + centres[i]).intersects(union)
+    blocked = _upper_blocked(upper_body(robot), solids, yaw)
+    if blocked is not None:
+        ok &= _outside(blocked, x, y)
+    return ok
+
+
+def _outside(geom: BaseGeometry, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    return ~shapely.contains_xy(geom, x, y) & ~shapely.intersects_xy(geom.boundary, x, y)
+
+
+def _upper_blocked(body: UpperBody, solids: list[Solid], yaw: float) -> BaseGeometry | None:
+    """Base positions where an upper-body box at ``yaw`` meets a solid it overlaps in height:
+    per pair, the Minkowski difference of two convex outlines (hull of vertex differences)."""
+    if not len(body.boxes):
+        return None
+    c, s = math.cos(yaw), math.sin(yaw)
+    R = np.array([[c, -s], [s, c]])
+    parts = []
+    for solid in solids:
+        lo, hi = solid.aabb()
+        over = (body.boxes[:, 0, 2] < hi[2]) & (body.boxes[:, 1, 2] > lo[2])
+        if not over.any():
+            continue
+        outline = floor_outline(solid)[:-1]
+        for blo, bhi in body.boxes[over]:
+            rect = np.array(
+                [[blo[0], blo[1]], [bhi[0], blo[1]], [bhi[0], bhi[1]], [blo[0], bhi[1]]]
+            )
+            world = rect @ R.T  # the box's outline around a base at the origin
+            diff = (outline[:, None, :] - world[None, :, :]).reshape(-1, 2)
+            parts.append(shapely.MultiPoint(diff).convex_hull)
+    return shapely.union_all(parts) if parts else None
+
+
+def floor_outline(solid: Solid) -> np.ndarray:
+    """Floor-plane outline of a solid (its bounding box corners projected, convex)."""
+    T, h = solid.T_world_solid, solid.half
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
+    pts = (corners @ T[:3, :3].T + T[:3, 3])[:, :2]
+    return np.asarray(shapely.MultiPoint(pts).convex_hull.exterior.coords)

@@ -1,0 +1,84 @@
+"""The base itself: footprint on the floor, base-fixed links under overhangs."""
+
+from __future__ import annotations
+
+import copy
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from pickstop.regions.footprint import footprint_free, upper_body
+from pickstop.robot.link_geometry import collision_links
+from pickstop.scene.model import parse_scene
+from pickstop.scene.world import _coal, collide, scene_solids
+
+
+def _fixed_body_hits(robot, solids, x: float, y: float, yaw: float) -> bool:
+    """coal: do the base-fixed links above the footprint touch any of ``solids``?"""
+    fp = robot.config.footprint
+    T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
+    for link in collision_links(robot):
+        if link.joint != 0:
+            continue
+        for gid in link.geometry_ids:
+            obj = robot.geom_model.geometryObjects[gid]
+            M = T_wb * obj.placement
+            tf = coal.Transform3s(M.rotation, M.translation)
+            for s in solids:
+                if s.aabb()[0][2] < fp.height:
+                    continue  # the footprint's business
+                if collide(obj.geometry, tf, *_coal(s)):
+                    return True
+    return False
+
+
+def test_an_overhang_blocks_the_torso_not_the_footprint(tiago, paper_doc):
+    doc = copy.deepcopy(paper_doc)
+    # A shelf board at 0.55-0.60 m over open floor: no footprint touches it, the torso does.
+    doc["obstacles"].append(
+        {
+            "id": "shelf_board",
+            "pose": {"x": 2.5, "y": 0.0, "z": 0.55, "yaw": 0.3},
+            "geometry": {"shape": "box", "size": [0.8, 0.6, 0.05]},
+        }
+    )
+    scene = parse_scene(doc)
+    yaw = scene.base_yaw.yaws[0]
+    xs, ys = np.meshgrid(np.arange(1.6, 3.4, 0.05), np.arange(-0.7, 0.7, 0.05))
+    centres = np.column_stack([xs.ravel(), ys.ravel()])
+    free = footprint_free(scene, tiago, centres, yaw)
+    solids = [s for s in scene_solids(scene) if s.owner == "shelf_board"]
+    hits = np.array([_fixed_body_hits(tiago, solids, x, y, yaw) for x, y in centres])
+    assert hits.sum() > 50, "the torso column reaches into the board over many positions"
+    assert not (free & hits).any(), "free is guaranteed: no free position touches the board"
+    # Conservative only by the links' bounding boxes: the blocked band is narrow.
+    assert (~free & ~hits).sum() < 0.6 * hits.sum()
+    # Without the board those positions are all free: it is the upper body that blocks them.
+    doc["obstacles"].pop()
+    assert footprint_free(parse_scene(doc), tiago, centres, yaw).all()
+
+
+def test_upper_body_of_tiago_is_its_torso_column_and_antennas(tiago):
+    body = upper_body(tiago)
+    fp = tiago.config.footprint
+    assert len(body.boxes) >= 3 and (body.boxes[:, 0, 2] >= fp.height).all()
+    assert 0.8 < body.top < 0.9  # the torso column's top
+    assert body.radius == fp.bounding_radius  # inside the base's circle from above
+
+
+def test_routes_drive_around_an_overhang(planner, paper_doc):
+    from pickstop.sequence.plan import StopPlanner
+
+    doc = copy.deepcopy(paper_doc)
+    floor = StopPlanner(planner).floor(parse_scene(doc))
+    assert floor.fmap.is_free((2.5, 0.0))
+    doc["obstacles"].append(
+        {
+            "id": "shelf_board",
+            "pose": {"x": 2.5, "y": 0.0, "z": 0.55, "yaw": 0.0},
+            "geometry": {"shape": "box", "size": [0.8, 0.6, 0.05]},
+        }
+    )
+    floor = StopPlanner(planner).floor(parse_scene(doc))
+    assert not floor.fmap.is_free((2.5, 0.0)) and not floor.fmap.is_free((2.5, 0.5))
