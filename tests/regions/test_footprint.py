@@ -82,3 +82,29 @@ def test_routes_drive_around_an_overhang(planner, paper_doc):
     )
     floor = StopPlanner(planner).floor(parse_scene(doc))
     assert not floor.fmap.is_free((2.5, 0.0)) and not floor.fmap.is_free((2.5, 0.5))
+
+
+def test_a_board_over_free_cells_invalidates_the_cached_region(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "tray_1")
+
+    def with_board(x: float, y: float):
+        doc = copy.deepcopy(paper_doc)
+        doc["obstacles"].append(
+            {
+                "id": "board",
+                "pose": {"x": x, "y": y, "z": 0.55, "yaw": 0.0},
+                "geometry": {"shape": "box", "size": [0.6, 0.4, 0.05]},
+            }
+        )
+        return parse_scene(doc)
+
+    assert planner.tray_region(with_board(4.6, -0.7), "tray_1") is region  # out of reach
+    cx, cy = region.grid.centres(region.cells[:, 1], region.cells[:, 0]).mean(axis=0)
+    over = planner.tray_region(with_board(cx, cy), "tray_1")
+    assert over is not region and 0 < len(over.cells) < len(region.cells)
+    xy = over.grid.centres(over.cells[:, 1], over.cells[:, 0])
+    board = [s for s in scene_solids(with_board(cx, cy)) if s.owner == "board"]
+    assert not any(_fixed_body_hits(planner.robot, board, x, y, over.yaw) for x, y in xy)
+    # Taken away again, the first region is valid again.
+    assert planner.tray_region(scene, "tray_1") is region

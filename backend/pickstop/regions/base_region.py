@@ -25,7 +25,7 @@ from pickstop.reach.database import ReachDatabase
 from pickstop.regions import solve
 from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
-from pickstop.regions.footprint import footprint_free, upper_body
+from pickstop.regions.footprint import blocked_by, footprint_check, footprint_free
 from pickstop.regions.solve import Scene3D, Targets
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
@@ -189,6 +189,8 @@ class RegionPlanner:
                 continue
             if any(env.touches(*s.aabb()) for s in new[1]):
                 return False  # where it is, it may block a hand or the footprint
+            if blocked_by(self.robot, new[1], env.free_xy, entry.region.yaw).any():
+                return False  # where it is, it overhangs a free cell
             if not witnesses_clear(self, entry.region, new[1]):
                 return False  # where it is, it collides with a witness arm
             entry.cleared.add(new[0])
@@ -354,15 +356,17 @@ def compute_tray_region(
     near = np.hypot(*(cen - tc).T) <= reach
     IX, IY, cen = IX[near], IY[near], cen[near]
     counts["in_reach"] = len(IX)
-    base_body = upper_body(robot)
-    env.mark_columns(cen, base_body.radius, base_body.top)
+    fp = robot.config.footprint
+    env.mark_columns(cen, fp.bounding_radius, fp.height)
     if len(IX) == 0:
         return empty(
             f"tray {tray.id!r} is farther than the arm reaches ({reach:.2f} m) from every grid cell"
         )
-    free = footprint_free(scene, robot, cen, yaw)
+    free, overhangs = footprint_check(scene, robot, cen, yaw)
+    env.hit_owners |= overhangs
     IX, IY, cen = IX[free], IY[free], cen[free]
     counts["footprint_free"] = len(IX)
+    env.free_xy = cen
     if len(IX) == 0:
         return empty(f"no cell within reach of tray {tray.id!r} has room for the base footprint")
 

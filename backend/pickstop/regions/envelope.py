@@ -4,8 +4,10 @@ Recorded while a tray's region is computed: the space of the open hand at every 
 the base footprint at every candidate cell (``occ``, coarse voxels), and which objects made the
 screen reject anything (``hit_owners``). When another object moves, the region is unchanged if
 (a) where it was, it rejected nothing and touched no hand or footprint space: no rejection can
-flip; and (b) where it now is, it touches no hand or footprint space and no witness arm
-collides with it (checked exactly by the region planner): every witness stays valid.
+flip; and (b) where it now is, it touches no hand or footprint space, blocks no free cell
+(``free_xy``) and no witness arm collides with it (checked exactly by the region planner):
+every witness stays valid. Objects overhanging cells whose footprint is clear count as having
+rejected something.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ class Envelope:
     origin: np.ndarray  # (3,) world corner of voxel (0, 0, 0) [m]
     occ: np.ndarray  # (nx, ny, nz) bool
     hit_owners: set[str] = field(default_factory=set)
+    free_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # free cells [m]
 
     @classmethod
     def empty(

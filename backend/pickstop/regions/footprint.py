@@ -30,6 +30,7 @@ class UpperBody:
     boxes: np.ndarray
     top: float  # [m] highest point of the base body, footprint included
     radius: float  # [m] farthest horizontal reach of the base body from the base origin
+    within_footprint: bool  # seen from above, inside the footprint's circle
 
 
 _UPPER: dict[str, UpperBody] = {}
@@ -59,10 +60,12 @@ def upper_body(robot: RobotModel) -> UpperBody:
                 boxes.append([np.maximum(c - h, [-np.inf, -np.inf, fp.height]), c + h])
     arr = np.array(boxes, float).reshape(-1, 2, 3)
     corners = np.abs(arr[:, :, :2]).max(axis=1) if len(arr) else np.zeros((0, 2))
+    reach = float(max([0.0, *np.hypot(corners[:, 0], corners[:, 1])]))
     body = UpperBody(
         arr,
         float(max([fp.height, *arr[:, 1, 2]])),
-        float(max([fp.bounding_radius, *np.hypot(corners[:, 0], corners[:, 1])])),
+        max(fp.bounding_radius, reach),
+        fp.radius is not None and reach <= fp.radius,
     )
     _UPPER[robot.robot_hash] = body
     return body
@@ -72,35 +75,69 @@ def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: fl
     """``(M,)`` True where the base at ``centres: (M, 2)`` [m], ``yaw`` [rad] stands on the
     floor clear of every solid: its footprint clear of whatever reaches below the footprint's
     height (tables, pillars, racks), its upper body clear of whatever overhangs."""
-    fp = robot.config.footprint
-    r = fp.bounding_radius
-    solids = scene_solids(scene)
-    geoms = [shapely.Polygon(floor_outline(s)) for s in solids if s.aabb()[0][2] < fp.height]
+    return footprint_check(scene, robot, centres, yaw)[0]
+
+
+def footprint_check(
+    scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: float
+) -> tuple[np.ndarray, set[str]]:
+    """:func:`footprint_free`, and the owners of overhanging solids that block a position
+    whose footprint is clear (moving one of them may free it)."""
+    r = robot.config.footprint.bounding_radius
     x, y = centres[:, 0], centres[:, 1]
     floor = shapely.box(*scene.floor.min, *scene.floor.max).buffer(-r)
     ok = shapely.contains_xy(floor, x, y) if not floor.is_empty else np.zeros(len(x), bool)
-    if geoms:
-        union = shapely.union_all(geoms)
+    solids = scene_solids(scene)
+    ok &= ~blocked_by(robot, solids, centres, yaw, upper=False)
+    idx = np.flatnonzero(ok)
+    idx = idx[blocked_by(robot, solids, centres[idx], yaw, footprint=False)]
+    ok[idx] = False
+    owners = set()
+    for solid in solids if len(idx) else []:
+        if blocked_by(robot, [solid], centres[idx], yaw, footprint=False).any():
+            owners.add(solid.owner)
+    return ok, owners
+
+
+def blocked_by(
+    robot: RobotModel,
+    solids: list[Solid],
+    centres: np.ndarray,
+    yaw: float,
+    footprint: bool = True,
+    upper: bool = True,
+) -> np.ndarray:
+    """``(M,)`` True where the base at ``centres: (M, 2)`` [m], ``yaw`` [rad] touches one of
+    ``solids``: its footprint (``footprint``) or its upper body (``upper``)."""
+    fp = robot.config.footprint
+    x, y = centres[:, 0], centres[:, 1]
+    out = np.zeros(len(x), bool)
+    low = [shapely.Polygon(floor_outline(s)) for s in solids if s.aabb()[0][2] < fp.height]
+    if footprint and low:
+        union = shapely.union_all(low)
         if fp.radius is not None:
             # Polygon buffers lie inside the true rounded one by the sagitta: grow to cover it.
             grow = fp.radius / math.cos(math.pi / (4 * QUAD_SEGS)) + 1e-6
-            ok &= _outside(union.buffer(grow, quad_segs=QUAD_SEGS), x, y)
+            out |= _inside(union.buffer(grow, quad_segs=QUAD_SEGS), x, y)
         else:
-            # Polygon footprint: exact test per candidate cell near an obstacle.
-            near = ok & shapely.contains_xy(union.buffer(r), x, y)
-            poly = np.asarray(fp.polygon)
+            # Polygon footprint: exact test per position near an obstacle.
+            near = np.flatnonzero(shapely.contains_xy(union.buffer(fp.bounding_radius), x, y))
             c, s = math.cos(yaw), math.sin(yaw)
-            rot = poly @ np.array([[c, s], [-s, c]])
-            for i in np.flatnonzero(near):
-                ok[i] = not shapely.Polygon(rot + centres[i]).intersects(union)
-    blocked = _upper_blocked(upper_body(robot), solids, yaw)
-    if blocked is not None:
-        ok &= _outside(blocked, x, y)
-    return ok
+            rot = np.asarray(fp.polygon) @ np.array([[c, s], [-s, c]])
+            for i in near:
+                out[i] = shapely.Polygon(rot + centres[i]).intersects(union)
+    if upper:
+        body = upper_body(robot)
+        if body.within_footprint:  # where the footprint meets a solid, so it does anyway
+            solids = [s for s in solids if s.aabb()[0][2] >= fp.height]
+        region = _upper_blocked(body, solids, yaw)
+        if region is not None:
+            out |= _inside(region, x, y)
+    return out
 
 
-def _outside(geom: BaseGeometry, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    return ~shapely.contains_xy(geom, x, y) & ~shapely.intersects_xy(geom.boundary, x, y)
+def _inside(geom: BaseGeometry, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    return shapely.contains_xy(geom, x, y) | shapely.intersects_xy(geom.boundary, x, y)
 
 
 def _upper_blocked(body: UpperBody, solids: list[Solid], yaw: float) -> BaseGeometry | None:
@@ -118,9 +155,8 @@ def _upper_blocked(body: UpperBody, solids: list[Solid], yaw: float) -> BaseGeom
             continue
         outline = floor_outline(solid)[:-1]
         for blo, bhi in body.boxes[over]:
-            rect = np.array(
-                [[blo[0], blo[1]], [bhi[0], blo[1]], [bhi[0], bhi[1]], [blo[0], bhi[1]]]
-            )
+            (x0, y0), (x1, y1) = blo[:2], bhi[:2]
+            rect = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
             world = rect @ R.T  # the box's outline around a base at the origin
             diff = (outline[:, None, :] - world[None, :, :]).reshape(-1, 2)
             parts.append(shapely.MultiPoint(diff).convex_hull)
