@@ -247,7 +247,7 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
     thetas = np.where(found[:, None, None], region.thetas, 0.0)
     grasp = np.where(found[:, None], region.grasp_index, 0)
     _, solids, boxes, Rz_T = tray_world(planner, scene, tray, region.yaw)
-    world = solve.Scene3D(
+    world = solve.ArmWorld(
         boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max)
     )
     targets = [solve.Targets.of(gs, cen, Rz_T) for gs in planner.grasps(scene, tray)]

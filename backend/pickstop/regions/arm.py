@@ -97,16 +97,6 @@ def _to_world(
     return out
 
 
-def bound_centres(
-    spheres: ArmSpheres,
-    frames: list[tuple[np.ndarray, np.ndarray]],
-    base_xy: np.ndarray,
-    yaw: float,
-) -> np.ndarray:
-    """World centres ``(B * L, 3)`` of the links' bounding spheres of B configurations."""
-    return _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw).reshape(-1, 3)
-
-
 def screen_arm(
     spheres: ArmSpheres,
     boxes: BoxArrays,

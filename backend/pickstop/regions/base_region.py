@@ -26,7 +26,7 @@ from pickstop.regions import solve
 from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import blocked_by, footprint_check, footprint_free
-from pickstop.regions.solve import Scene3D, Targets
+from pickstop.regions.solve import ArmWorld, Targets
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
 from pickstop.scene.grasps import GraspSet, grasps_for_part
@@ -377,7 +377,7 @@ def compute_tray_region(
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
                 "fits the open hand without touching the tray, a neighbour or a table"
             )
-    world = Scene3D(boxes, solids, yaw, env)
+    world = ArmWorld(boxes, solids, yaw, env)
     targets = [Targets.of(gs, cen, Rz_T) for gs in grasp_sets]
     # Cells the database cannot serve for some part are left to the growth below.
     alive = np.flatnonzero(solve.served(planner.db, targets))
@@ -454,7 +454,7 @@ def feasible_at(
     if not P:
         return np.zeros(M, bool), thetas, grasp
     _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
-    world = Scene3D(boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max))
+    world = ArmWorld(boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max))
     for k, gs in enumerate(planner.grasps(scene, tray)):
         if len(alive) == 0 or len(gs.Ts_world_tool) == 0:
             return np.zeros(M, bool), thetas, grasp
@@ -491,7 +491,7 @@ def feasible_near(
         return ok, thetas, grasp
     tray = scene.tray(region.tray_id)
     _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
-    world = Scene3D(boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max))
+    world = ArmWorld(boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max))
     cells_xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
     S = min(NEIGHBOUR_SEEDS, len(cells_xy))
     d2 = ((xy[todo, None, :] - cells_xy[None]) ** 2).sum(-1)

@@ -66,7 +66,7 @@ class Targets:
 
 
 @dataclass(frozen=True)
-class Scene3D:
+class ArmWorld:
     """What the arm is checked against near one tray, at one base yaw."""
 
     boxes: BoxArrays
@@ -97,7 +97,7 @@ def served(db: ReachDatabase, targets: list[Targets]) -> np.ndarray:
 
 
 def solve_part(
-    planner: RegionPlanner, world: Scene3D, tg: Targets, cen: np.ndarray
+    planner: RegionPlanner, world: ArmWorld, tg: Targets, cen: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,)).
 
@@ -170,7 +170,7 @@ def _gather(
 
 def _rounds(
     planner: RegionPlanner,
-    world: Scene3D,
+    world: ArmWorld,
     tg: Targets,
     cen: np.ndarray,
     rows: np.ndarray,
@@ -247,7 +247,7 @@ def _rounds(
 
 def verify(
     planner: RegionPlanner,
-    world: Scene3D,
+    world: ArmWorld,
     thetas: np.ndarray,
     base_xy: np.ndarray,
     owner: np.ndarray | None = None,
@@ -281,7 +281,7 @@ def verify(
 
 def seeded(
     planner: RegionPlanner,
-    world: Scene3D,
+    world: ArmWorld,
     seeds: np.ndarray,
     Rs_target: np.ndarray,
     ps_target: np.ndarray,
@@ -316,7 +316,7 @@ _NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 
 
 def grow(
     planner: RegionPlanner,
-    world: Scene3D,
+    world: ArmWorld,
     targets: list[Targets],
     cen: np.ndarray,
     ij: np.ndarray,
