@@ -475,7 +475,8 @@ def feasible_near(
     planner: RegionPlanner, scene: Scene, region: TrayRegion, xy: np.ndarray, yaw: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`feasible_at`, then, where that fails, IK seeded by the witnesses of the region's
-    nearest feasible cells (exact solutions a few centimetres away), verified the same way.
+    nearest feasible cells (exact solutions a few centimetres away; their own grasps, then
+    every other grasp), verified the same way.
 
     Off the grid (a stop's inscribed centre, a Monte Carlo sample) the database's voxels may
     hold no candidate for a pose whose neighbours were solved; the seeds close that gap.
@@ -499,27 +500,36 @@ def feasible_near(
     alive = np.ones(len(todo), bool)
     th_new = np.zeros((len(todo), len(tray.parts), planner.robot.dof))
     g_new = np.zeros((len(todo), len(tray.parts)), int)
+    dof = planner.robot.dof
     for k, gs in enumerate(planner.grasps(scene, tray)):
-        idx = np.flatnonzero(alive)
-        if not len(idx):
-            break
-        owner = np.repeat(idx, S)
-        g = region.grasp_index[near[idx], k].reshape(-1)
-        tg = Targets.of(gs, xy[todo[owner]], Rz_T)
-        win, th = solve.seeded(
-            planner,
-            world,
-            region.thetas[near[idx], k].reshape(-1, planner.robot.dof),
-            tg.R_bt[g],
-            tg.p_bt[np.arange(len(g)), g],
-            xy[todo[owner]],
-            owner,
-            len(todo),
-            SEED_ITERATIONS,
-        )
-        hit = win >= 0
-        th_new[hit, k] = th[win[hit]]
-        g_new[hit, k] = g[win[hit]]
+        G = len(gs.Ts_world_tool)
+        hit = np.zeros(len(todo), bool)
+        # The neighbours' own grasps first, then (from the two nearest) every other grasp,
+        # as the region's growth does.
+        for n_seeds, shifts in ((S, np.zeros(1, int)), (min(2, S), np.arange(1, G))):
+            rest = np.flatnonzero(alive & ~hit)
+            if not len(rest) or not len(shifts):
+                continue
+            src = near[rest, :n_seeds].reshape(-1)  # seeding cells
+            owner = np.repeat(np.repeat(rest, n_seeds), len(shifts))
+            g = ((region.grasp_index[src, k][:, None] + shifts) % G).ravel()
+            tg = Targets.of(gs, xy[todo[owner]], Rz_T)
+            win, th = solve.seeded(
+                planner,
+                world,
+                np.repeat(region.thetas[src, k].reshape(-1, dof), len(shifts), axis=0),
+                tg.R_bt[g],
+                tg.p_bt[np.arange(len(g)), g],
+                xy[todo[owner]],
+                owner,
+                len(todo),
+                SEED_ITERATIONS,
+                solve.GROW_GIVE_UP,
+            )
+            got = win >= 0
+            th_new[got, k] = th[win[got]]
+            g_new[got, k] = g[win[got]]
+            hit |= got
         alive &= hit
     win = todo[alive]
     ok[win] = True
