@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
@@ -286,3 +287,26 @@ def test_witnesses_clear_sees_an_object_on_a_witness_arm(planner, paper_doc):
     T = np.eye(4)
     T[:3, 3] = (x + c * elbow[0] - s * elbow[1], y + s * elbow[0] + c * elbow[1], elbow[2])
     assert not witnesses_clear(planner, region, [Solid.box(T, (0.03, 0.03, 0.03), "elbow")])
+
+
+def test_grasps_are_reused_while_nothing_reaches_into_the_hands(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    before = planner.grasps(scene, scene.tray("tray_2"))
+    far = copy.deepcopy(paper_doc)
+    next(t for t in far["trays"] if t["id"] == "tray_4")["pose"]["x"] += 0.2
+    moved = parse_scene(far)
+    again = planner.grasps(moved, moved.tray("tray_2"))
+    assert all(a is b for a, b in zip(again, before, strict=True))
+    # A board just above tray_2, where the open hands of top-down grasps would be.
+    near = copy.deepcopy(paper_doc)
+    near["obstacles"].append(
+        {
+            "id": "board",
+            "pose": {"x": 1.35, "y": 1.5, "z": 0.84, "yaw": 0.0},
+            "geometry": {"shape": "box", "size": [0.3, 0.2, 0.02]},
+        }
+    )
+    covered = parse_scene(near)
+    after = planner.grasps(covered, covered.tray("tray_2"))
+    assert all(a is not b for a, b in zip(after, before, strict=True))
+    assert sum(len(g.Ts_world_tool) for g in after) < sum(len(g.Ts_world_tool) for g in before)

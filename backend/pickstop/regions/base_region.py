@@ -29,9 +29,11 @@ from pickstop.regions.footprint import blocked_by, footprint_check, footprint_fr
 from pickstop.regions.solve import ArmWorld, Targets
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
-from pickstop.scene.grasps import GraspSet, grasps_for_part
-from pickstop.scene.model import Scene, Tray
+from pickstop.scene.grasps import GraspSet, grasps_for_part, hand_space
+from pickstop.scene.model import Part, Scene, Tray
 from pickstop.scene.world import BoxArrays, Solid, scene_solids, tray_body_solids
+
+Bounds = list[tuple[np.ndarray, np.ndarray]]  # axis-aligned (lo, hi) boxes [m]
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,7 @@ class RegionPlanner:
     reach_xy: float = field(init=False)
     cache: dict[str, list[_CacheEntry]] = field(default_factory=dict)
     grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
+    _memo: dict[str, Any] = field(default_factory=dict, repr=False)  # hand spaces, bounds
     cache_size: int = 256
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
     workers: int = 1  # processes for several regions at once (forked: they share the database)
@@ -220,24 +223,52 @@ class RegionPlanner:
             self._workers_pool = None
 
     def grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
+        """The grasps of every part of ``tray``, reused while nothing that reaches into the
+        space of its open hands changes (other trays elsewhere may move freely)."""
+        others = self._bounds_of(scene, tray.id)
+        tray_json, gripper_json = tray.model_dump_json(), scene.gripper.model_dump_json()
         out = []
         for part in tray.parts:
-            key = hashlib.sha256(
-                json.dumps(
-                    [
-                        tray.model_dump(),
-                        part.id,
-                        scene.gripper.model_dump(),
-                        [o.model_dump() for o in scene.obstacles],
-                        [t.model_dump() for t in scene.trays if t.id != tray.id],
-                    ],
-                    sort_keys=True,
-                ).encode()
-            ).hexdigest()
-            if key not in self.grasp_cache:
-                self.grasp_cache[key] = grasps_for_part(scene, tray, part)
-            out.append(self.grasp_cache[key])
+            key = f"{tray_json}|{part.id}|{gripper_json}"
+            space = self.hand_space(scene, tray, part)
+            near = [d for d, bounds in others if any(_overlap(b, space) for b in bounds)]
+            full = hashlib.sha256("|".join([key, *sorted(near)]).encode()).hexdigest()
+            if full not in self.grasp_cache:
+                self.grasp_cache[full] = grasps_for_part(scene, tray, part)
+            out.append(self.grasp_cache[full])
         return out
+
+    def hand_space(self, scene: Scene, tray: Tray, part: Part) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`pickstop.scene.grasps.hand_space`, computed once per tray, part and hand."""
+        key = f"hand|{tray.model_dump_json()}|{part.id}|{scene.gripper.model_dump_json()}"
+        if key not in self._memo:
+            self._memo[key] = hand_space(scene, tray, part)
+        return self._memo[key]
+
+    def _bounds_of(self, scene: Scene, exclude: str) -> list[tuple[str, Bounds]]:
+        """Every object but the tray ``exclude``: its definition and its solids' bounds."""
+        from pickstop.scene.world import part_solid, pose_matrix, shape_solid
+
+        if len(self._memo) > 4096:
+            self._memo.clear()
+        out = []
+        for o in scene.obstacles:
+            d = o.model_dump_json()
+            if d not in self._memo:
+                self._memo[d] = [shape_solid(o.geometry, pose_matrix(o.pose), o.id).aabb()]
+            out.append((d, self._memo[d]))
+        for t in scene.trays:
+            if t.id != exclude:
+                d = t.model_dump_json()
+                if d not in self._memo:
+                    solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
+                    self._memo[d] = [s.aabb() for s in solids]
+                out.append((d, self._memo[d]))
+        return out
+
+
+def _overlap(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
+    return bool(np.all(a[0] <= b[1]) and np.all(b[0] <= a[1]))
 
 
 #: Every other object of a scene: its definition, its solids and their owner names.
@@ -316,12 +347,9 @@ def compute_tray_region(
     part_ids = tuple(p.id for p in tray.parts)
 
     env = Envelope.empty(scene.floor.min, scene.floor.max)
-    # The hands reaching into the tray, whatever the grasp: the tray grown by a hand's size.
-    g = scene.gripper
-    hand = g.finger_length + g.palm_depth + 0.5 * g.hand_width
-    for body in tray_body_solids(tray):
-        lo, hi = body.aabb()
-        env.mark_box(lo - hand, hi + np.array([hand, hand, hand + 0.2]))
+    # The open hands at every candidate grasp: what reaches in there may change the grasps.
+    for part in tray.parts:
+        env.mark_box(*planner.hand_space(scene, tray, part))
 
     def empty(reason: str) -> TrayRegion:
         return TrayRegion(

@@ -103,20 +103,40 @@ def hand_solids(gripper: Gripper, T_world_tool: np.ndarray) -> list[Solid]:
     return out
 
 
+def _candidates(scene: Scene, tray: Tray, part: Part) -> list[tuple[np.ndarray, str]]:
+    """``(T_part_tool, kind)``: the user's grasps if given, else the generated ones."""
+    if part.grasps is None:
+        return candidate_grasps(part, scene.gripper)
+    from pickstop.reach.so3 import quats_to_matrices
+
+    cands = []
+    for gr in part.grasps:
+        T = np.eye(4)
+        T[:3, :3] = quats_to_matrices(np.asarray(gr.quaternion_wxyz))
+        T[:3, 3] = gr.position
+        cands.append((T, "user"))
+    return cands
+
+
+def hand_space(scene: Scene, tray: Tray, part: Part) -> tuple[np.ndarray, np.ndarray]:
+    """World bounds ``(lo, hi)`` [m] of the open hand at every candidate grasp of ``part``:
+    only what reaches into them can change its grasps."""
+    T_world_part = world_part_transform(tray, part)
+    boxes = [
+        s.aabb()
+        for T_part_tool, _ in _candidates(scene, tray, part)
+        for s in hand_solids(scene.gripper, T_world_part @ T_part_tool)
+    ]
+    if not boxes:
+        centre = T_world_part[:3, 3]
+        return centre, centre
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
 def grasps_for_part(scene: Scene, tray: Tray, part: Part) -> GraspSet:
     """Grasps of ``part``: the user's if given, else generated; both filtered by the tray."""
     T_world_part = world_part_transform(tray, part)
-    if part.grasps is not None:
-        from pickstop.reach.so3 import quats_to_matrices
-
-        cands = []
-        for gr in part.grasps:
-            T = np.eye(4)
-            T[:3, :3] = quats_to_matrices(np.asarray(gr.quaternion_wxyz))
-            T[:3, 3] = gr.position
-            cands.append((T, "user"))
-    else:
-        cands = candidate_grasps(part, scene.gripper)
+    cands = _candidates(scene, tray, part)
     obstacles = tray_solids(scene, tray, exclude_part=part.id)
     kept, kinds = [], []
     for T_part_tool, kind in cands:
