@@ -102,8 +102,13 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
         "build_seconds",
         "rejected_self_collision",
         "rejected_thinning",
+        "screen_false_rejection",
+        "screen_flagged",
+        "screen_samples",
     ]
     out = {k: row.get(k) for k in keep}
+    if row.get("samples") and row.get("state") == "complete":
+        out["stored_fraction"] = round((row.get("stored") or 0) / row["samples"], 4)
     shards = row.get("shards")
     if shards is not None:
         out["shards"] = len(shards)
@@ -147,6 +152,13 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
     info = next(r for r in list_databases(folder) if r["id"] == row["id"])
     out = _db_summary(info)
     out["seconds_this_run"] = round(elapsed, 2)
+    if not args.quiet and info.get("screen_false_rejection") is not None:
+        print(
+            f"self-collision screen: drops {100 * info['screen_false_rejection']:.1f}% of valid "
+            f"configurations, flags {100 * info['screen_flagged']:.1f}% "
+            f"({info['screen_samples']:,} random configurations checked exactly with coal)",
+            file=sys.stderr,
+        )
     _emit(out)
     return 0
 

@@ -218,6 +218,44 @@ def make_kernel(robot: RobotModel, params: BuildParams, data_dir: Path) -> Build
     )
 
 
+def builder_tag() -> str:
+    """``"host pid"`` of this process, recorded on a database while it builds it."""
+    import socket
+
+    return f"{socket.gethostname()} {os.getpid()}"
+
+
+def builder_alive(tag: str | None) -> bool:
+    """Is the process of a builder tag still running? (Another host's: assumed so.)"""
+    import socket
+
+    if not tag:
+        return False
+    host, _, pid = tag.rpartition(" ")
+    if host != socket.gethostname():
+        return True
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, ValueError):
+        return True
+    return True
+
+
+def screen_figures(robot: RobotModel, data_dir: Path) -> dict[str, Any]:
+    """The self-collision screen's false rejection for ``robot``, as catalog columns."""
+    from pickstop.robot.artifacts import screen_quality
+    from pickstop.settings import cache_dir
+
+    q = screen_quality(robot, cache_dir(data_dir))
+    return {
+        "screen_false_rejection": q["false_rejection"],
+        "screen_flagged": q["flagged"],
+        "screen_samples": int(q["n"]),
+    }
+
+
 def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
@@ -348,24 +386,27 @@ def build(
     row = _register(catalog, db_id, robot, params)
     t0 = time.perf_counter()
     done = _chunks_done(catalog, db_id, data_dir)
-    if row["state"] == "complete":
-        if len(done) == params.n_chunks:
-            catalog.close()
-            return row
-        # A shard went missing or was altered: recompute it (the content is deterministic).
-        catalog.table("reach_databases").update(db_id, {"state": "building", "completed": None})
+    if row["state"] == "complete" and len(done) == params.n_chunks:
+        catalog.close()
+        return row
+    # Building (again): a shard that went missing or was altered is recomputed (the content is
+    # deterministic); the row names this process until the build ends, complete or not.
+    catalog.table("reach_databases").update(
+        db_id, {"state": "building", "completed": None, "builder": builder_tag()}
+    )
     todo = [c for c in range(params.n_chunks) if c not in done]
     if max_chunks is not None:
         todo = todo[:max_chunks]
     samples_done = sum(params.chunk_samples(c) for c in done)
     if progress:
         progress(samples_done, params.samples)
-    kernel = make_kernel(robot, params, data_dir)
     workers = workers or os.cpu_count() or 1
     run = runner or (
         lambda k, c, d, i: run_local(k, c, d, i, min(workers, max(len(c), 1)), nice=nice)
     )
     try:
+        kernel = make_kernel(robot, params, data_dir)
+        catalog.table("reach_databases").update(db_id, screen_figures(robot, data_dir))
         for res in run(kernel, todo, data_dir, db_id):
             _record(catalog, db_id, res)
             done.add(res.chunk)
@@ -374,8 +415,13 @@ def build(
                 progress(samples_done, params.samples)
     finally:
         elapsed = time.perf_counter() - t0
+        # Whatever stopped it (Ctrl-C, an error, a chunk limit), an unfinished build is
+        # 'interrupted' until the same command resumes it; a killed one is found out by
+        # list_databases from its builder tag.
         catalog.db.execute(
-            "UPDATE reach_databases SET build_seconds = build_seconds + ? WHERE id = ?",
+            "UPDATE reach_databases SET build_seconds = build_seconds + ?, builder = NULL, "
+            "state = CASE WHEN state = 'building' THEN 'interrupted' ELSE state END "
+            "WHERE id = ?",
             [elapsed, db_id],
         )
     if len(done) == params.n_chunks:

@@ -21,7 +21,7 @@ from pickstop.errors import (
     DatabaseNotFoundError,
     QueryError,
 )
-from pickstop.reach.build import dequantise
+from pickstop.reach.build import builder_alive, dequantise
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
 from pickstop.robot.kinematics import Chain, fk
@@ -232,6 +232,14 @@ def list_databases(data_dir: Path, robot: str | None = None) -> list[dict[str, A
             args.append(robot)
         rows = cat.query(sql + " ORDER BY created DESC, id", args)
         for r in rows:
+            if r["state"] == "building" and not builder_alive(r.get("builder")):
+                # Its process was killed before it could say so.
+                cat.db.execute(
+                    "UPDATE reach_databases SET state = 'interrupted', builder = NULL "
+                    "WHERE id = ? AND state = 'building'",
+                    [r["id"]],
+                )
+                r["state"], r["builder"] = "interrupted", None
             r["shards"] = cat.query(
                 "SELECT chunk, path, sha256, bytes, rows FROM reach_shards WHERE db_id = ? "
                 "ORDER BY chunk",
@@ -278,7 +286,7 @@ def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -
         )
         raise DatabaseNotFoundError(
             f"no complete reachability database for robot {robot.name!r} in {data_dir}{hint}; "
-            f"build one with `pickstop reach build --robot {robot.name}`"
+            f"build one with `pickstop reach build --robot {robot.source or robot.name}`"
         )
     return ok[0]
 

@@ -123,3 +123,45 @@ def false_rejection_rate(
         "false_rejection": float((flagged & free).sum() / max(free.sum(), 1)),
         "false_acceptances": float((~flagged & exact).sum()),
     }
+
+
+def responsible_links(
+    robot: RobotModel,
+    disabled: DisabledPairs,
+    sphere_model: SphereModel,
+    n: int = 5000,
+    seed: int = 0,
+    near: float = 0.03,
+) -> list[str]:
+    """Links that make the screen reject valid configurations: among the ``n`` random
+    configurations of :func:`false_rejection_rate` that the screen flags but coal finds free,
+    the links of the enabled pairs closer than ``near`` [m], most frequent first (those
+    covering half the cases, at least one)."""
+    th = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (n, robot.dof))
+    chain = Chain.from_robot(robot)
+    flagged = np.empty(n, dtype=bool)
+    for s in range(0, n, BLOCK):
+        _, _, frames = fk_soa(chain, np.ascontiguousarray(th[s : s + BLOCK].T), frames=True)
+        flagged[s : s + BLOCK] = screen(sphere_model, frames)
+    exact = ExactSelfCollision(robot, disabled)
+    false = th[flagged & ~exact.colliding(th)]
+    by_geom = {g: lk.name for lk in collision_links(robot) for g in lk.geometry_ids}
+    gm, data = exact.geom_model, exact._data
+    gd = pin.GeometryData(gm)
+    counts: dict[str, int] = {}
+    for theta in false:
+        pin.computeDistances(robot.model, data, gm, gd, robot.angles_to_q(theta))
+        close = set()
+        for cp, res in zip(gm.collisionPairs, gd.distanceResults, strict=True):
+            if res.min_distance < near:
+                close |= {by_geom[cp.first], by_geom[cp.second]}
+        for name in close:
+            counts[name] = counts.get(name, 0) + 1
+    ranked = sorted(counts, key=lambda k: -counts[k])
+    out, covered = [], 0
+    for name in ranked:
+        out.append(name)
+        covered += counts[name]
+        if covered >= 0.5 * sum(counts.values()):
+            break
+    return out

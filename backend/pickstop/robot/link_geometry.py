@@ -2,8 +2,10 @@
 
 pinocchio names a link's collision geometries ``<link>_<k>``; all sit on one joint of the reduced
 arm model (0 = the fixed base). coal collides a mesh by its *surface* (triangles) and a primitive
-(box, cylinder, sphere, capsule) as a *solid*: :class:`LinkShape` is exactly that set. Cut into
-small *elements* (sub-triangles, grid cells, padded centres) it feeds the sphere covers of
+(box, cylinder, sphere, capsule) as a *solid*: :class:`LinkShape` is exactly that set, except
+that a dense mesh (thousands of triangles: a laser, an e-stop, a base shell) stands in as its
+convex hull, a solid that holds it, so that screens built on it stay conservative and bounded.
+Cut into small *elements* (sub-triangles, grid cells, padded centres) it feeds the sphere covers of
 :mod:`pickstop.robot.spheres`; :func:`distance_grid` samples exact distances to it on a lattice.
 """
 
@@ -210,12 +212,35 @@ def _box_sdf(half: np.ndarray) -> SdfFn:
     return sdf
 
 
-def shape_of(geom: Any, placement: Any) -> Shape:
-    """The :class:`Shape` of a coal geometry placed by a pinocchio ``SE3`` in the joint frame."""
+#: A mesh with more triangles than this is screened as its convex hull (a solid that holds
+#: every point of it); the exact checks keep the mesh itself.
+DENSE_TRIANGLES = 2000
+#: A mesh with more triangles than this is refused (its link named) before any work on it.
+MAX_TRIANGLES = 2_000_000
+#: A hull with more facets than this is screened as its bounding box instead.
+MAX_HULL_FACETS = 4096
+
+
+def shape_of(geom: Any, placement: Any, name: str = "", dense: bool = False) -> Shape:
+    """The :class:`Shape` of a coal geometry placed by a pinocchio ``SE3`` in the joint frame.
+
+    A mesh of more than :data:`DENSE_TRIANGLES` triangles becomes its convex hull (a
+    conservative stand-in for the screens: it contains the mesh); ``name`` names the geometry
+    in errors; ``dense`` makes any mesh its hull (a link whose meshes are dense together).
+    """
     R, t = np.asarray(placement.rotation, float), np.asarray(placement.translation, float)
     if isinstance(geom, coal.BVHModelBase):
+        n = int(geom.num_tris)
+        if n > MAX_TRIANGLES:
+            raise RobotConfigError(
+                f"collision mesh {name or '?'} has {n:,} triangles; PickStop handles at most "
+                f"{MAX_TRIANGLES:,} per mesh: simplify it",
+                field="urdf",
+            )
         verts = np.asarray(geom.vertices(), dtype=float) @ R.T + t
-        tri = map(geom.tri_indices, range(geom.num_tris))
+        if dense or n > DENSE_TRIANGLES:
+            return hull_shape(verts)
+        tri = map(geom.tri_indices, range(n))
         idx = np.array([[tr[0], tr[1], tr[2]] for tr in tri])
         tris = verts[idx.reshape(-1, 3)]
         return Shape(tris, None, verts.min(axis=0), verts.max(axis=0))
@@ -253,6 +278,32 @@ def shape_of(geom: Any, placement: Any) -> Shape:
     return _solid(lambda x: box(x - c), lo, hi, R, t, "cells", exact=False)
 
 
+def hull_shape(points: np.ndarray) -> Shape:
+    """A solid holding ``points: (N, 3)`` [m]: their convex hull, or (flat, or too many
+    facets) their bounding box. Its signed distance is exact inside and a lower bound outside
+    (the largest facet-plane distance), which is what the screens need."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    try:
+        eq = ConvexHull(points).equations  # (F, 4): n . x + d <= 0 inside, n outward unit
+    except (QhullError, ValueError):
+        eq = None
+    if eq is None or len(eq) > MAX_HULL_FACETS:
+        half = np.maximum(0.5 * (hi - lo), 1e-4)
+        c = 0.5 * (lo + hi)
+        return _solid(_box_sdf(half), -half, half, np.eye(3), c, "cells", exact=False)
+    normals, offsets = np.ascontiguousarray(eq[:, :3]), eq[:, 3].copy()
+
+    def sdf(x: np.ndarray) -> np.ndarray:
+        out = np.empty(len(x))
+        for s in range(0, len(x), 4096):
+            out[s : s + 4096] = (x[s : s + 4096] @ normals.T + offsets).max(axis=1)
+        return out
+
+    return _solid(sdf, lo, hi, np.eye(3), np.zeros(3), "cells", exact=False)
+
+
 @dataclass(frozen=True)
 class LinkShape:
     """The collision set of one link (union of its shapes) in its joint frame."""
@@ -268,7 +319,11 @@ class LinkShape:
     @classmethod
     def of(cls, robot: RobotModel, geometry_ids: tuple[int, ...]) -> LinkShape:
         objs = [robot.geom_model.geometryObjects[g] for g in geometry_ids]
-        return cls(tuple(shape_of(o.geometry, o.placement) for o in objs))
+        tris = sum(
+            int(o.geometry.num_tris) for o in objs if isinstance(o.geometry, coal.BVHModelBase)
+        )
+        dense = tris > DENSE_TRIANGLES  # the link's meshes together: each becomes its hull
+        return cls(tuple(shape_of(o.geometry, o.placement, o.name, dense) for o in objs))
 
     def elements(self, h: float) -> tuple[np.ndarray, np.ndarray]:
         """Elements of size <= ~``h`` [m]: points ``(E, 8, 3)`` and pads ``(E,)`` [m]."""

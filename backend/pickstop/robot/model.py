@@ -12,7 +12,7 @@ import json
 import math
 import warnings
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -68,6 +68,7 @@ class RobotModel:
     tool_frame_id: int
     joints: tuple[ArmJoint, ...]
     robot_hash: str
+    source: str = ""  # what to pass as ``--robot`` to load it again: a preset or a config path
 
     @property
     def name(self) -> str:
@@ -147,7 +148,11 @@ def resolve_path(ref: str, root: Path, package_dirs: list[str], what: str) -> Pa
 
 
 def _mesh_refs(urdf_path: Path, package_dirs: list[str]) -> tuple[ET.Element, list[Path]]:
-    """Parse the URDF as XML and resolve every collision mesh (pinocchio's errors name neither)."""
+    """Parse the URDF as XML and resolve every collision mesh (pinocchio's errors name neither).
+
+    The returned tree has every collision mesh's ``filename`` replaced by its resolved absolute
+    path, so meshes given relative to the URDF load too.
+    """
     try:
         root = ET.parse(urdf_path).getroot()
     except ET.ParseError as e:
@@ -162,11 +167,17 @@ def _mesh_refs(urdf_path: Path, package_dirs: list[str]) -> tuple[ET.Element, li
             for mesh in coll.iter("mesh"):
                 ref = mesh.get("filename", "")
                 try:
-                    meshes.append(resolve_path(ref, urdf_path.parent, package_dirs, "mesh"))
+                    path = resolve_path(
+                        ref.removeprefix("file://"), urdf_path.parent, package_dirs, "mesh"
+                    )
                 except RobotConfigError:
                     raise RobotConfigError(
-                        f"{urdf_path}: collision mesh of link {link.get('name')!r} not found: {ref}"
+                        f"{urdf_path.name}: collision mesh of link {link.get('name')!r} not "
+                        f"found: {ref}",
+                        field="urdf",
                     ) from None
+                meshes.append(path)
+                mesh.set("filename", str(path.resolve()))
     return root, meshes
 
 
@@ -205,12 +216,13 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
     srdf_path = (
         resolve_path(config.srdf, root, package_dirs, "srdf") if config.srdf is not None else None
     )
-    _, meshes = _mesh_refs(urdf_path, package_dirs)
+    tree, meshes = _mesh_refs(urdf_path, package_dirs)
+    urdf_xml = ET.tostring(tree, encoding="unicode")
 
     try:
-        full = pin.buildModelFromUrdf(str(urdf_path))
+        full = pin.buildModelFromXML(urdf_xml)
     except (ValueError, RuntimeError) as e:
-        raise RobotConfigError(f"{urdf_path}: broken URDF: {e}") from None
+        raise RobotConfigError(f"{urdf_path.name}: broken URDF: {e}", field="urdf") from None
 
     names = list(full.names)
     for i, jn in enumerate(config.arm_joints):
@@ -222,11 +234,16 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
     for jn in config.locked_joints:
         if jn not in names:
             raise RobotConfigError(
-                f"{urdf_path}: unknown locked joint {jn!r}", field=f"locked_joints.{jn}"
+                f"{urdf_path.name}: unknown locked joint {jn!r} (movable joints: "
+                f"{', '.join(names[1:])})",
+                field=f"locked_joints.{jn}",
             )
     if not full.existFrame(config.tool_frame):
+        frames = sorted({str(f.name) for f in full.frames} - {"universe"})
         raise RobotConfigError(
-            f"{urdf_path}: unknown tool frame {config.tool_frame!r}", field="tool_frame"
+            f"{urdf_path.name}: unknown tool frame {config.tool_frame!r}; its frames are "
+            f"{', '.join(frames)}",
+            field="tool_frame",
         )
 
     # Locked configuration: given values, else 0 clipped into the joint limits.
@@ -255,8 +272,8 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            geom_full = pin.buildGeomFromUrdf(
-                full, str(urdf_path), pin.GeometryType.COLLISION, package_dirs
+            geom_full = pin.buildGeomFromUrdfString(
+                full, urdf_xml, pin.GeometryType.COLLISION, package_dirs=package_dirs
             )
         except (ValueError, RuntimeError) as e:
             raise RobotConfigError(f"{urdf_path}: cannot load collision geometry: {e}") from None
@@ -324,4 +341,4 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
 def load(robot: str) -> RobotModel:
     """Load a preset by name or a robot config file by path."""
     config, root = resolve_robot(robot)
-    return load_robot(config, root)
+    return replace(load_robot(config, root), source=robot)

@@ -85,12 +85,14 @@ class SphereModel:
         step: float = 0.01,
         margin: float = 0.1,
         per_pair: bool = False,
+        link_excess: dict[str, float] | None = None,
     ) -> SphereModel:
         """Cover the links of the pairs ``disabled`` enables and plan their screen.
 
         excess: how far a sphere may stick out of its link [m]; step: distance grid spacing
         [m]; margin: how far grids reach beyond their links [m]; per_pair: plan for
-        :func:`screen_pairs` (slower) instead of :func:`screen`.
+        :func:`screen_pairs` (slower) instead of :func:`screen`; link_excess: a finer
+        ``excess`` [m] for some links, by name.
         """
         links = disabled.links
         ids = {lk.name: i for i, lk in enumerate(links)}
@@ -100,7 +102,12 @@ class SphereModel:
         joints = np.array([lk.joint for lk in links], dtype=np.int64)
         involved = sorted({i for p in pairs for i in p})
         shapes = {i: LinkShape.of(robot, links[i].geometry_ids) for i in involved}
-        covers = {i: cover(shapes[i], excess) for i in involved}
+        finer = link_excess or {}
+        covers = {}
+        for i in involved:
+            e = finer.get(links[i].name, excess)
+            # Finer spheres need proportionally more (surface) elements to be finer.
+            covers[i] = cover(shapes[i], e, max_elements=min(16000, int(4000 * (excess / e) ** 2)))
         trees = {i: sphere_tree(covers[i], i) for i in involved}
         # (a-link, b-link) with a on the lower joint, for every enabled pair.
         oriented = [(i, j) if joints[i] < joints[j] else (j, i) for i, j in pairs]
@@ -158,7 +165,7 @@ def _without_implied(
     volume = {i: float(np.prod(s.hi - s.lo)) for i, s in shapes.items()}
     inside: dict[int, list[int]] = {}
     for i, s in shapes.items():
-        pts, pad = s.elements(0.01)
+        pts, pad = s.elements(max(0.01, float(np.max(s.hi - s.lo)) / 40))  # <= ~64,000 cells
         for j, box in solid.items():
             if j == i or joints[j] != joints[i] or (volume[j], -j) <= (volume[i], -i):
                 continue

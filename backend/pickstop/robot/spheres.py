@@ -64,10 +64,12 @@ def cover(link: LinkShape, excess: float, max_elements: int = 4000) -> np.ndarra
     excess: how far a sphere may stick out of the link's solid [m]; a link too big for
     ``max_elements`` elements of that size gets coarser elements and bigger spheres.
     """
-    h = excess
+    # Coarser elements until few enough; a mesh's triangles never merge, so growth stops once
+    # elements reach the link's size (dense meshes arrive as hull solids, see link_geometry).
+    h, largest = excess, max(float(np.max(link.hi - link.lo)), excess)
     while True:
         pts, pad = link.elements(h)
-        if len(pts) <= max_elements:
+        if len(pts) <= max_elements or h > largest:
             break
         h *= 1.25
     # Every element inside a small ball; spheres are sized on the exact points at the end.

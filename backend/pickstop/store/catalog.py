@@ -55,6 +55,9 @@ class Catalog:
             if version <= current:
                 continue
             conn = self.db.conn
+            # A migration may rebuild a table: foreign keys are off while it runs (they cannot
+            # change inside a transaction), so dropping the old table cascades nowhere.
+            conn.execute("PRAGMA foreign_keys=OFF")
             conn.execute("BEGIN IMMEDIATE")
             try:
                 if self.schema_version < version:  # another process may have migrated meanwhile
@@ -66,6 +69,8 @@ class Catalog:
             except Exception:
                 conn.execute("ROLLBACK")
                 raise
+            finally:
+                conn.execute("PRAGMA foreign_keys=ON")
 
     def table(self, name: str) -> sqlite_utils.db.Table:
         return self.db.table(name)

@@ -1,0 +1,129 @@
+"""Real robots' dense collision meshes: bounded loading and building, errors that name things."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from pickstop.errors import RobotConfigError
+from pickstop.reach.build import BuildParams, build
+from pickstop.reach.database import list_databases, open_database
+from pickstop.robot.artifacts import screen_quality, self_collision
+from pickstop.robot.exact import ExactSelfCollision
+from pickstop.robot.link_geometry import LinkShape, collision_links
+from pickstop.robot.model import load
+from tests.robot.synthetic import sphere_triangles, write_dense_robot
+
+
+@pytest.fixture(scope="module")
+def dense(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dense")
+    return folder, write_dense_robot(folder, triangles=50_000)
+
+
+def test_dense_meshes_build_a_small_database_in_bounded_time(dense):
+    folder, config = dense
+    t0 = time.perf_counter()
+    robot = load(str(config))  # meshes referenced relative to the URDF resolve
+    tris = {o.name: getattr(o.geometry, "num_tris", 0) for o in robot.geom_model.geometryObjects}
+    assert tris["laser_link_0"] > 45_000 and tris["camera_link_0"] > 45_000
+    row = build(robot, BuildParams(samples=60_000, chunk_size=30_000), folder, workers=1)
+    assert row["state"] == "complete" and row["stored"] > 0
+    assert time.perf_counter() - t0 < 120  # it used to run forever at 0%
+    assert 0 <= row["screen_false_rejection"] <= 0.05
+    # The screen stays conservative with hulls for the dense meshes: nothing it passes collides.
+    db = open_database(folder, robot, row["id"])
+    disabled, _ = self_collision(robot, None)
+    rows = np.random.default_rng(0).choice(len(db), 400, replace=False)
+    assert not ExactSelfCollision(robot, disabled).colliding(db.thetas(rows)).any()
+
+
+def test_hull_stand_in_contains_the_mesh(dense):
+    _, config = dense
+    robot = load(str(config))
+    laser = next(lk for lk in collision_links(robot) if lk.name == "laser_link")
+    shape = LinkShape.of(robot, laser.geometry_ids)
+    assert shape.shapes[0].tris is None  # a solid stands in for the dense mesh
+    verts = np.asarray(robot.geom_model.geometryObjects[laser.geometry_ids[0]].geometry.vertices())
+    M = robot.geom_model.geometryObjects[laser.geometry_ids[0]].placement
+    pts = verts @ np.asarray(M.rotation).T + np.asarray(M.translation)
+    assert (shape.distance(pts) <= 1e-9).all()  # every mesh point lies in the stand-in
+
+
+def test_too_dense_a_mesh_is_refused_naming_it(tmp_path, monkeypatch):
+    import pickstop.robot.link_geometry as lg
+
+    config = write_dense_robot(tmp_path, triangles=5_000, arm_mesh=False)
+    monkeypatch.setattr(lg, "MAX_TRIANGLES", 1_000)
+    robot = load(str(config))
+    laser = next(lk for lk in collision_links(robot) if lk.name == "laser_link")
+    with pytest.raises(RobotConfigError, match=r"laser_link_0.*triangles"):
+        LinkShape.of(robot, laser.geometry_ids)
+
+
+def test_wrong_tool_frame_lists_the_frames(tmp_path):
+    config = write_dense_robot(tmp_path, triangles=500, arm_mesh=False)
+    config.write_text(config.read_text().replace("tool_frame: tool_link", "tool_frame: tcp"))
+    with pytest.raises(RobotConfigError, match=r"unknown tool frame 'tcp'.*tool_link") as e:
+        load(str(config))
+    assert e.value.field == "tool_frame"
+
+
+def test_missing_relative_mesh_names_the_link(tmp_path):
+    config = write_dense_robot(tmp_path, triangles=500, arm_mesh=False)
+    (tmp_path / "meshes" / "estop.stl").unlink()
+    with pytest.raises(RobotConfigError, match="link 'estop_link' not found"):
+        load(str(config))
+
+
+def test_screen_quality_is_measured_and_tightened(tmp_path, monkeypatch):
+    import pickstop.robot.artifacts as art
+
+    config = write_dense_robot(tmp_path, triangles=500, arm_mesh=False)
+    robot = load(str(config))
+    loose = screen_quality(robot, None)
+    assert loose["rounds"] == 0 and loose["false_rejection"] > 0
+    # Demand more than the default screen gives: the responsible links get finer spheres.
+    disabled, _ = self_collision(robot, None)
+    monkeypatch.setattr(art, "FALSE_REJECTION_BOUND", loose["false_rejection"] / 2)
+    _, tight = art.tightened_screen(robot, disabled)
+    assert tight["rounds"] >= 1
+    assert tight["false_rejection"] < loose["false_rejection"]
+    assert tight["false_acceptances"] == 0
+
+
+def test_killed_build_is_reported_interrupted_and_resumes(tmp_path):
+    config = write_dense_robot(tmp_path / "robot", triangles=500, arm_mesh=False)
+    data = tmp_path / "data"
+    env = {**os.environ, "PICKSTOP_DATA_DIR": str(data)}
+    cmd = [sys.executable, "-m", "pickstop.cli", "reach", "build", "--robot", str(config)]
+    cmd += ["--samples", "3000000", "--chunk-size", "100000", "--workers", "1", "--quiet"]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        rows = list_databases(data) if (data / "catalog.sqlite").exists() else []
+        if rows and rows[0]["state"] == "building" and rows[0]["builder"]:
+            break
+        time.sleep(0.2)
+    else:
+        proc.kill()
+        pytest.fail("the build never started")
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    (row,) = list_databases(data)
+    assert row["state"] == "interrupted" and row["builder"] is None
+    robot = load(str(config))
+    params = BuildParams(samples=3_000_000, chunk_size=100_000)
+    resumed = build(robot, params, data, workers=1, max_chunks=1)
+    assert resumed["id"] == row["id"] and resumed["state"] == "interrupted"
+
+
+def test_sphere_helper_is_closed():
+    tris = sphere_triangles(0.1, 2_000)
+    assert np.allclose(np.linalg.norm(tris.reshape(-1, 3), axis=1), 0.1)
