@@ -163,6 +163,18 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_robot_check(args: argparse.Namespace) -> int:
+    from pickstop.robot.check import check_robot, format_report
+    from pickstop.settings import cache_dir, data_dir
+
+    report = check_robot(args.config, cache_dir(data_dir(args.data_dir)))
+    if args.json:
+        _emit(report)
+    else:
+        print(format_report(report))
+    return 0
+
+
 def cmd_reach_info(args: argparse.Namespace) -> int:
     from pickstop.reach.database import list_databases
     from pickstop.settings import data_dir
@@ -616,6 +628,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     ak = sub.add_parser("api-key", help="make a new API key and print its hash for the settings")
     ak.set_defaults(func=cmd_api_key)
+
+    robot = sub.add_parser("robot", help="robot configs").add_subparsers(
+        dest="robot_command", required=True
+    )
+    rc = robot.add_parser(
+        "check", help="validate a robot config and show what PickStop makes of it"
+    )
+    rc.add_argument("config", help="preset name or robot config file (YAML or JSON)")
+    rc.add_argument("--json", action="store_true", help="the report as JSON")
+    rc.set_defaults(func=cmd_robot_check)
 
     reach = sub.add_parser("reach", help="reachability databases").add_subparsers(
         dest="reach_command", required=True

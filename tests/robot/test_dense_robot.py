@@ -127,3 +127,23 @@ def test_killed_build_is_reported_interrupted_and_resumes(tmp_path):
 def test_sphere_helper_is_closed():
     tris = sphere_triangles(0.1, 2_000)
     assert np.allclose(np.linalg.norm(tris.reshape(-1, 3), axis=1), 0.1)
+
+
+def test_robot_check_reports_and_errors(tmp_path, capsys):
+    import json
+
+    from pickstop.cli import main
+
+    config = write_dense_robot(tmp_path / "r", triangles=5_000, arm_mesh=False)
+    assert main(["--data-dir", str(tmp_path / "d"), "robot", "check", str(config), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["tool"]["frame"] == "tool_link" and report["tool"]["carried_by"] == "joint4"
+    hulls = {lk["name"] for lk in report["collision_links"] if lk["screened_as_hull"]}
+    assert hulls == {"laser_link", "estop_link"}
+    assert report["self_collision"]["source"] == "computed"
+    assert 0 <= report["screen"]["false_rejection"] <= 0.05
+    assert set(report["seconds"]) >= {"config", "model", "screen"}
+    config.write_text(config.read_text().replace("tool_frame: tool_link", "tool_frame: tcp"))
+    assert main(["robot", "check", str(config)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown tool frame 'tcp'" in err and "tool_link" in err and "link4" in err

@@ -1,0 +1,182 @@
+"""``pickstop robot check``: what PickStop makes of a robot config, and how long each step took.
+
+:func:`check_robot` loads the config and its URDF (errors name the file and field, and a wrong
+joint or frame lists those that exist), then reports the resolved tool, hand and footprint,
+the collision links (and which dense meshes the screens replace by their hulls), the disabled
+self-collision pairs with their source (the SRDF, or computed as MoveIt's setup assistant does;
+with an SRDF both, and where they disagree) and the sphere screen's false rejection against
+exact coal checks.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import time
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import numpy as np
+
+from pickstop.robot.config import resolve_robot
+from pickstop.robot.model import RobotModel, load_robot
+
+T = TypeVar("T")
+
+#: Random configurations behind the computed "always"/"never" pairs in a check (MoveIt's
+#: setup assistant uses 10,000 too); a build uses more.
+CHECK_SAMPLES = 10_000
+
+
+def check_robot(ref: str, cache_dir: Any = None) -> dict[str, Any]:
+    """The report of the robot ``ref`` (a preset name or a config file) as plain data."""
+    from pickstop.robot.artifacts import screen_quality, self_collision
+    from pickstop.robot.link_geometry import DENSE_TRIANGLES, collision_links
+    from pickstop.robot.selfcollision import disabled_pairs
+
+    seconds: dict[str, float] = {}
+
+    def step(name: str, fn: Callable[[], T]) -> T:
+        t0 = time.perf_counter()
+        out = fn()
+        seconds[name] = round(time.perf_counter() - t0, 3)
+        return out
+
+    config, root = step("config", lambda: resolve_robot(ref))
+    robot: RobotModel = step("model", lambda: load_robot(config, root))
+    links = step("collision_links", lambda: collision_links(robot))
+    disabled, _ = step("screen", lambda: self_collision(robot, cache_dir))
+    quality = screen_quality(robot, cache_dir)
+    report: dict[str, Any] = {
+        "robot": robot.name,
+        "config": ref,
+        "urdf": robot.urdf_path.name,
+        "srdf": robot.srdf_path.name if robot.srdf_path else None,
+        "robot_hash": robot.robot_hash,
+        "base_frame": robot.base_frame,
+        "arm_joints": [
+            {"name": j.name, "kind": j.kind, "lower": j.lower, "upper": j.upper}
+            for j in robot.joints
+        ],
+        "locked_joints": _locked(robot),
+        "tool": _tool(robot),
+        "hand": _hand(robot, links),
+        "footprint": robot.config.footprint.model_dump(exclude_none=True),
+        "collision_links": [
+            {
+                "name": lk.name,
+                "joint": robot.joints[lk.joint - 1].name if lk.joint else "base",
+                "triangles": (tris := _triangles(robot, lk.geometry_ids)),
+                "screened_as_hull": tris > DENSE_TRIANGLES,
+            }
+            for lk in links
+        ],
+        "self_collision": {
+            "source": disabled.source,
+            "counts": disabled.counts(),
+            "disabled": [[p.link1, p.link2, p.reason] for p in disabled.pairs],
+        },
+        "screen": {k: quality[k] for k in ("false_rejection", "flagged", "n", "rounds")},
+        "seconds": seconds,
+    }
+    if robot.srdf_path is not None:
+        # What the setup assistant would compute, beside what the SRDF says.
+        computed = step(
+            "computed_pairs", lambda: disabled_pairs(_without_srdf(robot), samples=CHECK_SAMPLES)
+        )
+        srdf = {(p.link1, p.link2) for p in disabled.pairs}
+        mine = {(p.link1, p.link2): p.reason for p in computed.pairs}
+        report["self_collision"]["disagreements"] = {
+            "srdf_only": sorted([a, b] for a, b in srdf - set(mine)),
+            "computed_only": sorted([a, b, mine[(a, b)]] for a, b in set(mine) - srdf),
+        }
+    return report
+
+
+def _without_srdf(robot: RobotModel) -> RobotModel:
+    from dataclasses import replace
+
+    return replace(robot, srdf_path=None)
+
+
+def _triangles(robot: RobotModel, ids: tuple[int, ...]) -> int:
+    return sum(
+        int(getattr(robot.geom_model.geometryObjects[g].geometry, "num_tris", 0)) for g in ids
+    )
+
+
+def _locked(robot: RobotModel) -> dict[str, float]:
+    full = robot.full_model
+    arm = {j.name for j in robot.joints}
+    out = {}
+    for jid in range(1, full.njoints):
+        name, iq, nq = str(full.names[jid]), full.idx_qs[jid], full.nqs[jid]
+        if name in arm:
+            continue
+        q = robot.q_full[iq : iq + nq]
+        out[name] = float(np.arctan2(q[1], q[0])) if nq == 2 else float(q[0])
+    return out
+
+
+def _tool(robot: RobotModel) -> dict[str, Any]:
+    frame = robot.model.frames[robot.tool_frame_id]
+    M = frame.placement  # in the last arm joint's frame
+    return {
+        "frame": robot.config.tool_frame,
+        "carried_by": robot.joints[-1].name,
+        "position_in_joint": np.asarray(M.translation).round(6).tolist(),
+        "approach_axis": list(robot.config.approach_axis),
+    }
+
+
+def _hand(robot: RobotModel, links: Any) -> dict[str, Any]:
+    pats = robot.config.hand_links
+    matched = sorted(lk.name for lk in links if any(fnmatch.fnmatch(lk.name, p) for p in pats))
+    unmatched = [p for p in pats if not any(fnmatch.fnmatch(n, p) for n in matched)]
+    return {"patterns": pats, "links": matched, "patterns_matching_nothing": unmatched}
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """The report as text for a terminal."""
+    sc, scr, sec = report["self_collision"], report["screen"], report["seconds"]
+    tool, hand = report["tool"], report["hand"]
+    lines = [
+        f"robot {report['robot']} ({report['config']}): URDF {report['urdf']}"
+        + (f", SRDF {report['srdf']}" if report["srdf"] else ""),
+        f"  base frame {report['base_frame']}; arm: "
+        + ", ".join(
+            f"{j['name']} [{j['lower']:.3g}, {j['upper']:.3g}]" for j in report["arm_joints"]
+        ),
+        f"  tool frame {tool['frame']} on {tool['carried_by']} at {tool['position_in_joint']}, "
+        f"approach {tool['approach_axis']}",
+        f"  hand links ({len(hand['links'])}): {', '.join(hand['links']) or 'none'}"
+        + (
+            f"; patterns matching nothing: {', '.join(hand['patterns_matching_nothing'])}"
+            if hand["patterns_matching_nothing"]
+            else ""
+        ),
+        f"  footprint {report['footprint']}",
+        f"  locked joints: {len(report['locked_joints'])}",
+        f"  collision links: {len(report['collision_links'])}"
+        + "".join(
+            f"\n    {lk['name']} ({lk['triangles']:,} triangles: screened as its hull)"
+            for lk in report["collision_links"]
+            if lk["screened_as_hull"]
+        ),
+        f"  self-collision pairs ({sc['source']}): "
+        + ", ".join(f"{k} {v}" for k, v in sc["counts"].items()),
+    ]
+    if "disagreements" in sc:
+        d = sc["disagreements"]
+        lines.append(
+            f"  SRDF vs computed: {len(d['srdf_only'])} pairs only the SRDF disables, "
+            f"{len(d['computed_only'])} only the computation would"
+        )
+        lines += [f"    srdf only: {a} - {b}" for a, b in d["srdf_only"][:20]]
+        lines += [f"    computed only: {a} - {b} ({r})" for a, b, r in d["computed_only"][:20]]
+    lines.append(
+        f"  screen: drops {100 * scr['false_rejection']:.1f}% of valid configurations, flags "
+        f"{100 * scr['flagged']:.1f}% ({int(scr['n']):,} checked with coal, "
+        f"{int(scr['rounds'])} tightening rounds)"
+    )
+    lines.append("  seconds: " + ", ".join(f"{k} {v}" for k, v in sec.items()))
+    return "\n".join(lines)
