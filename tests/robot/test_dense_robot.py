@@ -147,3 +147,56 @@ def test_robot_check_reports_and_errors(tmp_path, capsys):
     assert main(["robot", "check", str(config)]) == 2
     err = capsys.readouterr().err
     assert "unknown tool frame 'tcp'" in err and "tool_link" in err and "link4" in err
+
+
+def test_derived_footprint_holds_the_base_outline(tmp_path):
+    import shapely
+
+    from pickstop.robot.base_outline import base_points
+
+    config = write_dense_robot(tmp_path, triangles=5_000, arm_mesh=False)
+    config.write_text(config.read_text().replace("footprint: {radius: 0.34}\n", ""))
+    robot = load(str(config))
+    fp = robot.footprint
+    assert fp.derived and fp.polygon is not None and fp.clearance == 0.02
+    outline = shapely.Polygon(fp.polygon)
+    # The base box, the laser (reaching 0.26 m forward) and the e-stop, seen from above.
+    box = shapely.box(-0.25, -0.2, 0.25, 0.2)
+    assert outline.buffer(1e-9).contains(box)
+    laser = robot.geom_model.geometryObjects[
+        next(i for i, o in enumerate(robot.geom_model.geometryObjects) if o.name == "laser_link_0")
+    ]
+    v = np.asarray(laser.geometry.vertices()) + np.asarray(laser.placement.translation)
+    assert shapely.contains_xy(outline, v[:, 0], v[:, 1]).all()
+    assert 0.26 + 0.02 - 1e-3 < outline.bounds[2] < 0.26 + 0.02 + 0.01
+    # Nothing is lost: every point of the base geometry below the height lies inside.
+    pts = base_points(robot, fp.height)
+    assert shapely.contains_xy(outline.buffer(1e-9), pts[:, 0], pts[:, 1]).all()
+    # A radius in the config still overrides the derived outline.
+    config.write_text(config.read_text() + "footprint: {radius: 0.4}\n")
+    assert load(str(config)).footprint.radius == 0.4
+
+
+def test_polygon_footprint_minkowski_matches_per_position_test(pr2):
+    """PR2's square footprint: the Minkowski difference path agrees with a direct test."""
+    import shapely
+
+    from pickstop.regions.footprint import blocked_by, floor_outline
+    from pickstop.scene.world import Solid
+
+    rng = np.random.default_rng(3)
+    solids = []
+    for k in range(6):
+        T = np.eye(4)
+        a = rng.uniform(0, np.pi)
+        T[:2, :2] = [[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]
+        T[:3, 3] = (*rng.uniform(-1.5, 1.5, 2), 0.3)
+        solids.append(Solid.box(T, rng.uniform(0.1, 0.6, 3), f"box{k}"))
+    xy = rng.uniform(-2, 2, (3000, 2))
+    yaw = 0.4
+    got = blocked_by(pr2, solids, xy, yaw, upper=False)
+    union = shapely.union_all([shapely.Polygon(floor_outline(s)) for s in solids])
+    c, s = np.cos(yaw), np.sin(yaw)
+    rot = np.asarray(pr2.footprint.polygon) @ np.array([[c, s], [-s, c]])
+    want = np.array([shapely.Polygon(rot + p).intersects(union) for p in xy])
+    assert got.any() and (got == want).all()

@@ -384,7 +384,7 @@ def compute_tray_region(
     near = np.hypot(*(cen - tc).T) <= reach
     IX, IY, cen = IX[near], IY[near], cen[near]
     counts["in_reach"] = len(IX)
-    fp = robot.config.footprint
+    fp = robot.footprint
     env.mark_columns(cen, fp.bounding_radius, fp.height)
     if len(IX) == 0:
         return empty(

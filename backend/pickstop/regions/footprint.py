@@ -43,7 +43,7 @@ def upper_body(robot: RobotModel) -> UpperBody:
         return hit
     from pickstop.robot.link_geometry import collision_links
 
-    fp = robot.config.footprint
+    fp = robot.footprint
     boxes = []
     for link in collision_links(robot):
         if link.joint != 0:
@@ -83,7 +83,7 @@ def footprint_check(
 ) -> tuple[np.ndarray, set[str]]:
     """:func:`footprint_free`, and the owners of overhanging solids that block a position
     whose footprint is clear (moving one of them may free it)."""
-    r = robot.config.footprint.bounding_radius
+    r = robot.footprint.bounding_radius
     x, y = centres[:, 0], centres[:, 1]
     floor = shapely.box(*scene.floor.min, *scene.floor.max).buffer(-r)
     ok = shapely.contains_xy(floor, x, y) if not floor.is_empty else np.zeros(len(x), bool)
@@ -109,7 +109,7 @@ def blocked_by(
 ) -> np.ndarray:
     """``(M,)`` True where the base at ``centres: (M, 2)`` [m], ``yaw`` [rad] touches one of
     ``solids``: its footprint (``footprint``) or its upper body (``upper``)."""
-    fp = robot.config.footprint
+    fp = robot.footprint
     x, y = centres[:, 0], centres[:, 1]
     out = np.zeros(len(x), bool)
     low = [shapely.Polygon(floor_outline(s)) for s in solids if s.aabb()[0][2] < fp.height]
@@ -120,12 +120,25 @@ def blocked_by(
             grow = fp.radius / math.cos(math.pi / (4 * QUAD_SEGS)) + 1e-6
             out |= _inside(union.buffer(grow, quad_segs=QUAD_SEGS), x, y)
         else:
-            # Polygon footprint: exact test per position near an obstacle.
-            near = np.flatnonzero(shapely.contains_xy(union.buffer(fp.bounding_radius), x, y))
             c, s = math.cos(yaw), math.sin(yaw)
             rot = np.asarray(fp.polygon) @ np.array([[c, s], [-s, c]])
-            for i in near:
-                out[i] = shapely.Polygon(rot + centres[i]).intersects(union)
+            outline = shapely.Polygon(rot)
+            if outline.equals(outline.convex_hull):
+                # Convex footprint and convex outlines: the positions where they meet are the
+                # Minkowski difference, the hull of the vertex differences (exact).
+                parts = [
+                    shapely.MultiPoint(
+                        (floor_outline(sol)[:-1, None, :] - rot[None, :, :]).reshape(-1, 2)
+                    ).convex_hull
+                    for sol in solids
+                    if sol.aabb()[0][2] < fp.height
+                ]
+                out |= _inside(shapely.union_all(parts), x, y)
+            else:
+                # A concave footprint: exact test per position near an obstacle.
+                near = np.flatnonzero(shapely.contains_xy(union.buffer(fp.bounding_radius), x, y))
+                for i in near:
+                    out[i] = shapely.Polygon(rot + centres[i]).intersects(union)
     if upper:
         body = upper_body(robot)
         if body.within_footprint:  # where the footprint meets a solid, so it does anyway

@@ -60,7 +60,7 @@ def check_robot(ref: str, cache_dir: Any = None) -> dict[str, Any]:
         "locked_joints": _locked(robot),
         "tool": _tool(robot),
         "hand": _hand(robot, links),
-        "footprint": robot.config.footprint.model_dump(exclude_none=True),
+        "footprint": robot.footprint.model_dump(exclude_none=True),
         "collision_links": [
             {
                 "name": lk.name,

@@ -39,18 +39,22 @@ def example_robot_data_share() -> Path:
 
 
 class Footprint(BaseModel):
-    """Base outline in the base frame: a circle (``radius``) or a polygon (``polygon``) [m]."""
+    """Base outline in the base frame: a circle (``radius``) or a polygon (``polygon``) [m];
+    with neither, the outline of the base's own collision geometry below ``height``, grown by
+    ``clearance`` (:mod:`pickstop.robot.base_outline`)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     radius: Annotated[float, Field(gt=0, lt=5)] | None = None
     polygon: list[tuple[float, float]] | None = None
     height: Annotated[float, Field(gt=0, lt=3)] = 0.35  # base body: what reaches below it blocks
+    clearance: Annotated[float, Field(ge=0, le=0.5)] = 0.02  # around a derived outline [m]
+    derived: bool = Field(default=False, description="set on an outline derived from the URDF")
 
     @model_validator(mode="after")
     def _one_shape(self) -> Footprint:
-        if (self.radius is None) == (self.polygon is None):
-            raise ValueError("give exactly one of 'radius' or 'polygon'")
+        if self.radius is not None and self.polygon is not None:
+            raise ValueError("give at most one of 'radius' or 'polygon'")
         if self.polygon is not None:
             if len(self.polygon) < 3:
                 raise ValueError("polygon needs at least 3 vertices")
@@ -63,7 +67,7 @@ class Footprint(BaseModel):
         """Radius of the smallest base-centred circle holding the footprint [m]."""
         if self.radius is not None:
             return self.radius
-        assert self.polygon is not None
+        assert self.polygon is not None, "a derived footprint: use RobotModel.footprint"
         return max(math.hypot(x, y) for x, y in self.polygon)
 
 
@@ -90,7 +94,7 @@ class RobotConfig(BaseModel):
     continuous_limits: tuple[float, float] = Field(
         default=(-math.pi, math.pi), description="sampling range of continuous arm joints [rad]"
     )
-    footprint: Footprint
+    footprint: Footprint = Field(default_factory=Footprint)
     approach_axis: tuple[float, float, float] = Field(
         default=(1.0, 0.0, 0.0), description="gripper approach direction in the tool frame"
     )

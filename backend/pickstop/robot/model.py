@@ -68,6 +68,7 @@ class RobotModel:
     tool_frame_id: int
     joints: tuple[ArmJoint, ...]
     robot_hash: str
+    footprint: Any = None  # config.Footprint with a radius or polygon (derived if not given)
     source: str = ""  # what to pass as ``--robot`` to load it again: a preset or a config path
 
     @property
@@ -323,7 +324,7 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
         )
 
     files = [urdf_path, *([srdf_path] if srdf_path else []), *sorted(set(meshes))]
-    return RobotModel(
+    robot = RobotModel(
         config=config,
         urdf_path=urdf_path,
         srdf_path=srdf_path,
@@ -336,6 +337,10 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
         joints=tuple(joints),
         robot_hash=_hash(config, files),
     )
+    from pickstop.robot.base_outline import derived_footprint
+
+    robot.footprint = derived_footprint(robot, config.footprint)
+    return robot
 
 
 def load(robot: str) -> RobotModel:
