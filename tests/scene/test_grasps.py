@@ -6,7 +6,9 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
+from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.scene.grasps import candidate_grasps, grasps_for_part, hand_solids
 from pickstop.scene.model import Box, Cylinder, Gripper, Part, Pose, parse_scene
 from pickstop.scene.world import solids_overlap, tray_solids, world_part_transform
@@ -21,10 +23,14 @@ def _rot_ok(T):
     return np.allclose(R @ R.T, np.eye(3)) and np.isclose(np.linalg.det(R), 1.0)
 
 
+@pytest.fixture(scope="module")
+def hand(tiago):
+    return hand_shape(tiago)
+
+
 def test_box_top_and_side_grasps_respect_opening():
-    g = Gripper(max_opening=0.05)
     part = Part(id="b", geometry=Box(size=(0.04, 0.10, 0.06)))
-    grasps = candidate_grasps(part, g)
+    grasps = candidate_grasps(part, HandShape.parallel(max_opening=0.05))
     assert all(_rot_ok(T) for T, _ in grasps)
     top = [T for T, k in grasps if k == "top"]
     # Only closing across the 4 cm side fits a 5 cm opening: angles 0 and 180 degrees.
@@ -37,7 +43,9 @@ def test_box_top_and_side_grasps_respect_opening():
 
 def test_cylinder_grasps_all_around():
     part = Part(id="c", geometry=Cylinder(radius=0.02, height=0.05))
-    grasps = candidate_grasps(part, Gripper(top_down_angles=8, side_directions=8))
+    grasps = candidate_grasps(
+        part, HandShape.parallel(), Gripper(top_down_angles=8, side_directions=8)
+    )
     assert sum(k == "top" for _, k in grasps) == 8
     # Side grasps closing horizontally fit (4 cm); closing vertically over 5 cm fits too.
     assert sum(k == "side" for _, k in grasps) == 16
@@ -45,8 +53,8 @@ def test_cylinder_grasps_all_around():
 
 def test_symmetric_gripper_halves_top_down_angles():
     part = Part(id="c", geometry=Cylinder(radius=0.02, height=0.05))
-    a = candidate_grasps(part, Gripper(symmetric=False))
-    b = candidate_grasps(part, Gripper(symmetric=True))
+    a = candidate_grasps(part, HandShape.parallel(), Gripper(symmetric=False))
+    b = candidate_grasps(part, HandShape.parallel(), Gripper(symmetric=True))
     assert sum(k == "top" for _, k in b) == sum(k == "top" for _, k in a)
     angles = [np.arctan2(T[1, 1], T[0, 1]) for T, k in b if k == "top"]
     assert max(angles) - min(angles) < np.pi
@@ -54,39 +62,42 @@ def test_symmetric_gripper_halves_top_down_angles():
 
 def test_too_wide_part_has_no_grasp():
     part = Part(id="w", geometry=Box(size=(0.2, 0.2, 0.2)))
-    assert candidate_grasps(part, Gripper(max_opening=0.08)) == []
+    assert candidate_grasps(part, HandShape.parallel(max_opening=0.08)) == []
 
 
-def test_tray_walls_block_side_grasps_and_kept_grasps_are_clear():
+def test_tray_walls_block_side_grasps_and_kept_grasps_are_clear(hand):
     scene = parse_scene(PAPER)
     tray = scene.tray("tray_1")
     for part in tray.parts:
-        gs = grasps_for_part(scene, tray, part)
+        gs = grasps_for_part(scene, tray, part, hand)
         assert len(gs.Ts_part_tool) > 0
         assert set(gs.kinds) == {"top"}  # 5 cm walls: no side grasp of a 3 cm part
         obstacles = tray_solids(scene, tray, exclude_part=part.id)
         T_wp = world_part_transform(tray, part)
         for T in gs.Ts_part_tool:
-            hand = hand_solids(scene.gripper, T_wp @ T)
-            assert not any(solids_overlap(a, b) for a in hand for b in obstacles)
+            solids = hand_solids(hand, T_wp @ T)
+            assert not any(solids_overlap(a, b) for a in solids for b in obstacles)
 
 
-def test_user_grasps_override():
+def test_user_grasps_override(hand):
     doc = json.loads(json.dumps(PAPER))
     doc["trays"][1]["parts"][0]["grasps"] = [
         {"position": [0, 0, 0.03], "quaternion_wxyz": [0.0, 0.7071068, 0.7071068, 0.0]}
     ]
     scene = parse_scene(doc)
     tray = scene.tray("tray_2")
-    gs = grasps_for_part(scene, tray, tray.parts[0])
+    gs = grasps_for_part(scene, tray, tray.parts[0], hand)
     assert gs.user_given and len(gs.Ts_part_tool) <= 1
 
 
-def test_neighbouring_part_blocks_a_grasp():
+def test_neighbouring_part_blocks_a_grasp(hand):
     doc = json.loads(json.dumps(PAPER))
     tray = doc["trays"][1]
     alone = grasps_for_part(
-        parse_scene(doc), parse_scene(doc).tray("tray_2"), parse_scene(doc).tray("tray_2").parts[0]
+        parse_scene(doc),
+        parse_scene(doc).tray("tray_2"),
+        parse_scene(doc).tray("tray_2").parts[0],
+        hand,
     )
     tray["parts"].append(
         {
@@ -96,6 +107,6 @@ def test_neighbouring_part_blocks_a_grasp():
         }
     )
     scene = parse_scene(doc)
-    crowded = grasps_for_part(scene, scene.tray("tray_2"), scene.tray("tray_2").parts[0])
+    crowded = grasps_for_part(scene, scene.tray("tray_2"), scene.tray("tray_2").parts[0], hand)
     assert len(crowded.Ts_part_tool) < len(alone.Ts_part_tool)
     assert Pose() == Pose(x=0, y=0, z=0, yaw=0)

@@ -72,6 +72,11 @@ def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planne
         parts = {(w.tray_id, w.part_id) for w in s.witnesses}
         assert parts == {(t, p.id) for t in s.trays for p in scene.tray(t).parts}
         _exactly_verified(planner, scene, s)
+        # Each witness carries the hand's joint values, so it can be replayed.
+        assert all(
+            w.hand == planner.hand.joints and "hand_thumb_joint" in w.hand for w in s.witnesses
+        )
+        assert all(w.T_part_tcp is not None for w in s.witnesses)
         assert s.success is not None and s.success.samples == 300
         lo, hi = s.success.interval
         assert lo <= s.success.rate <= hi

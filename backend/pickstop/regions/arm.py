@@ -1,13 +1,14 @@
 """The arm against the scene: conservative spheres (vectorised screen) and exact coal checks.
 
-Links are those of the reduced model that move with the arm (joints 1..n) and are not hand
-links: the hand's pose follows from the grasp alone, so the grasp's open-hand model is checked
-in its place (:mod:`pickstop.scene.grasps`).
+Links are every collision link of the reduced model that moves with the arm (joints 1..n),
+the hand's own links included at their pre-grasp joint values. The part being grasped is no
+obstacle for the hand links (``target``); everything else is, for every link.
 """
 
 from __future__ import annotations
 
 import fnmatch
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,23 +23,41 @@ SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
 
 
 def arm_links(robot: RobotModel) -> list[Any]:
-    """Collision links on moving arm bodies, hand links excluded (sorted by name)."""
+    """Collision links on moving arm bodies, the hand's included unless boxes stand in for
+    them (``hand.geometry: boxes``; sorted by name)."""
     from pickstop.robot.link_geometry import collision_links
 
-    pats = robot.config.hand_links
+    boxes = robot.config.hand.geometry == "boxes"
     return sorted(
         (
             link
             for link in collision_links(robot)
-            if link.joint != 0 and not any(fnmatch.fnmatch(link.name, p) for p in pats)
+            if link.joint != 0 and not (boxes and is_hand_link(robot, link.name))
         ),
         key=lambda link: link.name,
     )
 
 
+def is_hand_link(robot: RobotModel, name: str) -> bool:
+    return any(fnmatch.fnmatch(name, p) for p in robot.config.hand.links)
+
+
 def arm_geometry_ids(robot: RobotModel) -> list[int]:
-    """Collision geometries on moving arm bodies, hand links excluded."""
+    """Collision geometries on moving arm bodies, the hand's included."""
     return sorted(i for link in arm_links(robot) for i in link.geometry_ids)
+
+
+def owner_codes(
+    boxes: BoxArrays, targets: Sequence[str] | np.ndarray | str | None, n: int
+) -> np.ndarray:
+    """``(n,)`` per configuration, the index code of the owner its hand may touch (-1: none)."""
+    codes = {o: i for i, o in enumerate(dict.fromkeys(boxes.owners))}
+    if targets is None:
+        return np.full(n, -1)
+    if isinstance(targets, str):
+        return np.full(n, codes.get(targets, -1))
+    assert len(targets) == n, (len(targets), n)
+    return np.array([codes.get(t, -1) for t in targets], dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -46,6 +65,7 @@ class ArmSpheres:
     """Covering spheres of the arm links in their joint frames, grouped per link."""
 
     link_joint: np.ndarray  # (L,) joint index (1..n) carrying each link
+    is_hand: np.ndarray  # (L,) bool: a hand link (the grasped part is no obstacle for it)
     bound_c: np.ndarray  # (L, 3) bounding sphere of each link [m]
     bound_r: np.ndarray  # (L,)
     leaf_link: np.ndarray  # (S,) link of each covering sphere
@@ -57,8 +77,9 @@ class ArmSpheres:
         from pickstop.robot.link_geometry import LinkShape
         from pickstop.robot.spheres import cover
 
-        joints, bc, br, ll, lc, lr = [], [], [], [], [], []
+        joints, hand, bc, br, ll, lc, lr = [], [], [], [], [], [], []
         for k, link in enumerate(arm_links(robot)):
+            hand.append(is_hand_link(robot, link.name))
             s = cover(LinkShape.of(robot, tuple(link.geometry_ids)), excess)
             c = s[:, :3].mean(axis=0)
             r = float(np.max(np.linalg.norm(s[:, :3] - c, axis=1) + s[:, 3]))
@@ -70,6 +91,7 @@ class ArmSpheres:
             lr.append(s[:, 3])
         return cls(
             np.array(joints),
+            np.array(hand, dtype=bool),
             np.array(bc),
             np.array(br),
             np.array(ll),
@@ -104,11 +126,14 @@ def screen_arm(
     base_xy: np.ndarray,
     yaw: float,
     envelope: Any = None,
+    targets: Sequence[str] | np.ndarray | str | None = None,
 ) -> np.ndarray:
     """``(B,)`` True where the arm may touch a solid; False is guaranteed free.
 
     frames: :func:`fk_soa` joint frames of B configurations (base frame); base_xy: (B, 2).
     envelope: if given, the owners of the solids that flagged a configuration are recorded.
+    targets: the part each configuration grasps (one for all, or one per configuration): no
+    obstacle for the hand links.
     """
     from pickstop.scene.world import spheres_hit
 
@@ -119,7 +144,11 @@ def screen_arm(
     if len(boxes.centres) == 0:
         return np.zeros(B, bool)
     L = len(spheres.bound_r)
-    hit_link = spheres_hit(boxes, bw.reshape(-1, 3), np.tile(spheres.bound_r, B)).reshape(B, L)
+    code = owner_codes(boxes, targets, B)  # (B,)
+    skip = np.where(spheres.is_hand[None, :], code[:, None], -1)  # (B, L)
+    hit_link = spheres_hit(
+        boxes, bw.reshape(-1, 3), np.tile(spheres.bound_r, B), skip=skip.ravel()
+    ).reshape(B, L)
     flagged = np.zeros(B, bool)
     cfg, lnk = np.nonzero(hit_link)
     if len(cfg) == 0:
@@ -136,8 +165,13 @@ def screen_arm(
             yaw,
         )
         hit_boxes: set[int] = set()
+        leaf_skip = code[rows] if spheres.is_hand[link] else np.full(len(rows), -1)
         h = spheres_hit(
-            boxes, lw.reshape(-1, 3), np.tile(spheres.leaf_r[leaves], len(rows)), hit_boxes
+            boxes,
+            lw.reshape(-1, 3),
+            np.tile(spheres.leaf_r[leaves], len(rows)),
+            hit_boxes,
+            skip=np.repeat(leaf_skip, len(leaves)),
         )
         if envelope is not None:
             envelope.hit_owners.update(boxes.owners[k] for k in hit_boxes)
@@ -153,6 +187,8 @@ class ExactArm:
         self.data = robot.model.createData()
         self.gdata = pin.GeometryData(robot.geom_model)
         self.ids = arm_geometry_ids(robot)
+        names = {g: lk.name for lk in arm_links(robot) for g in lk.geometry_ids}
+        self.hand = [is_hand_link(robot, names[i]) for i in self.ids]
         self.local_boxes = []
         for i in self.ids:
             geom = robot.geom_model.geometryObjects[i].geometry
@@ -161,22 +197,31 @@ class ExactArm:
             self.local_boxes.append(((lo + hi) / 2, (hi - lo) / 2))
 
     def colliding(
-        self, theta: np.ndarray, x: float, y: float, yaw: float, solids: list[Solid]
+        self,
+        theta: np.ndarray,
+        x: float,
+        y: float,
+        yaw: float,
+        solids: list[Solid],
+        target: str | None = None,
     ) -> bool:
-        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``?"""
+        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``?
+
+        target: the part being grasped, no obstacle for the hand links.
+        """
         q = self.robot.angles_to_q(theta)
         pin.forwardKinematics(self.robot.model, self.data, q)
         pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
         T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
         boxes = [(s, *s.aabb()) for s in solids]
-        for i, (c_local, h_local) in zip(self.ids, self.local_boxes, strict=True):
+        for i, hand, (c_local, h_local) in zip(self.ids, self.hand, self.local_boxes, strict=True):
             g = self.robot.geom_model.geometryObjects[i]
             M = T_wb * self.gdata.oMg[i]
             c = M.rotation @ c_local + M.translation
             h = np.abs(M.rotation) @ h_local
             tf = coal.Transform3s(M.rotation, M.translation)
             for s, lo, hi in boxes:
-                if np.any(c - h > hi) or np.any(c + h < lo):
+                if np.any(c - h > hi) or np.any(c + h < lo) or (hand and s.owner == target):
                     continue
                 gs, ts = _coal(s)
                 if collide(g.geometry, tf, gs, ts):

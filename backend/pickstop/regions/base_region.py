@@ -27,6 +27,7 @@ from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import blocked_by, footprint_check, footprint_free
 from pickstop.regions.solve import ArmWorld, Targets
+from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
 from pickstop.scene.grasps import GraspSet, grasps_for_part, hand_space
@@ -104,6 +105,7 @@ class RegionPlanner:
     self_spheres: Any = field(init=False)
     exact_self: Any = field(init=False)
     exact_arm: ExactArm = field(init=False)
+    hand: HandShape = field(init=False)
     reach_xy: float = field(init=False)
     cache: dict[str, list[_CacheEntry]] = field(default_factory=dict)
     grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
@@ -118,6 +120,7 @@ class RegionPlanner:
         from pickstop.robot.selfcollision import ExactSelfCollision
 
         self.solver = BatchSolver.of(self.robot)
+        self.hand = hand_shape(self.robot)
         self.arm = ArmSpheres.of(self.robot)
         disabled, self.self_spheres = self_collision(self.robot, self.cache_dir)
         self.exact_self = ExactSelfCollision(self.robot, disabled)
@@ -133,6 +136,7 @@ class RegionPlanner:
             "grid": [scene.grid_extent.model_dump(), scene.base_grid.resolution],
             "floor": scene.floor.model_dump(),
             "gripper": scene.gripper.model_dump(),
+            "hand": self.hand.key,
             "robot": self.robot.robot_hash,
             "db": self.db.id,
             "algo": solve.VERSION,
@@ -226,7 +230,8 @@ class RegionPlanner:
         """The grasps of every part of ``tray``, reused while nothing that reaches into the
         space of its open hands changes (other trays elsewhere may move freely)."""
         others = self._bounds_of(scene, tray.id)
-        tray_json, gripper_json = tray.model_dump_json(), scene.gripper.model_dump_json()
+        tray_json = tray.model_dump_json()
+        gripper_json = scene.gripper.model_dump_json() + self.hand.key
         out = []
         for part in tray.parts:
             key = f"{tray_json}|{part.id}|{gripper_json}"
@@ -234,7 +239,7 @@ class RegionPlanner:
             near = [d for d, bounds in others if any(_overlap(b, space) for b in bounds)]
             full = hashlib.sha256("|".join([key, *sorted(near)]).encode()).hexdigest()
             if full not in self.grasp_cache:
-                self.grasp_cache[full] = grasps_for_part(scene, tray, part)
+                self.grasp_cache[full] = grasps_for_part(scene, tray, part, self.hand)
             out.append(self.grasp_cache[full])
         return out
 
@@ -242,7 +247,7 @@ class RegionPlanner:
         """:func:`pickstop.scene.grasps.hand_space`, computed once per tray, part and hand."""
         key = f"hand|{tray.model_dump_json()}|{part.id}|{scene.gripper.model_dump_json()}"
         if key not in self._memo:
-            self._memo[key] = hand_space(scene, tray, part)
+            self._memo[key] = hand_space(scene, tray, part, self.hand)
         return self._memo[key]
 
     def _bounds_of(self, scene: Scene, exclude: str) -> list[tuple[str, Bounds]]:
@@ -401,9 +406,15 @@ def compute_tray_region(
     grasp_sets = planner.grasps(scene, tray)
     for gs in grasp_sets:
         if len(gs.Ts_world_tool) == 0:
+            low = (
+                f"; no top-down grasp: the open hand reaches {planner.hand.reach:.3f} m past "
+                "its grasp point, which would put it below the tray floor for a part this low"
+                if gs.too_low
+                else ""
+            )
             return empty(
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
-                "fits the open hand without touching the tray, a neighbour or a table"
+                "fits the robot's open hand without touching the tray, a neighbour or a table" + low
             )
     world = ArmWorld(boxes, solids, yaw, env)
     targets = [Targets.of(gs, cen, Rz_T) for gs in grasp_sets]
@@ -553,6 +564,7 @@ def feasible_near(
                 len(todo),
                 SEED_ITERATIONS,
                 solve.GROW_GIVE_UP,
+                gs.part_id,
             )
             got = win >= 0
             th_new[got, k] = th[win[got]]

@@ -164,9 +164,12 @@ class _Setup:
         """Part ``k``'s grasp targets from candidate ``cells: (M,)``: R (G, 3, 3), p (M, G, 3)."""
         return grasp_targets(self.grasps[k], self.yaw, self.cand.centres[cells])
 
-    def screen(self, cells: np.ndarray, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def screen(
+        self, cells: np.ndarray, thetas: np.ndarray, target: str | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Sphere screens of ``thetas: (N, dof)`` at candidate ``cells: (N,)``: (arm against
-        the solids, self) flags, each ``(N,)``; False is surely free."""
+        the solids, self) flags, each ``(N,)``; False is surely free. target: the part being
+        grasped (no obstacle for the hand)."""
         pl = self.planner
         env = np.zeros(len(cells), bool)
         own = np.zeros(len(cells), bool)
@@ -174,11 +177,15 @@ class _Setup:
             th = np.ascontiguousarray(thetas[s : s + CHUNK].T)
             _, _, frames = fk_soa(pl.solver.chain, th, frames=True)
             cen = self.cand.centres[cells[s : s + CHUNK]]
-            env[s : s + CHUNK] = screen_arm(pl.arm, self.boxes, frames, cen, self.yaw)
+            env[s : s + CHUNK] = screen_arm(
+                pl.arm, self.boxes, frames, cen, self.yaw, targets=target
+            )
             own[s : s + CHUNK] = screen(pl.self_spheres, frames)
         return env, own
 
-    def exact_ok(self, cell: int, theta: np.ndarray, env: bool, own: bool) -> bool:
+    def exact_ok(
+        self, cell: int, theta: np.ndarray, env: bool, own: bool, target: str | None = None
+    ) -> bool:
         """Coal on what the screens flagged: the arm against the solids, the robot itself."""
         self.stats["exact_checks"] += 1
         if own and self.planner.exact_self.colliding(theta[None])[0]:
@@ -186,7 +193,9 @@ class _Setup:
         x, y = self.cand.centres[cell]
         return not (
             env
-            and self.planner.exact_arm.colliding(theta, float(x), float(y), self.yaw, self.solids)
+            and self.planner.exact_arm.colliding(
+                theta, float(x), float(y), self.yaw, self.solids, target
+            )
         )
 
 
@@ -253,7 +262,8 @@ def _solve_part(
         ok = np.flatnonzero(conv)
         ok = ok[pose_ok(solver, th[ok], R_t[pg[ok]], p_t[pa[ok], pg[ok]])]
         st.stats["ik_converged"] += len(ok)
-        env, own = st.screen(cells[pa[ok]], th[ok])
+        part = st.grasps[k].part_id
+        env, own = st.screen(cells[pa[ok]], th[ok], part)
         free = ~env & ~own
         # Problems are ordered (cell, grasp, seed): the first valid solution of a cell wins.
         sure = ok[free]
@@ -262,7 +272,7 @@ def _solve_part(
         found[pa[hit]], th_out[pa[hit]], g_out[pa[hit]] = True, th[hit], pg[hit]
         for i in np.flatnonzero(~free):
             j, a = ok[i], pa[ok[i]]
-            if not found[a] and st.exact_ok(cells[a], th[j], env[i], own[i]):
+            if not found[a] and st.exact_ok(cells[a], th[j], env[i], own[i], part):
                 found[a], th_out[a], g_out[a] = True, th[j], pg[j]
     return found, th_out, g_out
 
@@ -459,7 +469,14 @@ def verify_witnesses(planner: RegionPlanner, scene: Scene, region: TrayRegion) -
     arm, solids = planner.exact_arm, scene_solids(scene)
     env = np.array(
         [
-            arm.colliding(t, float(cen[i // P, 0]), float(cen[i // P, 1]), region.yaw, solids)
+            arm.colliding(
+                t,
+                float(cen[i // P, 0]),
+                float(cen[i // P, 1]),
+                region.yaw,
+                solids,
+                region.part_ids[i % P],
+            )
             for i, t in enumerate(th)
         ]
     )

@@ -211,6 +211,7 @@ def _rounds(
                     cen[cell[sel]],
                     world.yaw,
                     world.env,
+                    tg.grasps.part_id,
                 )
                 state[sel] = np.where(hit, 2, 1)
         cand = np.flatnonzero((state == 1) & ~found[cell])
@@ -234,7 +235,9 @@ def _rounds(
         ok = np.flatnonzero(res.success)
         if len(ok) == 0:
             continue
-        good = verify(planner, world, res.thetas[ok], cen[cell[e[ok]]], cell[e[ok]])
+        good = verify(
+            planner, world, res.thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id
+        )
         acc, ths = e[ok[good]], res.thetas[ok[good]]
         # Several may succeed for a cell: keep its best-ranked (first) one.
         _, keep = np.unique(cell[acc], return_index=True)
@@ -251,16 +254,19 @@ def verify(
     thetas: np.ndarray,
     base_xy: np.ndarray,
     owner: np.ndarray | None = None,
+    targets: np.ndarray | str | None = None,
 ) -> np.ndarray:
     """``(B,)`` True where ``thetas: (B, dof)`` on a base at ``base_xy: (B, 2)`` is free of the
-    scene and of itself: the sphere screens first, coal for whatever they flag.
+    scene and of itself, the robot's whole collision geometry (hand included) checked: the
+    sphere screens first, coal for whatever they flag.
 
     owner: ``(B,)`` the problem each row solves; once one row of a problem is verified, the
     coal checks of its other flagged rows are skipped (they count as not verified).
+    targets: the part each row grasps (one for all, or per row): no obstacle for the hand.
     """
     p = planner
     _, _, frames = fk_soa(p.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
-    env_hit = screen_arm(p.arm, world.boxes, frames, base_xy, world.yaw, world.env)
+    env_hit = screen_arm(p.arm, world.boxes, frames, base_xy, world.yaw, world.env, targets)
     self_hit = screen_self(p.self_spheres, frames)
     flagged = env_hit | self_hit
     good = ~flagged
@@ -270,8 +276,9 @@ def verify(
         if o in done:
             continue
         x, y = base_xy[j]
+        target = targets if targets is None or isinstance(targets, str) else str(targets[j])
         bad = (self_hit[j] and p.exact_self.colliding(thetas[j][None])[0]) or (
-            env_hit[j] and p.exact_arm.colliding(thetas[j], x, y, world.yaw, world.solids)
+            env_hit[j] and p.exact_arm.colliding(thetas[j], x, y, world.yaw, world.solids, target)
         )
         good[j] = not bad
         if not bad and o is not None:
@@ -290,12 +297,14 @@ def seeded(
     n_problems: int,
     max_iter: int,
     give_up: tuple[tuple[int, float], ...] = (),
+    targets: np.ndarray | str | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Refine ``seeds: (B, dof)`` towards ``T_base_tool`` targets ``(B, 3, 3)``, ``(B, 3)`` on
     bases at ``base_xy: (B, 2)``, and verify them; rows solve ``problem: (B,)`` ids.
 
     Returns the winning row of each problem ``(n_problems,)`` (-1 where none verified; the
-    first verified row wins) and the refined configurations ``(B, dof)``.
+    first verified row wins) and the refined configurations ``(B, dof)``. targets: the part
+    each row grasps (one for all, or per row).
     """
     win = np.full(n_problems, -1)
     if not len(seeds):
@@ -305,7 +314,8 @@ def seeded(
     )
     ok = np.flatnonzero(res.success)
     if len(ok):
-        good = ok[verify(planner, world, res.thetas[ok], base_xy[ok], problem[ok])]
+        sub = targets if targets is None or isinstance(targets, str) else targets[ok]
+        good = ok[verify(planner, world, res.thetas[ok], base_xy[ok], problem[ok], sub)]
         _, first = np.unique(problem[good], return_index=True)
         win[problem[good[first]]] = good[first]
     return win, res.thetas
@@ -384,6 +394,7 @@ def grow(
                 R_t[m] = targets[p].R_bt[g[m]]
                 p_t[m] = targets[p].p_bt[cell[m], g[m]]
             problem = o_loc[pair] * P + part
+            part_ids = np.array([tg.grasps.part_id for tg in targets], dtype=object)
             win, ths = seeded(
                 planner,
                 world,
@@ -395,6 +406,7 @@ def grow(
                 n_open * P,
                 GROW_ITERATIONS,
                 GROW_GIVE_UP,
+                part_ids[part],
             )
             solved = np.flatnonzero(win >= 0)
             o, p_ = np.divmod(solved, P)
@@ -413,4 +425,4 @@ def grow(
 
 
 #: Changes whenever the algorithm's answer may change (part of a cached region's key).
-VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 6]
+VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 7]

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -71,6 +71,82 @@ class Footprint(BaseModel):
         return max(math.hypot(x, y) for x, y in self.polygon)
 
 
+Vec3 = tuple[float, float, float]
+
+
+class ToolOffset(BaseModel):
+    """The grasp point (TCP) in the tool frame: ``T_tool_tcp`` as a position [m] and roll,
+    pitch, yaw [rad] (about fixed x, y, z, as URDF origins)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    position: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _finite(self) -> ToolOffset:
+        if not all(math.isfinite(v) for v in (*self.position, *self.rpy)):
+            raise ValueError("position and rpy must be finite numbers")
+        if max(map(abs, self.position)) > 1.0:
+            raise ValueError("the grasp point lies more than 1 m from the tool frame")
+        return self
+
+
+class BoxHand(BaseModel):
+    """A hand described by boxes (two fingers and a palm, in the TCP frame: x approach, y
+    closing), for a robot whose URDF carries no hand geometry [m]."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    finger_length: Annotated[float, Field(gt=0, le=0.5)] = 0.06
+    finger_width: Annotated[float, Field(gt=0, le=0.5)] = 0.02  # along z
+    finger_thickness: Annotated[float, Field(gt=0, le=0.2)] = 0.01  # along y, each side
+    tip_offset: Annotated[float, Field(ge=0, le=0.5)] = 0.015  # grasp point to fingertips
+    palm_depth: Annotated[float, Field(gt=0, le=0.5)] = 0.03  # along x, behind the fingers
+
+
+class Hand(BaseModel):
+    """The end effector as the robot carries it: its links, how it looks open on approach, and
+    where and how it grasps. Axes are in the grasp point's (TCP) frame."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    links: list[str] = Field(
+        default_factory=list,
+        description="links of the hand (fnmatch patterns), all carried by the last arm joint",
+    )
+    pregrasp: dict[str, float] = Field(
+        default_factory=dict,
+        description="joint values of the open hand on approach [rad or m] (fingers, gripper "
+        "joints); unlisted hand joints keep their locked value",
+    )
+    tool_offset: ToolOffset = ToolOffset()
+    approach_axis: Vec3 = (1.0, 0.0, 0.0)
+    closing_axis: Vec3 = (0.0, 1.0, 0.0)
+    max_opening: Annotated[float, Field(gt=0, le=1.0)] = 0.08  # free gap when open [m]
+    ignore_links: list[str] = Field(
+        default_factory=list,
+        description="collision links that are no body (padding volumes around the hand, fnmatch "
+        "patterns): left out of every check",
+    )
+    geometry: Literal["links", "boxes"] = Field(
+        default="links",
+        description="what the hand is checked as: its links' own collision geometry, or the "
+        "boxes of `boxes` standing in for the links (a URDF without hand geometry)",
+    )
+    boxes: BoxHand = BoxHand()
+
+    @model_validator(mode="after")
+    def _axes(self) -> Hand:
+        a, c = self.approach_axis, self.closing_axis
+        na, nc = math.hypot(*a), math.hypot(*c)
+        if na < 1e-9 or nc < 1e-9:
+            raise ValueError("approach_axis and closing_axis must be non-zero")
+        if abs(sum(x * y for x, y in zip(a, c, strict=True))) > 1e-3 * na * nc:
+            raise ValueError("closing_axis must be perpendicular to approach_axis (to 0.06 deg)")
+        return self
+
+
 class RobotConfig(BaseModel):
     """What PickStop needs to know about a mobile manipulator."""
 
@@ -95,14 +171,29 @@ class RobotConfig(BaseModel):
         default=(-math.pi, math.pi), description="sampling range of continuous arm joints [rad]"
     )
     footprint: Footprint = Field(default_factory=Footprint)
-    approach_axis: tuple[float, float, float] = Field(
-        default=(1.0, 0.0, 0.0), description="gripper approach direction in the tool frame"
-    )
-    hand_links: list[str] = Field(
-        default_factory=list,
-        description="links of the hand (fnmatch patterns): their pose follows from the grasp, "
-        "so the grasp's open-hand model is checked against the scene in their place",
-    )
+    hand: Hand = Hand()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _old_hand_fields(cls, data: Any) -> Any:
+        """Configs written before the ``hand`` block: ``hand_links`` and ``approach_axis``."""
+        if isinstance(data, dict) and ("hand_links" in data or "approach_axis" in data):
+            data = dict(data)
+            hand = dict(data.get("hand") or {})
+            if "hand_links" in data:
+                hand.setdefault("links", data.pop("hand_links"))
+            if "approach_axis" in data:
+                hand.setdefault("approach_axis", data.pop("approach_axis"))
+            data["hand"] = hand
+        return data
+
+    @property
+    def hand_links(self) -> list[str]:
+        return self.hand.links
+
+    @property
+    def approach_axis(self) -> Vec3:
+        return self.hand.approach_axis
 
     @field_validator("arm_joints")
     @classmethod
@@ -120,8 +211,9 @@ class RobotConfig(BaseModel):
         lo, hi = self.continuous_limits
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise ValueError("continuous_limits must be finite with lower < upper")
-        if math.hypot(*self.approach_axis) < 1e-9:
-            raise ValueError("approach_axis must be non-zero")
+        clash = sorted(set(self.arm_joints) & set(self.hand.pregrasp))
+        if clash:
+            raise ValueError(f"joints both in arm_joints and hand.pregrasp: {', '.join(clash)}")
         return self
 
 

@@ -182,17 +182,20 @@ def _mesh_refs(urdf_path: Path, package_dirs: list[str]) -> tuple[ET.Element, li
     return root, meshes
 
 
-#: Config fields that do not change what the arm can reach (nor its self-collision): a
-#: reachability database stays valid when only these change.
-_NOT_KINEMATIC = {"footprint", "hand_links", "approach_axis"}
-
-
 def _hash(config: RobotConfig, files: list[Path]) -> str:
-    """Hash of everything a reachability database depends on: config and file contents."""
+    """Hash of everything a reachability database depends on: config and file contents.
+
+    The footprint and the hand's grasp description (links, tool offset, axes, opening) do not
+    change what the arm reaches nor its self-collision; the hand's pre-grasp joints and the
+    ignored links do (and enter the hash only when given, so older databases stay valid).
+    """
+    doc = config.model_dump(mode="json", exclude={"footprint", "hand"})
+    if config.hand.pregrasp:
+        doc["pregrasp"] = config.hand.pregrasp
+    if config.hand.ignore_links:
+        doc["ignore_links"] = config.hand.ignore_links
     h = hashlib.sha256()
-    h.update(
-        json.dumps(config.model_dump(mode="json", exclude=_NOT_KINEMATIC), sort_keys=True).encode()
-    )
+    h.update(json.dumps(doc, sort_keys=True).encode())
     for f in files:
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -247,11 +250,21 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
             field="tool_frame",
         )
 
-    # Locked configuration: given values, else 0 clipped into the joint limits.
+    for jn in config.hand.pregrasp:
+        if jn not in names:
+            raise RobotConfigError(
+                f"{urdf_path.name}: unknown hand joint {jn!r} (movable joints: "
+                f"{', '.join(names[1:])})",
+                field=f"hand.pregrasp.{jn}",
+            )
+    # Locked configuration: the hand's pre-grasp values, the given locked values, else 0
+    # clipped into the joint limits.
+    locked = {**config.locked_joints, **config.hand.pregrasp}
     q_full = pin.neutral(full)
     for jid in range(1, full.njoints):
         jn, iq, nq = full.names[jid], full.idx_qs[jid], full.nqs[jid]
-        value = config.locked_joints.get(jn)
+        value = locked.get(jn)
+        where = "hand.pregrasp" if jn in config.hand.pregrasp else "locked_joints"
         if nq == 2:
             angle = float(value) if isinstance(value, int | float) else 0.0
             q_full[iq : iq + 2] = (math.cos(angle), math.sin(angle))
@@ -260,14 +273,14 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
             lo, hi = full.lowerPositionLimit[iq], full.upperPositionLimit[iq]
             if value is not None and not (lo - 1e-9 <= v <= hi + 1e-9):
                 raise RobotConfigError(
-                    f"locked joint {jn!r} value {v} is outside its limits [{lo}, {hi}]",
-                    field=f"locked_joints.{jn}",
+                    f"joint {jn!r} value {v} is outside its limits [{lo}, {hi}]",
+                    field=f"{where}.{jn}",
                 )
             q_full[iq] = min(max(v, lo), hi)
         elif value is not None:
             raise RobotConfigError(
                 f"joint {jn!r} has {nq} coordinates; give its value as a list",
-                field=f"locked_joints.{jn}",
+                field=f"{where}.{jn}",
             )
 
     with warnings.catch_warnings():
@@ -279,6 +292,7 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
         except (ValueError, RuntimeError) as e:
             raise RobotConfigError(f"{urdf_path}: cannot load collision geometry: {e}") from None
 
+    geom_full = _without_ignored(geom_full, config.hand.ignore_links, urdf_path)
     arm_ids = [full.getJointId(j) for j in config.arm_joints]
     lock_ids = [j for j in range(1, full.njoints) if j not in arm_ids]
     model, geom_model = pin.buildReducedModel(full, geom_full, lock_ids, q_full)
@@ -341,6 +355,27 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
 
     robot.footprint = derived_footprint(robot, config.footprint)
     return robot
+
+
+def _without_ignored(geom: Any, patterns: list[str], urdf_path: Path) -> Any:
+    """The collision model without the links ``patterns`` names (padding volumes)."""
+    import fnmatch
+    import re
+
+    if not patterns:
+        return geom
+    link = [re.sub(r"_\d+$", "", o.name) for o in geom.geometryObjects]
+    for k, p in enumerate(patterns):
+        if not any(fnmatch.fnmatch(n, p) for n in link):
+            raise RobotConfigError(
+                f"{urdf_path.name}: hand.ignore_links pattern {p!r} matches no collision link",
+                field=f"hand.ignore_links[{k}]",
+            )
+    out = pin.GeometryModel()
+    for obj, name in zip(geom.geometryObjects, link, strict=True):
+        if not any(fnmatch.fnmatch(name, p) for p in patterns):
+            out.addGeometryObject(obj)
+    return out
 
 
 def load(robot: str) -> RobotModel:

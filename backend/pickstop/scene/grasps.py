@@ -1,10 +1,13 @@
-"""Grasp poses per part from its shape and the gripper, filtered against the tray.
+"""Grasp poses per part from its shape and the robot's hand, filtered against the tray.
 
-A grasp is a tool pose in the part frame, ``T_part_tool``; the part frame sits at the part's
-bottom centre, z up. Top-down grasps approach along -z at several angles about the vertical;
-side grasps approach horizontally with the hand's width vertical or horizontal. A grasp whose
-open hand would overlap the tray walls, the tray floor, the table or a neighbouring part is
-dropped; the target part itself is never an obstacle for the fingers.
+A grasp is a pose of the hand's grasp point (TCP) in the part frame, ``T_part_tcp``; the part
+frame sits at the part's bottom centre, z up. In the grasp frame x is the hand's approach and y
+its closing direction (the robot config says which TCP axes those are). Top-down grasps
+approach along -z at several angles about the vertical; side grasps approach horizontally with
+the closing direction horizontal or vertical. A grasp whose open hand (the robot's own hand
+geometry, at its pre-grasp joint values) would touch the tray walls, the tray floor, the table
+or a neighbouring part is dropped; the target part itself is never an obstacle for the fingers.
+The scene's ``gripper`` block tunes which grasps are generated, never the hand's geometry.
 """
 
 from __future__ import annotations
@@ -14,21 +17,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pickstop.robot.hand import HandShape
 from pickstop.scene.model import Box, Cylinder, Gripper, Mesh, Part, Scene, Tray
-from pickstop.scene.world import Solid, solids_overlap, tray_solids, world_part_transform
+from pickstop.scene.world import Solid, _Offset, solids_overlap, tray_solids, world_part_transform
+
+FLOOR_CLEARANCE = 0.003  # [m] between the lowest point of a top-down hand and the tray floor
 
 
 @dataclass(frozen=True)
 class GraspSet:
-    """Grasps of one part: ``Ts_part_tool: (k, 4, 4)``; ``kinds``: 'top' or 'side'."""
+    """Grasps of one part: grasp points ``Ts_part_tcp: (k, 4, 4)`` and the tool-frame poses
+    the arm must reach for them, ``Ts_world_tool: (k, 4, 4)``; ``kinds``: 'top', 'side' or
+    'user'."""
 
     part_id: str
     tray_id: str
-    Ts_part_tool: np.ndarray
+    Ts_part_tcp: np.ndarray
     Ts_world_tool: np.ndarray
     kinds: tuple[str, ...]
     rejected: int  # generated but blocked by the tray, table or neighbours
     user_given: bool
+    too_low: bool = False  # no top-down grasp: the open hand reaches below the tray floor
+
+    @property
+    def Ts_part_tool(self) -> np.ndarray:
+        """Grasp points (the older name; they are TCP poses)."""
+        return self.Ts_part_tcp
 
 
 def _frame(x: np.ndarray, y: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -54,62 +68,69 @@ def _height(geometry: Box | Cylinder | Mesh) -> float:
     return 0.0
 
 
-def candidate_grasps(part: Part, gripper: Gripper) -> list[tuple[np.ndarray, str]]:
-    """Every geometric grasp ``(T_part_tool, kind)`` the hand can close on (no environment)."""
+def top_height(part: Part, hand: HandShape) -> float:
+    """Height [m] of the grasp point of a top-down grasp above the part's bottom: its middle,
+    or higher where the open hand reaches farther down than that."""
+    return max(_height(part.geometry) / 2, hand.reach + FLOOR_CLEARANCE)
+
+
+_DEFAULT_SETTINGS = Gripper()
+
+
+def candidate_grasps(
+    part: Part, hand: HandShape, settings: Gripper = _DEFAULT_SETTINGS
+) -> list[tuple[np.ndarray, str]]:
+    """Every geometric grasp ``(T_part_tcp, kind)`` the hand can close on (no environment)."""
     g = part.geometry
     h = _height(g)
     out: list[tuple[np.ndarray, str]] = []
-    span = math.pi if gripper.symmetric else 2 * math.pi
-    # Top-down: tool x down, closing direction turning about the vertical.
-    # The fingertips stop 3 mm above the tray floor; the grasp point stays below the part top.
-    z = max(h / 2, gripper.tip_offset + 0.003)
-    if z < h:
-        for i in range(gripper.top_down_angles):
-            a = span * i / gripper.top_down_angles
+    span = math.pi if settings.symmetric else 2 * math.pi
+    R = hand.R_grasp_tcp  # TCP axes from the grasp frame's (x approach, y closing)
+    kinds = settings.kinds
+    # Top-down: approach down, closing direction turning about the vertical; the grasp point
+    # stays inside the part and the open hand above the tray floor.
+    z = top_height(part, hand)
+    if z < h and "top" in kinds:
+        for i in range(settings.top_down_angles):
+            a = span * i / settings.top_down_angles
             y = np.array([math.cos(a), math.sin(a), 0.0])
-            if _extent_along(g, y) <= gripper.max_opening:
+            if _extent_along(g, y) <= hand.max_opening:
                 out.append((_frame(np.array([0.0, 0.0, -1.0]), y, np.array([0, 0, z])), "top"))
-    # Side: tool x horizontal towards the part, hand width vertical (closing horizontal) or
-    # horizontal (closing vertical).
-    for i in range(gripper.side_directions):
-        b = 2 * math.pi * i / gripper.side_directions
+    # Side: approach horizontal towards the part, closing horizontal or vertical.
+    for i in range(settings.side_directions if "side" in kinds else 0):
+        b = 2 * math.pi * i / settings.side_directions
         x = np.array([math.cos(b), math.sin(b), 0.0])
         for y in (np.array([-math.sin(b), math.cos(b), 0.0]), np.array([0.0, 0.0, 1.0])):
-            if _extent_along(g, y) <= gripper.max_opening:
+            if _extent_along(g, y) <= hand.max_opening:
                 out.append((_frame(x, y, np.array([0, 0, h / 2])), "side"))
+    for T, _ in out:
+        T[:3, :3] = T[:3, :3] @ R
     return out
 
 
-def hand_solids(gripper: Gripper, T_world_tool: np.ndarray) -> list[Solid]:
-    """The open hand as three boxes (two fingers, palm) in the world."""
-    L, o, t, w, d = (
-        gripper.finger_length,
-        gripper.max_opening,
-        gripper.finger_thickness,
-        gripper.hand_width,
-        gripper.palm_depth,
-    )
-    xm = gripper.tip_offset - L / 2  # finger centre along x
-    boxes = [
-        ((xm, (o + t) / 2, 0.0), (L, t, w)),
-        ((xm, -(o + t) / 2, 0.0), (L, t, w)),
-        ((xm - (L + d) / 2, 0.0, 0.0), (d, o + 2 * t, w)),
-    ]
+def hand_solids(hand: HandShape, T_world_tcp: np.ndarray) -> list[Solid]:
+    """The open hand's own collision geometry at a grasp point, as solids in the world."""
     out = []
-    for centre, size in boxes:
-        T = np.eye(4)
-        T[:3, 3] = centre
-        out.append(Solid.box(T_world_tool @ T, size, "hand"))
+    for _, geom, T_tcp_geom in hand.geometries:
+        T = T_world_tcp @ T_tcp_geom
+        geom.computeLocalAABB()
+        lo, hi = np.asarray(geom.aabb_local.min_, float), np.asarray(geom.aabb_local.max_, float)
+        c = (lo + hi) / 2
+        Tc = T.copy()
+        Tc[:3, 3] += T[:3, :3] @ c
+        out.append(Solid("mesh", Tc, (hi - lo) / 2, "hand", 0.0, _Offset(geom, c)))
     return out
 
 
-def _candidates(scene: Scene, tray: Tray, part: Part) -> list[tuple[np.ndarray, str]]:
-    """``(T_part_tool, kind)``: the user's grasps if given, else the generated ones."""
+def _candidates(
+    scene: Scene, tray: Tray, part: Part, hand: HandShape
+) -> list[tuple[np.ndarray, str]]:
+    """``(T_part_tcp, kind)``: the user's grasps if given, else the generated ones."""
     if part.grasps is None:
-        return candidate_grasps(part, scene.gripper)
+        return candidate_grasps(part, hand, scene.gripper)
     from pickstop.reach.so3 import quats_to_matrices
 
-    cands = []
+    cands: list[tuple[np.ndarray, str]] = []
     for gr in part.grasps:
         T = np.eye(4)
         T[:3, :3] = quats_to_matrices(np.asarray(gr.quaternion_wxyz))
@@ -118,39 +139,45 @@ def _candidates(scene: Scene, tray: Tray, part: Part) -> list[tuple[np.ndarray, 
     return cands
 
 
-def hand_space(scene: Scene, tray: Tray, part: Part) -> tuple[np.ndarray, np.ndarray]:
+def hand_space(
+    scene: Scene, tray: Tray, part: Part, hand: HandShape
+) -> tuple[np.ndarray, np.ndarray]:
     """World bounds ``(lo, hi)`` [m] of the open hand at every candidate grasp of ``part``:
     only what reaches into them can change its grasps."""
     T_world_part = world_part_transform(tray, part)
-    boxes = [
-        s.aabb()
-        for T_part_tool, _ in _candidates(scene, tray, part)
-        for s in hand_solids(scene.gripper, T_world_part @ T_part_tool)
-    ]
-    if not boxes:
+    corners = [hand.corners(T_world_part @ T) for T, _ in _candidates(scene, tray, part, hand)]
+    if not corners:
         centre = T_world_part[:3, 3]
         return centre, centre
-    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    allc = np.concatenate(corners)
+    return allc.min(axis=0), allc.max(axis=0)
 
 
-def grasps_for_part(scene: Scene, tray: Tray, part: Part) -> GraspSet:
-    """Grasps of ``part``: the user's if given, else generated; both filtered by the tray."""
+def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> GraspSet:
+    """Grasps of ``part``: the user's if given, else generated; both filtered by the tray with
+    the open hand's own geometry."""
     T_world_part = world_part_transform(tray, part)
-    cands = _candidates(scene, tray, part)
+    cands = _candidates(scene, tray, part, hand)
     obstacles = tray_solids(scene, tray, exclude_part=part.id)
     kept, kinds = [], []
-    for T_part_tool, kind in cands:
-        hand = hand_solids(scene.gripper, T_world_part @ T_part_tool)
-        if not any(solids_overlap(a, b) for a in hand for b in obstacles):
-            kept.append(T_part_tool)
+    for T_part_tcp, kind in cands:
+        solids = hand_solids(hand, T_world_part @ T_part_tcp)
+        if not any(solids_overlap(a, b) for a in solids for b in obstacles):
+            kept.append(T_part_tcp)
             kinds.append(kind)
     Ts = np.array(kept).reshape(-1, 4, 4)
+    too_low = (
+        part.grasps is None
+        and "top" in scene.gripper.kinds
+        and top_height(part, hand) >= _height(part.geometry)
+    )
     return GraspSet(
         part_id=part.id,
         tray_id=tray.id,
-        Ts_part_tool=Ts,
-        Ts_world_tool=T_world_part @ Ts if len(Ts) else Ts,
+        Ts_part_tcp=Ts,
+        Ts_world_tool=T_world_part @ Ts @ hand.T_tcp_tool if len(Ts) else Ts,
         kinds=tuple(kinds),
         rejected=len(cands) - len(kept),
         user_given=part.grasps is not None,
+        too_low=too_low,
     )

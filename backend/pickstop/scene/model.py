@@ -87,7 +87,8 @@ class Obstacle(_Strict):
 
 
 class Grasp(_Strict):
-    """A user-given grasp: tool pose in the part frame (``T_part_tool``)."""
+    """A user-given grasp: the hand's grasp point (TCP) pose in the part frame
+    (``T_part_tcp``; the TCP is the tool frame moved by the robot's ``hand.tool_offset``)."""
 
     position: tuple[Finite, Finite, Finite]
     quaternion_wxyz: tuple[Finite, Finite, Finite, Finite]
@@ -130,23 +131,49 @@ class Tray(_Strict):
         return (self.inner_size[0] + t, self.inner_size[1] + t)
 
 
-class Gripper(_Strict):
-    """The open hand as grasp generation sees it, in the tool frame [m].
+#: Fields of the scene's ``gripper`` block from when the scene described the hand's geometry;
+#: the robot config owns the hand now, so they are read and ignored (see ``gripper_notes``).
+HAND_GEOMETRY_FIELDS = (
+    "max_opening",
+    "finger_length",
+    "tip_offset",
+    "finger_thickness",
+    "hand_width",
+    "palm_depth",
+)
 
-    The tool frame's x is the approach direction, the hand closes along y and is
-    ``hand_width`` wide along z; the grasp point sits ``tip_offset`` behind the fingertips.
-    Defaults fit TIAGo's Hey5 hand.
+
+class Gripper(_Strict):
+    """How grasps are generated for this scene: which kinds, at how many angles.
+
+    The hand itself (its links, open posture, grasp point, opening) is the robot's: see the
+    robot config's ``hand`` block. The geometry fields older scenes carry here are accepted and
+    ignored, with a note (:func:`gripper_notes`).
     """
 
-    max_opening: Positive = 0.08  # free gap between the fingers along y
-    finger_length: Positive = 0.08  # along x, from the palm to the fingertips
-    tip_offset: NonNegative = 0.015  # from the grasp point forward to the fingertips
-    finger_thickness: Positive = 0.02  # along y, each side
-    hand_width: Positive = 0.16  # along z
-    palm_depth: Positive = 0.05  # along x, behind the fingers
+    kinds: tuple[Literal["top", "side"], ...] = ("top", "side")
     symmetric: bool = False  # a parallel gripper looks the same turned 180 degrees about x
     top_down_angles: Annotated[int, Field(ge=1, le=36)] = 8  # about the vertical, over 360 deg
     side_directions: Annotated[int, Field(ge=0, le=36)] = 8  # horizontal approach directions
+    max_opening: Positive | None = None  # ignored: the robot's hand.max_opening
+    finger_length: Positive | None = None  # ignored: the robot's hand geometry
+    tip_offset: NonNegative | None = None  # ignored: from the robot's hand geometry
+    finger_thickness: Positive | None = None  # ignored
+    hand_width: Positive | None = None  # ignored
+    palm_depth: Positive | None = None  # ignored
+
+
+def gripper_notes(scene: Scene) -> list[str]:
+    """Notes on ``gripper`` fields an older scene gives that no longer apply."""
+    given = [f for f in HAND_GEOMETRY_FIELDS if getattr(scene.gripper, f) is not None]
+    if not given:
+        return []
+    return [
+        f"gripper.{f}: no longer applies (the hand's geometry comes from the robot: its "
+        "links at the pre-grasp joint values, tool_offset and max_opening in the robot "
+        "config's hand block)"
+        for f in given
+    ]
 
 
 class YawPolicy(_Strict):

@@ -223,18 +223,28 @@ class BoxArrays:
 
 
 def spheres_hit(
-    boxes: BoxArrays, centres: np.ndarray, radii: np.ndarray, hit_boxes: set[int] | None = None
+    boxes: BoxArrays,
+    centres: np.ndarray,
+    radii: np.ndarray,
+    hit_boxes: set[int] | None = None,
+    skip: np.ndarray | None = None,
 ) -> np.ndarray:
     """Which spheres ``(M, 3)``, ``(M,)`` [m] intersect any solid: ``(M,)`` bool.
 
     Exact for boxes and vertical cylinders, conservative for meshes (their bounding box).
     hit_boxes: if given, the indices of the boxes that were hit are added to it.
+    skip: ``(M,)`` per sphere, the owner code (index among ``dict.fromkeys(boxes.owners)``) of
+    the solids it may touch (-1: none).
     """
     hit = np.zeros(len(centres), bool)
     if len(centres) == 0 or len(boxes.centres) == 0:
         return hit
     # Bounds test of every sphere against every box at once, one axis at a time.
     near = np.ones((len(centres), len(boxes.centres)), bool)
+    if skip is not None and (skip >= 0).any():
+        codes = {o: i for i, o in enumerate(dict.fromkeys(boxes.owners))}
+        box_code = np.array([codes[o] for o in boxes.owners])
+        near &= box_code[None, :] != skip[:, None]
     for a in range(3):
         c = centres[:, a, None]
         r = radii[:, None]

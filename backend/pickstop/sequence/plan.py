@@ -34,7 +34,7 @@ from pickstop.regions.base_region import (
     feasible_near,
 )
 from pickstop.regions.footprint import floor_outline, upper_body
-from pickstop.scene.model import Scene
+from pickstop.scene.model import Scene, gripper_notes
 from pickstop.scene.world import scene_solids
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
@@ -415,9 +415,16 @@ class _Planning:
                         failed = True
                         break
                     tray = scene.tray(t)
+                    grasps = self.sp.regions.grasps(scene, tray)
+                    hand = self.sp.regions.hand.joints
                     ws += [
                         pm.Witness(
-                            tray_id=t, part_id=p.id, grasp_index=int(g[k]), theta=th[k].tolist()
+                            tray_id=t,
+                            part_id=p.id,
+                            grasp_index=int(g[k]),
+                            theta=th[k].tolist(),
+                            hand=hand,
+                            T_part_tcp=grasps[k].Ts_part_tcp[int(g[k])].round(9).tolist(),
                         )
                         for k, p in enumerate(tray.parts)
                     ]
@@ -585,6 +592,7 @@ class _Planning:
             robot=robot.name,
             robot_hash=robot.robot_hash,
             joints=[j.name for j in robot.joints],
+            notes=gripper_notes(scene),
             trays=list(self.required),
             parameters=pm.Parameters(
                 sigma=self.sigma,

@@ -53,6 +53,13 @@ class Witness(BaseModel):
     part_id: str
     grasp_index: int
     theta: list[float]  # joint values in the robot's arm joint order [rad or m]
+    hand: dict[str, float] = Field(
+        default_factory=dict,
+        description="the hand's joint values on approach (pre-grasp), by joint name [rad or m]",
+    )
+    T_part_tcp: list[list[float]] | None = Field(
+        default=None, description="the grasp: the hand's grasp point in the part frame (4 x 4)"
+    )
 
 
 class Success(BaseModel):
@@ -168,6 +175,9 @@ class Plan(BaseModel):
     robot: str
     robot_hash: str
     joints: list[str]
+    notes: list[str] = Field(
+        default_factory=list, description="scene fields that no longer apply, and why"
+    )
     trays: list[str]  # the task's trays
     parameters: Parameters
     stops: list[Stop]
