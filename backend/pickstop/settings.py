@@ -40,6 +40,11 @@ class Settings(BaseSettings):
     max_samples: int = Field(default=50_000_000, ge=1, description="samples per database build")
     max_batch: int = Field(default=200, ge=1, description="scenes per batch job")
     max_trays: int = Field(default=40, ge=1, description="trays per scene")
+    mqtt_broker: str | None = Field(
+        default=None,
+        description="MQTT broker the API dispatches orders to (mqtt://HOST:PORT); unset: "
+        "dispatch is refused",
+    )
 
 
 def hash_key(key: str) -> str:

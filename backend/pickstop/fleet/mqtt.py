@@ -90,6 +90,7 @@ class Link:
         self._lock = threading.Lock()
         self.connected = threading.Event()
         self.connects = 0  # how many times it (re)connected
+        self.on_connect: list[Callable[[], None]] = []  # run after each (re)connect
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
@@ -132,6 +133,8 @@ class Link:
             client.subscribe(t, qos)
         self.connects += 1
         self.connected.set()
+        for f in self.on_connect:
+            f()
 
     def _on_disconnect(self, client: Any, userdata: Any, flags: Any, rc: Any, props: Any) -> None:
         self.connected.clear()

@@ -100,7 +100,7 @@ def waypoints(
     if not plan.legs or not plan.legs[0].polyline:
         raise InputError("legs: the plan has no route", field="legs")
     x0, y0 = plan.legs[0].polyline[0]
-    out = [Waypoint("start", "start", x0, y0, start_yaw, 0.0, None)]
+    out = [Waypoint("start", "start", x0, y0, start_yaw, VIA_TOLERANCE, None)]
     for k, leg in enumerate(plan.legs):
         line = leg.polyline
         for i, (x, y) in enumerate(line[1:-1], start=1):
