@@ -104,9 +104,12 @@ class OrderTracker:
                 status = "running"
             else:
                 status = "pending"
+            pos = n.node_position
             out.append(
                 {
                     "node_id": n.node_id,
+                    "x": None if pos is None else pos.x,
+                    "y": None if pos is None else pos.y,
                     "reached": n.node_id in self.reached,
                     "status": status,
                     "failed": [

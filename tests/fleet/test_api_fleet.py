@@ -1,0 +1,126 @@
+"""The fleet routes: export of a stored plan, dispatch as a job over a live Mosquitto to a
+simulated vehicle; the job record and the planner's fleet panel show every node reached and
+every pick finished."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import jsonschema
+import pytest
+import yaml
+from fastapi.testclient import TestClient
+
+from pickstop.api.app import create_app
+from pickstop.fleet import nav2
+from pickstop.fleet.execution import vehicle_for
+from pickstop.fleet.pickcheck import PickChecker
+from pickstop.fleet.route import load_plan
+from pickstop.fleet.sim_node import VehicleNode
+from pickstop.settings import Settings, hash_key
+from tests.fleet.conftest import EXAMPLES, scene_of
+from tests.fleet.test_order import schema
+
+KEY = "fleet-test-key-0123456789"
+AUTH = {"Authorization": f"Bearer {KEY}"}
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture()
+def fleet_client(region_db, mosquitto):
+    folder, _ = region_db
+    settings = Settings(data_dir=folder, api_keys=[hash_key(KEY)], mqtt_broker=mosquitto.broker.url)
+    with TestClient(create_app(settings)) as c:
+        yield c
+
+
+@pytest.fixture()
+def stored_plan(fleet_client):
+    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
+    r = fleet_client.post(
+        "/api/v1/plans",
+        headers=AUTH,
+        json={"scene": doc, "options": {"sigma": 0.1, "samples": 200}},
+    )
+    assert r.status_code == 201, r.text
+    return r.json()["id"], load_plan(r.json()["plan"])
+
+
+def test_export_of_a_stored_plan(fleet_client, stored_plan):
+    plan_id, plan = stored_plan
+    r = fleet_client.get(f"/api/v1/plans/{plan_id}/export?format=vda5050&vda_version=3.0")
+    assert r.status_code == 200
+    order = r.json()
+    jsonschema.validate(order, schema("order", "3.0.0"))
+    assert order["orderId"] == plan_id and order["version"] == "3.0.0"
+    r = fleet_client.get(f"/api/v1/plans/{plan_id}/export?format=nav2&nav2_format=yaml")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("application/yaml")
+    doc = yaml.safe_load(r.text)
+    assert len(doc["segments"]) == len(plan.stops) + 1
+    assert nav2.goal_poses(doc)[-1][:2] == pytest.approx(plan.route[-1])
+    bad = fleet_client.get(f"/api/v1/plans/{plan_id}/export?format=pdf")
+    assert bad.status_code == 422
+    assert fleet_client.get("/api/v1/plans/pln_nope/export").status_code == 404
+
+
+def test_dispatch_job_follows_the_order_to_the_end(fleet_client, stored_plan, mosquitto, planner):
+    from pickstop_ui.fleet_view import FleetView, panel
+
+    plan_id, plan = stored_plan
+    veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=0)
+    veh.serial_number = "agv-7"
+    veh.forced_error = (0.0, 0.0, 0.0)
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=100).start()
+    try:
+        r = fleet_client.post(
+            f"/api/v1/plans/{plan_id}/dispatch", headers=AUTH, json={"serial_number": "agv-7"}
+        )
+        assert r.status_code == 202, r.text
+        job_id = r.json()["id"]
+        assert r.json()["kind"] == "dispatch"
+        t_end, job = time.monotonic() + 60, r.json()
+        while time.monotonic() < t_end and job["state"] not in ("done", "failed"):
+            time.sleep(0.1)
+            job = fleet_client.get(f"/api/v1/jobs/{job_id}").json()
+    finally:
+        node.stop()
+    assert job["state"] == "done", job
+    res = job["result"]
+    assert res["done"] and res["nodes_reached"] == res["nodes"]
+    assert res["actions_finished"] == res["actions"] > 0
+    assert [s["status"] for s in res["stops"]] == ["finished"] * len(plan.stops)
+
+    # The planner's panel draws that job: the vehicle at the goal, every stop finished.
+    import viser
+
+    server = viser.ViserServer(port=0, verbose=False)
+    try:
+        view = FleetView(server, None, lambda: None)  # type: ignore[arg-type]
+        view.show(job)
+        assert tuple(view.vehicle.position[:2]) == pytest.approx(plan.route[-1])
+        assert len(view.stops) == len(plan.stops)
+        assert all(h.color == (40, 170, 70) for h in view.stops.values())
+        text = panel(job)
+        assert text.count("**finished**") == len(plan.stops)
+        assert f"nodes reached {res['nodes']}/{res['nodes']}" in text
+    finally:
+        server.stop()
+
+
+def test_dispatch_bad_input_and_no_broker(fleet_client, stored_plan, region_db):
+    plan_id, _ = stored_plan
+    url = f"/api/v1/plans/{plan_id}/dispatch"
+    assert fleet_client.post(url, json={}).status_code == 401
+    r = fleet_client.post(url, headers=AUTH, json={"serial_number": "a/b"})
+    assert r.status_code == 422 and r.json()["field"].endswith("serial_number")
+    r = fleet_client.post(url, headers=AUTH, json={"timeout": -1})
+    assert r.status_code == 422
+    assert (
+        fleet_client.post("/api/v1/plans/pln_x/dispatch", headers=AUTH, json={}).status_code == 404
+    )
+    folder, _ = region_db
+    with TestClient(create_app(Settings(data_dir=folder, api_keys=[hash_key(KEY)]))) as c:
+        r = c.post(url, headers=AUTH, json={})
+        assert r.status_code == 409 and "PICKSTOP_MQTT_BROKER" in r.json()["detail"]
