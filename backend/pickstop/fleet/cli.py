@@ -11,7 +11,7 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -87,9 +87,10 @@ def cmd_export(args: argparse.Namespace) -> int:
         order = orders.build_order(plan, _order_options(args, scene))
         text = json.dumps(v.dump(order), indent=1) + "\n"
     else:
-        fmt = args.nav2_format or (
-            "yaml" if (args.out or "").endswith((".yaml", ".yml")) else "json"
-        )
+        yaml_out = (args.out or "").endswith((".yaml", ".yml"))
+        fmt: Literal["json", "yaml"] = "yaml" if (args.nav2_format or "") == "yaml" else "json"
+        if args.nav2_format is None and yaml_out:
+            fmt = "yaml"
         doc = nav2.build_nav2(
             plan,
             frame_id=args.map_id or "map",

@@ -83,7 +83,7 @@ class Link:
             paho.CallbackAPIVersion.VERSION2,
             client_id=client_id or f"pickstop-{uuid.uuid4().hex[:12]}",
         )
-        self.client.reconnect_delay_set(min_delay=0.1, max_delay=2)
+        self.client.reconnect_delay_set(min_delay=1, max_delay=2)
         if will is not None:
             self.client.will_set(will[0], json.dumps(will[1]), qos=1, retain=True)
         self._subs: dict[str, tuple[int, Handler]] = {}

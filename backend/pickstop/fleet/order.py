@@ -170,7 +170,10 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order21 | 
 def check_order(order: v.Order21 | v.Order30) -> list[str]:
     """The standard's constraints beyond the schema; an empty list when all hold."""
     problems = []
-    nodes, edges = order.nodes, order.edges
+    nodes: list[Any] = list(order.nodes)
+    edges: list[Any] = list(order.edges)
+    if not nodes:
+        return ["the order has no nodes"]
     ids = [n.node_id for n in nodes]
     if len(set(ids)) != len(ids):
         problems.append("node ids are not unique")
@@ -190,20 +193,21 @@ def check_order(order: v.Order21 | v.Order30) -> list[str]:
         problems.append("sequenceIds do not run consecutively from node to edge to node")
     if len(edges) != max(0, len(nodes) - 1):
         problems.append("edges do not join consecutive nodes")
-    for k, e in enumerate(edges):
-        if e.sequence_id != nodes[k].sequence_id + 1:
-            problems.append(f"edge {e.edge_id} does not follow node {nodes[k].node_id}")
-        start = getattr(e, "start_node_id", nodes[k].node_id)
-        end = getattr(e, "end_node_id", nodes[k + 1].node_id)
-        if (start, end) != (nodes[k].node_id, nodes[k + 1].node_id):
-            problems.append(f"edge {e.edge_id} does not join {ids[k]} to {ids[k + 1]}")
-        if e.released and not (nodes[k].released and nodes[k + 1].released):
+    for e, a, b in zip(edges, nodes, nodes[1:], strict=False):
+        if e.sequence_id != a.sequence_id + 1:
+            problems.append(f"edge {e.edge_id} does not follow node {a.node_id}")
+        start = getattr(e, "start_node_id", a.node_id)
+        end = getattr(e, "end_node_id", b.node_id)
+        if (start, end) != (a.node_id, b.node_id):
+            problems.append(f"edge {e.edge_id} does not join {a.node_id} to {b.node_id}")
+        if e.released and not (a.released and b.released):
             problems.append(f"edge {e.edge_id} is released but an end node is not")
     rel = [n.released for n in nodes]
     if rel and (not rel[0] or rel != sorted(rel, reverse=True)):
         problems.append("released nodes are not a prefix starting at the first node")
-    if edges and any(
-        e.released != (nodes[k].released and nodes[k + 1].released) for k, e in enumerate(edges)
+    if any(
+        e.released != (a.released and b.released)
+        for e, a, b in zip(edges, nodes, nodes[1:], strict=False)
     ):
         problems.append("an edge's released flag differs from its nodes'")
     for n in nodes:

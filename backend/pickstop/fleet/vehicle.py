@@ -298,11 +298,11 @@ class SimVehicle:
             a.status = "FAILED"
             a.result = f"part {a.params.get('partId')} of tray {tray} not graspable: {why}; {where}"
             self._error(
-                "pickFailed", a.result, "WARNING", [("actionId", a.id), ("nodeId", node.id)]
+                "pickFailed", a.result, "WARNING", (("actionId", a.id), ("nodeId", node.id))
             )
 
     def _error(
-        self, kind: str, text: str, level: str = "WARNING", refs: list[tuple[str, str]] = ()
+        self, kind: str, text: str, level: str = "WARNING", refs: tuple[tuple[str, str], ...] = ()
     ) -> None:
         e: dict[str, Any] = {"errorType": kind, "errorDescription": text, "errorLevel": level}
         if refs:
