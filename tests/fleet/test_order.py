@@ -115,3 +115,41 @@ def test_a_bad_plan_document_names_the_field(example_plans):
     doc["stops"][0]["x"] = "far"
     with pytest.raises(InputError, match=r"stops\.0\.x"):
         rt.load_plan(doc)
+
+
+def test_floor_path_corners_become_via_nodes_the_vehicle_passes(example_plans, planner):
+    from pickstop.fleet.execution import vehicle_for
+    from pickstop.fleet.pickcheck import PickChecker
+    from pickstop.fleet.tracker import OrderTracker
+
+    scene, plan = example_plans["paper_experiment"]
+    legs = [leg.model_copy(deep=True) for leg in plan.legs]
+    (x0, y0), (x1, y1) = legs[0].polyline[0], legs[0].polyline[-1]
+    corner = (x0 + 0.3, 0.5 * (y0 + y1))  # a detour, as around an obstacle
+    legs[0].polyline = [legs[0].polyline[0], corner, legs[0].polyline[-1]]
+    bent = plan.model_copy(update={"legs": legs})
+    order = od.build_order(bent)
+    assert od.check_order(order) == []
+    ids = [n.node_id for n in order.nodes]
+    assert ids[:3] == ["start", "leg0-via1", "stop0"]
+    via = order.nodes[1]
+    assert (via.node_position.x, via.node_position.y) == corner and not via.actions
+    assert via.node_position.allowed_deviation_xy == rt.VIA_TOLERANCE
+    veh = vehicle_for(bent, PickChecker(planner, scene), seed=0)
+    veh.forced_error = (0.0, 0.0, 0.0)
+    tracker = OrderTracker(order)
+    veh.accept(v.dump(order))
+    passed_via_while_driving = False
+    while veh.busy:
+        veh.advance(min(0.5, veh.next_event()))
+        tracker.update(veh.state())
+        if "leg0-via1" in tracker.reached and "stop0" not in tracker.reached:
+            passed_via_while_driving = True
+    assert passed_via_while_driving and tracker.done
+    longer = (
+        math.dist((x0, y0), corner) + math.dist(corner, (x1, y1)) - math.dist((x0, y0), (x1, y1))
+    )
+    assert (
+        veh.finished_at - veh.started_at
+        > plan.totals.time.total + 0.9 * longer / plan.parameters.max_speed
+    )

@@ -127,11 +127,11 @@ def add_fleet_routes(r: APIRouter, settings: Settings, W: list[Any], R: list[Any
                 "this service has no MQTT broker configured (PICKSTOP_MQTT_BROKER)",
                 field="broker",
             )
-        try:
-            broker = mqtt.parse_broker(settings.mqtt_broker)
+
+        def build() -> Any:
             plan, scene_doc = _stored(s, plan_id)
             start_yaw, goal_yaw = _yaws(scene_doc)
-            order = orders.build_order(
+            return orders.build_order(
                 plan,
                 orders.OrderOptions(
                     version=body.vda_version,
@@ -143,6 +143,10 @@ def add_fleet_routes(r: APIRouter, settings: Settings, W: list[Any], R: list[Any
                     goal_yaw=goal_yaw,
                 ),
             )
+
+        try:
+            broker = mqtt.parse_broker(settings.mqtt_broker)
+            order = await asyncio.get_running_loop().run_in_executor(s.pool, build)
         except PickStopError as e:
             raise _problem(e) from None
         params = {"plan_id": plan_id, **body.model_dump(), "order_id": order.order_id}
