@@ -104,3 +104,38 @@ def test_executed_success_lies_within_the_predicted_interval(mosquitto, paper):
         assert elo <= s["predicted"] <= ehi
     t = rep["time"]
     assert t["executed_mean"] == pytest.approx(t["predicted"], rel=0.03)
+
+
+@pytest.mark.parametrize("version", ["2.1.0", "3.0.0"])
+def test_connection_messages_follow_the_schema(mosquitto, paper, version):
+    import json
+    from pathlib import Path
+
+    import jsonschema
+
+    from pickstop.fleet import vda5050 as v
+    from pickstop.fleet.mqtt import Link
+
+    _, plan, check = paper
+    veh = vehicle_for(plan, check, seed=0, version=version)
+    schema = json.loads(
+        (Path(v.__file__).parent / "schemas" / f"connection-{version}.schema.json").read_text()
+    )
+    got: list[dict] = []
+    watcher = Link(mosquitto.broker)
+    topic = f"uagv/{v.major(version)}/{veh.manufacturer}/{veh.serial_number}/connection"
+    watcher.subscribe(topic, lambda _t, doc: got.append(doc), qos=1)
+    watcher.start()
+    try:
+        node = VehicleNode(veh, mosquitto.broker).start()
+        t_end = time.monotonic() + 5
+        while time.monotonic() < t_end and not got:
+            time.sleep(0.02)
+        node.stop()
+        while time.monotonic() < t_end and len(got) < 2:
+            time.sleep(0.02)
+    finally:
+        watcher.stop()
+    assert [g["connectionState"] for g in got[:2]] == ["ONLINE", "OFFLINE"]
+    for g in got:
+        jsonschema.validate(g, schema)

@@ -16,6 +16,8 @@ MODELS = [
     ("order", "3.0.0", v.Order30),
     ("state", "2.1.0", v.State21),
     ("state", "3.0.0", v.State30),
+    ("connection", "2.1.0", v.Connection21),
+    ("connection", "3.0.0", v.Connection30),
 ]
 
 

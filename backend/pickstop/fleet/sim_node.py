@@ -1,6 +1,6 @@
 """The simulated vehicle on MQTT: takes orders from its ``order`` topic, publishes ``state``
 on every change and at a fixed rate, and ``connection`` (ONLINE, retained; the broker's last
-will says CONNECTIONBROKEN).
+will says the connection broke).
 
 ``time_scale`` is simulated seconds per wall second (1: real time); 0 runs each order as fast
 as it computes, publishing a state at every event (node reached, action started or ended).
@@ -15,6 +15,7 @@ from typing import Any
 
 from pickstop.fleet import mqtt
 from pickstop.fleet import order as orders
+from pickstop.fleet import vda5050 as v
 from pickstop.fleet.vehicle import SimVehicle
 
 
@@ -30,6 +31,7 @@ class VehicleNode:
         if rate_hz <= 0 or time_scale < 0:
             raise ValueError("rate_hz must be > 0 and time_scale >= 0")
         self.vehicle, self.rate_hz, self.time_scale = vehicle, rate_hz, time_scale
+        self._connection_header = -1
 
         def t(leaf: str) -> str:
             return mqtt.topic(
@@ -38,7 +40,7 @@ class VehicleNode:
 
         self.topics = {k: t(k) for k in ("order", "state", "connection")}
         self.link = mqtt.Link(
-            broker, will=(self.topics["connection"], self._connection("CONNECTIONBROKEN"))
+            broker, will=(self.topics["connection"], self._connection(v.BROKEN[vehicle.version]))
         )
         self.link.on_connect.append(self._online)
         self._inbox: queue.Queue[dict[str, Any]] = queue.Queue()
@@ -48,15 +50,18 @@ class VehicleNode:
         self.published = 0
 
     def _connection(self, state: str) -> dict[str, Any]:
-        v = self.vehicle
-        return {
-            "headerId": 0,
+        """A connection message (validated by the version's model)."""
+        veh = self.vehicle
+        self._connection_header += 1
+        doc = {
+            "headerId": self._connection_header,
             "timestamp": orders.timestamp(),
-            "version": v.version,
-            "manufacturer": v.manufacturer,
-            "serialNumber": v.serial_number,
+            "version": veh.version,
+            "manufacturer": veh.manufacturer,
+            "serialNumber": veh.serial_number,
             "connectionState": state,
         }
+        return v.dump(v.CONNECTION_MODELS[veh.version].model_validate(doc))
 
     def _online(self) -> None:
         self.link.publish(self.topics["connection"], self._connection("ONLINE"), qos=1, retain=True)
@@ -95,11 +100,11 @@ class VehicleNode:
         period = 1.0 / self.rate_hz
         next_tick = time.monotonic()
         while not self._stop.is_set():
-            v = self.vehicle
+            veh = self.vehicle
             if self.time_scale == 0:
-                while v.busy and not self._stop.is_set():
+                while veh.busy and not self._stop.is_set():
                     with self._lock:
-                        v.advance(v.next_event())
+                        veh.advance(veh.next_event())
                     self.publish_state()
                     self._take_orders(0)
                 if self._take_orders(max(0.0, next_tick - time.monotonic())):
@@ -111,15 +116,15 @@ class VehicleNode:
             now = time.monotonic()
             if now >= next_tick:
                 budget = period * self.time_scale
-                while budget > 0 and v.busy:
+                while budget > 0 and veh.busy:
                     with self._lock:
-                        step = min(budget, v.next_event())
-                        changed = v.advance(step)
+                        step = min(budget, veh.next_event())
+                        changed = veh.advance(step)
                     budget -= step
                     if changed:
                         self.publish_state()
                 if budget > 0:
-                    v.clock += budget
+                    veh.clock += budget
                 self.publish_state()
                 next_tick += period
                 if next_tick < now:

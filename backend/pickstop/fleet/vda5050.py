@@ -549,10 +549,26 @@ class State30(Header, _In):
     safety_state: SafetyState30
 
 
+# -- connection (both versions) --------------------------------------------------------------------
+class Connection21(Header):
+    connection_state: Literal["ONLINE", "OFFLINE", "CONNECTIONBROKEN"]
+
+
+class Connection30(Header):
+    connection_state: Literal["ONLINE", "OFFLINE", "HIBERNATING", "CONNECTION_BROKEN"]
+
+
+#: the last-will state of each version (the broker publishes it when the vehicle drops)
+BROKEN = {"2.1.0": "CONNECTIONBROKEN", "3.0.0": "CONNECTION_BROKEN"}
+
 Order = Order21 | Order30
 State = State21 | State30
 ORDER_MODELS: dict[str, type[Order21] | type[Order30]] = {"2.1.0": Order21, "3.0.0": Order30}
 STATE_MODELS: dict[str, type[State21] | type[State30]] = {"2.1.0": State21, "3.0.0": State30}
+CONNECTION_MODELS: dict[str, type[Connection21] | type[Connection30]] = {
+    "2.1.0": Connection21,
+    "3.0.0": Connection30,
+}
 
 
 def major(version: str) -> str:
