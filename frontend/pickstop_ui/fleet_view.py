@@ -8,7 +8,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from pickstop_ui.client import API, ApiProblem, PickStopClient
+from pickstop_ui.client import ApiProblem, PickStopClient
 
 POLL = 0.5  # [s] between job reads
 COLOURS = {
@@ -61,14 +61,11 @@ class FleetView:
             if plan_id is None:
                 self.md.content = "No plan to dispatch yet."
                 return
-            r = self.api.http.post(
-                f"{API}/plans/{plan_id}/dispatch", json={"serial_number": self.serial.value}
-            )
-            self.api._check(r)
+            job = self.api.dispatch(plan_id, {"serial_number": self.serial.value})
         except ApiProblem as e:
             self.md.content = f"⚠ {e.title}: {e.detail}"
             return
-        self.follow(r.json()["id"])
+        self.follow(job["id"])
 
     def follow(self, job_id: str) -> None:
         """Poll the job until it ends, showing each read."""
@@ -80,7 +77,7 @@ class FleetView:
     def _poll(self, job_id: str) -> None:
         while self._following == job_id:
             try:
-                job = self.api._check(self.api.http.get(f"{API}/jobs/{job_id}")).json()
+                job = self.api.job(job_id)
             except ApiProblem as e:
                 self.md.content = f"⚠ {e.title}: {e.detail}"
                 return

@@ -66,47 +66,48 @@ def test_export_of_a_stored_plan(fleet_client, stored_plan):
 
 
 def test_dispatch_job_follows_the_order_to_the_end(fleet_client, stored_plan, mosquitto, planner):
-    from pickstop_ui.fleet_view import FleetView, panel
+    """Dispatched from the planner's fleet panel, as a user does: the panel starts the job
+    through the API and follows it; the job record and the panel end with every node reached
+    and every pick finished."""
+    import viser
+
+    from pickstop_ui.client import PickStopClient
+    from pickstop_ui.fleet_view import COLOURS, FleetView, panel
 
     plan_id, plan = stored_plan
     veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=0)
     veh.serial_number = "agv-7"
     veh.forced_error = (0.0, 0.0, 0.0)
     node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=100).start()
-    try:
-        r = fleet_client.post(
-            f"/api/v1/plans/{plan_id}/dispatch", headers=AUTH, json={"serial_number": "agv-7"}
-        )
-        assert r.status_code == 202, r.text
-        job_id = r.json()["id"]
-        assert r.json()["kind"] == "dispatch"
-        t_end, job = time.monotonic() + 60, r.json()
-        while time.monotonic() < t_end and job["state"] not in ("done", "failed"):
-            time.sleep(0.1)
-            job = fleet_client.get(f"/api/v1/jobs/{job_id}").json()
-    finally:
-        node.stop()
-    assert job["state"] == "done", job
-    res = job["result"]
-    assert res["done"] and res["nodes_reached"] == res["nodes"]
-    assert res["actions_finished"] == res["actions"] > 0
-    assert [s["status"] for s in res["stops"]] == ["finished"] * len(plan.stops)
-
-    # The planner's panel draws that job: the vehicle at the goal, every stop finished.
-    import viser
-
     server = viser.ViserServer(port=0, verbose=False)
+    api = PickStopClient("http://testserver")
+    api.http = fleet_client  # the app in process (TestClient is an httpx client)
+    fleet_client.headers.update(AUTH)
     try:
-        view = FleetView(server, None, lambda: None)  # type: ignore[arg-type]
-        view.show(job)
+        view = FleetView(server, api, lambda: plan_id)
+        view.serial.value = "agv-7"
+        view._dispatch()
+        t_end = time.monotonic() + 60
+        while time.monotonic() < t_end and (view.job is None or view.job["state"] != "done"):
+            time.sleep(0.1)
+        job = fleet_client.get(f"/api/v1/jobs/{view.job['id']}").json()
+        assert job["kind"] == "dispatch" and job["state"] == "done", job
+        res = job["result"]
+        assert res["done"] and res["nodes_reached"] == res["nodes"]
+        assert res["actions_finished"] == res["actions"] > 0
+        assert [s["status"] for s in res["stops"]] == ["finished"] * len(plan.stops)
+        # the panel: the vehicle at the goal, every stop green, the text says so
         assert tuple(view.vehicle.position[:2]) == pytest.approx(plan.route[-1])
         assert len(view.stops) == len(plan.stops)
-        assert all(h.color == (40, 170, 70) for h in view.stops.values())
-        text = panel(job)
-        assert text.count("**finished**") == len(plan.stops)
+        assert all(h.color == COLOURS["finished"] for h in view.stops.values())
+        text = view.md.content
+        assert text == panel(view.job) and text.count("**finished**") == len(plan.stops)
         assert f"nodes reached {res['nodes']}/{res['nodes']}" in text
     finally:
+        for k in AUTH:
+            fleet_client.headers.pop(k, None)
         server.stop()
+        node.stop()
 
 
 def test_dispatch_bad_input_and_no_broker(fleet_client, stored_plan, region_db):
