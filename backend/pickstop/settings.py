@@ -29,6 +29,11 @@ class Settings(BaseSettings):
     host: str = Field(default="127.0.0.1", description="address the API listens on")
     port: int = Field(default=8000, ge=1, le=65535, description="API port")
     ui_port: int = Field(default=8080, ge=1, le=65535, description="3D planner port")
+    mqtt_broker: str | None = Field(
+        default=None,
+        description="MQTT broker the API dispatches orders to (mqtt://HOST:PORT); unset: "
+        "dispatch is refused",
+    )
     api_keys: list[str] = Field(
         default_factory=list,
         description="accepted API keys, stored hashed as 'sha256:<hex>' (pickstop api-key makes "
@@ -40,11 +45,6 @@ class Settings(BaseSettings):
     max_samples: int = Field(default=50_000_000, ge=1, description="samples per database build")
     max_batch: int = Field(default=200, ge=1, description="scenes per batch job")
     max_trays: int = Field(default=40, ge=1, description="trays per scene")
-    mqtt_broker: str | None = Field(
-        default=None,
-        description="MQTT broker the API dispatches orders to (mqtt://HOST:PORT); unset: "
-        "dispatch is refused",
-    )
 
 
 def hash_key(key: str) -> str:

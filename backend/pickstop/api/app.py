@@ -636,5 +636,5 @@ def _router(settings: Settings) -> APIRouter:
 
     from pickstop.api.fleet import add_fleet_routes
 
-    add_fleet_routes(r, settings, W, R)
+    add_fleet_routes(r, W, R)
     return r

@@ -15,7 +15,6 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from pickstop.api.problems import Problem
 from pickstop.errors import PickStopError
-from pickstop.settings import Settings
 
 Level = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[^/+#]+$")]
 
@@ -73,7 +72,9 @@ def _export(s: Any, plan_id: str, q: dict[str, Any]) -> tuple[str, str]:
     return nav2.dumps(doc, "json"), "application/json"
 
 
-def add_fleet_routes(r: APIRouter, settings: Settings, W: list[Any], R: list[Any]) -> None:
+def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
+    """Add the fleet routes to ``r``; ``W`` / ``R``: the write and read key dependencies."""
+
     def svc(request: Request) -> Any:
         return request.app.state.service
 
@@ -120,7 +121,8 @@ def add_fleet_routes(r: APIRouter, settings: Settings, W: list[Any], R: list[Any
         from pickstop.fleet.dispatch_job import start_dispatch_job
 
         s = svc(request)
-        if not settings.mqtt_broker:
+        configured = s.settings.mqtt_broker
+        if not configured:
             raise Problem(
                 409,
                 "No broker",
@@ -145,7 +147,7 @@ def add_fleet_routes(r: APIRouter, settings: Settings, W: list[Any], R: list[Any
             )
 
         try:
-            broker = mqtt.parse_broker(settings.mqtt_broker)
+            broker = mqtt.parse_broker(configured)
             order = await asyncio.get_running_loop().run_in_executor(s.pool, build)
         except PickStopError as e:
             raise _problem(e) from None
