@@ -31,6 +31,15 @@ class DispatchRequest(BaseModel):
     wait_vehicle: float = Field(default=10.0, gt=0, le=600, description="[s]")
 
 
+def _job_record(row: dict[str, Any]) -> dict[str, Any]:
+    """A job row as ``GET /jobs/{id}`` answers it (params and result decoded)."""
+    return {
+        **row,
+        "params": json.loads(row["params"]),
+        "result": json.loads(row["result"]) if row.get("result") else None,
+    }
+
+
 def _stored(s: Any, plan_id: str) -> tuple[Any, dict[str, Any]]:
     from pickstop.fleet import route as rt
 
@@ -164,6 +173,4 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
             lambda: job["id"] in s._cancel,
         )
         response.headers["Location"] = f"/api/v1/jobs/{job['id']}"
-        from pickstop.api.app import _job
-
-        return _job(s.store.job(job["id"])).model_dump()
+        return _job_record(s.store.job(job["id"]))
