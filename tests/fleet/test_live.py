@@ -139,3 +139,22 @@ def test_connection_messages_follow_the_schema(mosquitto, paper, version):
     assert [g["connectionState"] for g in got[:2]] == ["ONLINE", "OFFLINE"]
     for g in got:
         jsonschema.validate(g, schema)
+
+
+def test_a_refused_order_fails_the_dispatch_with_the_vehicles_reason(mosquitto, paper):
+    _, plan, check = paper
+    veh = vehicle_for(plan, check, seed=0)
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=5, time_scale=0).start()
+    d = Dispatcher(mosquitto.broker, veh.manufacturer, veh.serial_number).start()
+    try:
+        order = od.build_order(plan, od.OrderOptions(order_id="broken"))
+        bad = order.model_copy(deep=True)
+        bad.nodes[1].sequence_id = 3  # odd: nodes must be even
+        with pytest.raises(DispatchError, match=r"refused order broken.*sequenceId is odd"):
+            d.run(bad, timeout=20)
+        # the next, valid order runs: the old refusal does not stick to it
+        s = d.run(od.build_order(plan, od.OrderOptions(order_id="good")), timeout=60)
+        assert s["done"] and s["nodes_reached"] == s["nodes"]
+    finally:
+        d.stop()
+        node.stop()

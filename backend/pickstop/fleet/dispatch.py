@@ -18,6 +18,26 @@ from pickstop.fleet import mqtt
 from pickstop.fleet import vda5050 as v
 from pickstop.fleet.tracker import OrderTracker
 
+REFUSALS = ("orderError", "validationError", "orderUpdateError", "noRouteError")
+
+
+def refusal(doc: dict[str, Any], order_id: str, since_sent: float) -> str | None:
+    """Why a state says our order was refused, or None. An error naming the order (an
+    ``orderId`` reference) counts at once; one naming none only a second after sending, since
+    a state published before the vehicle read the order may carry an older order's error."""
+    errors = doc.get("errors")
+    why = []
+    for e in errors if isinstance(errors, list) else []:
+        if not isinstance(e, dict) or e.get("errorType") not in REFUSALS:
+            continue
+        raw = e.get("errorReferences")
+        refs: list[Any] = raw if isinstance(raw, list) else []
+        named = [r.get("referenceValue") for r in refs if isinstance(r, dict)
+                 and r.get("referenceKey") == "orderId"]  # fmt: skip
+        if order_id in named or (not named and since_sent > 1.0):
+            why.append(str(e.get("errorDescription") or e.get("errorType")))
+    return "; ".join(why) or None
+
 
 class DispatchError(PickStopError):
     """The order did not complete (no vehicle, timeout, cancelled)."""
@@ -47,6 +67,8 @@ class Dispatcher:
         self._cond = threading.Condition()
         self.vehicle_seen = threading.Event()
         self.connection: str | None = None
+        self.refused: str | None = None  # why the vehicle refused the current order
+        self._last_sent = 0.0  # [s] monotonic
         self.link.subscribe(self.topics["state"], self._on_state)
         self.link.subscribe(self.topics["connection"], self._on_connection, qos=1)
 
@@ -60,8 +82,17 @@ class Dispatcher:
     def _on_state(self, _topic: str, doc: dict[str, Any]) -> None:
         self.vehicle_seen.set()
         with self._cond:
-            if self.tracker is not None and self.tracker.update(doc):
+            tr = self.tracker
+            if tr is None:
+                return
+            if tr.update(doc):
                 self._cond.notify_all()
+            elif tr.acknowledged_at is None and self.refused is None:
+                # Still on another order, with an error about an order: ours was refused.
+                why = refusal(doc, tr.order.order_id, time.monotonic() - self._last_sent)
+                if why:
+                    self.refused = why
+                    self._cond.notify_all()
 
     def _on_connection(self, _topic: str, doc: dict[str, Any]) -> None:
         self.connection = doc.get("connectionState")
@@ -86,7 +117,9 @@ class Dispatcher:
         doc = v.dump(order)
         with self._cond:
             self.tracker = tr = OrderTracker(order)
+            self.refused = None
             tr.sent_at = time.monotonic()
+        self._last_sent = time.monotonic()
         self.link.publish(self.topics["order"], doc)
         t_end = tr.sent_at + timeout
         last_sent, last_report = tr.sent_at, 0.0
@@ -100,6 +133,8 @@ class Dispatcher:
             now = time.monotonic()
             if done:
                 break
+            if self.refused is not None:
+                raise DispatchError(f"the vehicle refused order {order.order_id}: {self.refused}")
             if cancelled is not None and cancelled():
                 raise DispatchError(f"order {order.order_id} cancelled")
             if now > t_end:
@@ -109,7 +144,7 @@ class Dispatcher:
                 )
             if tr.acknowledged_at is None and now - last_sent > resend:
                 self.link.publish(self.topics["order"], doc)
-                last_sent = now
+                last_sent = self._last_sent = now
             if progress is not None and summary is not None and now - last_report > 0.5:
                 progress(summary)
                 last_report = now

@@ -24,6 +24,8 @@ from pickstop.fleet import vda5050 as v
 from pickstop.sequence.success import Kind, sample_errors
 from pickstop.sequence.timing import leg_time
 
+REFUSAL_TYPES = ("validationError", "orderError")
+
 #: ``check(tray_id, x, y, yaw) -> (ok, reason)`` at an actual base pose [m, m, rad].
 Check = Callable[[str, float, float, float], tuple[bool, str]]
 #: ``error(rng) -> (dx, dy, dyaw)``: where the base lands relative to the node.
@@ -111,14 +113,20 @@ class SimVehicle:
     # -- orders ----------------------------------------------------------------------------------
     def accept(self, doc: dict[str, Any]) -> bool:
         """Take an order message; False (with an error in the state) if it is refused."""
+        oid = str(doc.get("orderId", "")) if isinstance(doc, dict) else ""
+        refs = (("orderId", oid),)
+        # an earlier refusal is history once a new order arrives
+        self.errors = [e for e in self.errors if e["errorType"] not in REFUSAL_TYPES]
         try:
             o = v.ORDER_MODELS[self.version].model_validate(doc)
         except Exception as e:
-            self._error("validationError", f"order refused: {e}".splitlines()[0], "FATAL")
+            text = f"order refused: {e}".splitlines()[0]
+            self._error("validationError", text, "FATAL", refs)
             return False
         problems = orders.check_order(o)
         if problems or not o.nodes:
-            self._error("orderError", "order refused: " + "; ".join(problems or ["no nodes"]))
+            text = "order refused: " + "; ".join(problems or ["no nodes"])
+            self._error("orderError", text, "WARNING", refs)
             return False
         if o.order_id == self.order_id and o.order_update_id <= self.order_update_id:
             return True  # a repeat of the order we run
