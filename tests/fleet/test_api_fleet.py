@@ -125,3 +125,28 @@ def test_dispatch_bad_input_and_no_broker(fleet_client, stored_plan, region_db):
     with TestClient(create_app(Settings(data_dir=folder, api_keys=[hash_key(KEY)]))) as c:
         r = c.post(url, headers=AUTH, json={})
         assert r.status_code == 409 and "PICKSTOP_MQTT_BROKER" in r.json()["detail"]
+
+
+def test_a_dispatch_job_can_be_cancelled(fleet_client, stored_plan, mosquitto, planner):
+    plan_id, plan = stored_plan
+    veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=0)
+    veh.serial_number = "agv-8"
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=5, time_scale=1).start()  # ~60 s order
+    try:
+        r = fleet_client.post(
+            f"/api/v1/plans/{plan_id}/dispatch", headers=AUTH, json={"serial_number": "agv-8"}
+        )
+        job_id = r.json()["id"]
+        t_end = time.monotonic() + 20
+        job = r.json()
+        while time.monotonic() < t_end and not (job["result"] or {}).get("states"):
+            time.sleep(0.1)
+            job = fleet_client.get(f"/api/v1/jobs/{job_id}").json()
+        assert job["state"] == "running" and job["result"]["nodes_reached"] >= 1
+        assert fleet_client.post(f"/api/v1/jobs/{job_id}/cancel", headers=AUTH).status_code == 200
+        while time.monotonic() < t_end and job["state"] == "running":
+            time.sleep(0.1)
+            job = fleet_client.get(f"/api/v1/jobs/{job_id}").json()
+        assert job["state"] == "cancelled" and "cancelled" in job["error"]
+    finally:
+        node.stop()

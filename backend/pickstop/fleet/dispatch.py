@@ -40,7 +40,11 @@ def refusal(doc: dict[str, Any], order_id: str, since_sent: float) -> str | None
 
 
 class DispatchError(PickStopError):
-    """The order did not complete (no vehicle, timeout, cancelled)."""
+    """The order did not complete (no vehicle, refused, timeout, cancelled)."""
+
+
+class DispatchCancelled(DispatchError):
+    """Whoever started the dispatch stopped following it."""
 
 
 class Dispatcher:
@@ -136,7 +140,7 @@ class Dispatcher:
             if self.refused is not None:
                 raise DispatchError(f"the vehicle refused order {order.order_id}: {self.refused}")
             if cancelled is not None and cancelled():
-                raise DispatchError(f"order {order.order_id} cancelled")
+                raise DispatchCancelled(f"order {order.order_id} cancelled")
             if now > t_end:
                 raise DispatchError(
                     f"order {order.order_id} not done after {timeout:.0f} s: "

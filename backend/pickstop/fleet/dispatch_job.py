@@ -12,7 +12,7 @@ from typing import Any
 from pickstop.errors import PickStopError
 from pickstop.fleet import mqtt
 from pickstop.fleet import vda5050 as v
-from pickstop.fleet.dispatch import Dispatcher
+from pickstop.fleet.dispatch import DispatchCancelled, Dispatcher
 
 log = logging.getLogger("pickstop.fleet")
 
@@ -42,9 +42,10 @@ def run_dispatch_job(
         d.start()
         summary = d.run(order, timeout, wait_vehicle, progress=progress, cancelled=cancelled)
         set_job(job_id, state="done", progress=1.0, result=summary)
+    except DispatchCancelled as e:
+        set_job(job_id, state="cancelled", error=e.message)
     except PickStopError as e:
-        state = "cancelled" if "cancelled" in e.message else "failed"
-        set_job(job_id, state=state, error=e.message)
+        set_job(job_id, state="failed", error=e.message)
     except Exception as e:  # a job must never stay 'running'
         log.exception("dispatch job %s failed", job_id)
         set_job(job_id, state="failed", error=f"{type(e).__name__}: {e}")
