@@ -34,6 +34,11 @@ def test_nav2_goal_round_trips_and_carries_the_stop_tolerances(example_plans, na
         assert parts == {(w.tray_id, w.part_id) for w in stop.witnesses}
         assert all(p["joint_names"] == plan.joints for p in seg["picks"])
     assert segs[-1]["last"] == len(poses) - 1
+    # the picks as one list beside the goal, each naming the pose it is done at
+    assert len(back["picks"]) == sum(len(s.witnesses) for s in plan.stops)
+    for p in back["picks"]:
+        stop = plan.stops[int(p["stop"].removeprefix("stop"))]
+        assert poses[p["pose_index"]][:2] == pytest.approx((stop.x, stop.y))
     assert poses[-1][:2] == pytest.approx((scene.goal.x, scene.goal.y))
     assert math.cos(poses[-1][2] - scene.goal.yaw) == pytest.approx(1.0)
     assert any("xy_goal_tolerance" in n for n in back["notes"])

@@ -15,6 +15,7 @@ from typing import Any
 
 from pickstop.errors import PickStopError
 from pickstop.fleet import mqtt
+from pickstop.fleet import order as orders
 from pickstop.fleet import vda5050 as v
 from pickstop.fleet.tracker import OrderTracker
 
@@ -73,6 +74,7 @@ class Dispatcher:
         self.connection: str | None = None
         self.refused: str | None = None  # why the vehicle refused the current order
         self._last_sent = 0.0  # [s] monotonic
+        self._header = -1  # headerId of the last order message sent
         self.link.subscribe(self.topics["state"], self._on_state)
         self.link.subscribe(self.topics["connection"], self._on_connection, qos=1)
 
@@ -119,6 +121,8 @@ class Dispatcher:
                 f"{wait_vehicle:.0f} s)"
             )
         doc = v.dump(order)
+        self._header = max(self._header + 1, order.header_id)
+        doc["headerId"] = self._header  # per topic, one more with every message sent
         with self._cond:
             self.tracker = tr = OrderTracker(order)
             self.refused = None
@@ -147,6 +151,8 @@ class Dispatcher:
                     f"{len(tr.reached)}/{len(order.nodes)} nodes reached"
                 )
             if tr.acknowledged_at is None and now - last_sent > resend:
+                self._header += 1
+                doc = {**doc, "headerId": self._header, "timestamp": orders.timestamp()}
                 self.link.publish(self.topics["order"], doc)
                 last_sent = self._last_sent = now
             if progress is not None and summary is not None and now - last_report > 0.5:

@@ -119,6 +119,11 @@ def build_nav2(
             seg["predicted_success"] = w.predicted_success
         segments.append(seg)
         first = i + 1
+    picks = [
+        {"segment": k, "stop": seg["name"], "pose_index": seg["last"], **p}
+        for k, seg in enumerate(segments)
+        for p in seg["picks"]
+    ]
     return {
         "format": FORMAT,
         "version": 1,
@@ -128,6 +133,7 @@ def build_nav2(
         "scene": plan.scene,
         "goal": goal,
         "segments": segments,
+        "picks": picks,
         "notes": NOTES,
     }
 
