@@ -4,6 +4,7 @@ sim-vehicle over a live Mosquitto, execute-sim prints and writes its report."""
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 import time
@@ -107,3 +108,27 @@ def test_execute_sim_prints_and_writes_the_report(plan_file, region_db, tmp_path
     assert rep["runs"] == 10 and len(rep["stops"]) == len(rep["stops"]) >= 1
     assert 0 <= rep["plan"]["executed"] <= 1
     assert main(["execute-sim", str(plan_file), "--scene", "x.json", "--runs", "0"]) == 2
+
+
+def test_verify_yaw_sets_each_stops_tolerance_from_exact_checks(
+    plan_file, example_plans, planner, region_db, tmp_path
+):
+    from pickstop.fleet.pickcheck import PickChecker
+    from pickstop.fleet.yaw import STEP, verified_yaw_tolerance
+
+    scene, plan = example_plans["paper_experiment"]
+    check = PickChecker(planner, scene)
+    tol = verified_yaw_tolerance(check, plan.stops[0])
+    assert 0 <= tol <= math.radians(10) and round(tol / STEP, 9) % 1 == 0
+    if tol > 0:  # every offset up to it passes, both ways
+        assert all(check(t, plan.stops[0].x, plan.stops[0].y, plan.stops[0].yaw - tol)[0]
+                   for t in plan.stops[0].trays)  # fmt: skip
+    folder, db = region_db
+    out = tmp_path / "order.json"
+    scene_file = str(EXAMPLES / "paper_experiment.json")
+    args = ["--data-dir", str(folder), "export", str(plan_file), "--format", "vda5050",
+            "--scene", scene_file, "--verify-yaw", "--db", db.id, "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    nodes = [n for n in json.loads(out.read_text())["nodes"] if n["actions"]]
+    assert nodes[0]["nodePosition"]["allowedDeviationTheta"] == pytest.approx(tol)
+    assert main(["export", str(plan_file), "--format", "nav2", "--verify-yaw"]) == 2

@@ -53,7 +53,22 @@ def _scene(path: str | None, plan: pm.Plan | None = None) -> Any:
     return scene
 
 
-def _order_options(args: argparse.Namespace, scene: Any) -> orders.OrderOptions:
+def _yaw_tolerance(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
+    """``--yaw-tolerance``, or with ``--verify-yaw`` each stop's, checked exactly."""
+    if not getattr(args, "verify_yaw", False):
+        return args.yaw_tolerance
+    if scene is None:
+        raise InputError("--verify-yaw needs --scene (the plan's scene file)", field="scene")
+    from pickstop.fleet.yaw import verified_yaw_tolerances
+
+    return verified_yaw_tolerances(
+        _checker(args.scene, scene, args, args.db or plan.database), plan
+    )
+
+
+def _order_options(
+    args: argparse.Namespace, scene: Any, plan: pm.Plan | None = None
+) -> orders.OrderOptions:
     return orders.OrderOptions(
         version=orders.version_of(args.vda_version),
         manufacturer=mqtt.check_level("manufacturer", args.manufacturer),
@@ -63,7 +78,7 @@ def _order_options(args: argparse.Namespace, scene: Any) -> orders.OrderOptions:
         release_stops=args.release_stops,
         start_yaw=None if scene is None else scene.start.yaw,
         goal_yaw=None if scene is None else scene.goal.yaw,
-        yaw_tolerance=args.yaw_tolerance,
+        yaw_tolerance=args.yaw_tolerance if plan is None else _yaw_tolerance(args, plan, scene),
     )
 
 
@@ -84,7 +99,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
     if args.format == "vda5050":
-        order = orders.build_order(plan, _order_options(args, scene))
+        order = orders.build_order(plan, _order_options(args, scene, plan))
         text = json.dumps(v.dump(order), indent=1) + "\n"
     else:
         yaml_out = (args.out or "").endswith((".yaml", ".yml"))
@@ -97,7 +112,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             distro=args.distro,
             start_yaw=None if scene is None else scene.start.yaw,
             goal_yaw=None if scene is None else scene.goal.yaw,
-            yaw_tolerance=args.yaw_tolerance,
+            yaw_tolerance=_yaw_tolerance(args, plan, scene),
         )
         text = nav2.dumps(doc, fmt)
     _write(args.out, text)
@@ -112,7 +127,7 @@ def cmd_dispatch(args: argparse.Namespace) -> int:
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
     broker = mqtt.parse_broker(args.broker)
-    order = orders.build_order(plan, _order_options(args, scene))
+    order = orders.build_order(plan, _order_options(args, scene, plan))
     mqtt.check_level("interface", args.interface)
     d = Dispatcher(broker, args.manufacturer, args.serial, order.version, args.interface)
     d.start()
@@ -220,6 +235,12 @@ def _order_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--order-id", help="default: derived from the plan")
     p.add_argument("--release-stops", type=int, help="release this many stops (default: all)")
     p.add_argument("--yaw-tolerance", type=_finite, help="allowedDeviationTheta [rad]")
+    p.add_argument(
+        "--verify-yaw",
+        action="store_true",
+        help="each stop's yaw tolerance from exact checks at its centre (needs --scene)",
+    )
+    p.add_argument("--db", help="database for --verify-yaw (default: the plan's)")
 
 
 def add_commands(sub: Any) -> None:

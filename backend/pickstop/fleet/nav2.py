@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from typing import Any, Literal
 
 import yaml
@@ -70,7 +71,7 @@ def build_nav2(
     distro: Distro = "jazzy",
     start_yaw: float | None = None,
     goal_yaw: float | None = None,
-    yaw_tolerance: float | None = None,
+    yaw_tolerance: float | Sequence[float] | None = None,
 ) -> dict[str, Any]:
     """The goal, per-stop segments with tolerances, the picks beside them, and the notes."""
     if distro not in ("humble", "jazzy", "kilted"):

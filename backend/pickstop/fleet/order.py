@@ -37,7 +37,7 @@ class OrderOptions:
     release_stops: int | None = None  # release up to this many stops; None: all
     start_yaw: float | None = None  # [rad]
     goal_yaw: float | None = None  # [rad]
-    yaw_tolerance: float | None = None  # [rad]; default: from the plan's yaw error
+    yaw_tolerance: float | tuple[float, ...] | None = None  # [rad], one or one per stop
 
 
 def version_of(text: str) -> v.VersionName:

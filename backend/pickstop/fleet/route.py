@@ -11,6 +11,7 @@ sampled: two standard deviations of the scene's yaw error, and at least the yaw 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -82,9 +83,13 @@ def waypoints(
     plan: pm.Plan,
     start_yaw: float | None = None,
     goal_yaw: float | None = None,
-    yaw_tol: float | None = None,
+    yaw_tol: float | Sequence[float] | None = None,
 ) -> list[Waypoint]:
-    """The route as waypoints: start, the corners of each leg's floor path, stops, goal."""
+    """The route as waypoints: start, the corners of each leg's floor path, stops, goal.
+
+    ``yaw_tol``: the stops' yaw tolerance [rad], one for all or one per stop (e.g. from
+    :func:`pickstop.fleet.yaw.verified_yaw_tolerances`); default :func:`yaw_tolerance`.
+    """
     n = sum(max(0, len(leg.polyline) - 1) for leg in plan.legs) + 1
     if n > MAX_WAYPOINTS:
         raise InputError(
@@ -95,7 +100,17 @@ def waypoints(
             f"legs: {len(plan.legs)} legs for {len(plan.stops)} stops (expected stops + 1)",
             field="legs",
         )
-    tol_yaw = yaw_tolerance(plan) if yaw_tol is None else yaw_tol
+    if yaw_tol is None or isinstance(yaw_tol, float | int):
+        tols = [yaw_tolerance(plan) if yaw_tol is None else float(yaw_tol)] * len(plan.stops)
+    else:
+        tols = [float(t) for t in yaw_tol]
+        if len(tols) != len(plan.stops):
+            raise InputError(
+                f"yaw_tolerance: {len(tols)} values for {len(plan.stops)} stops",
+                field="yaw_tolerance",
+            )
+    if any(not 0 <= t <= math.pi for t in tols):
+        raise InputError("yaw_tolerance: each must be in [0, pi] rad", field="yaw_tolerance")
     joints = tuple(plan.joints)
     if not plan.legs or not plan.legs[0].polyline:
         raise InputError("legs: the plan has no route", field="legs")
@@ -120,7 +135,7 @@ def waypoints(
                     s.y,
                     wrap(s.yaw),
                     guaranteed_radius(s),
-                    tol_yaw,
+                    tols[k],
                     stop=k,
                     picks=picks,
                     predicted_success=None if s.success is None else s.success.rate,
