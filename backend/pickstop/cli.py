@@ -682,6 +682,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--refine", action="store_true", help="refine to an exact IK solution")
     q.add_argument("--refine-seeds", type=_positive_int, default=20)
     q.set_defaults(func=cmd_reach_query)
+
+    from pickstop.fleet.cli import add_commands as add_fleet_commands
+
+    add_fleet_commands(sub)
     return parser
 
 

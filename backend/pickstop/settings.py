@@ -29,6 +29,11 @@ class Settings(BaseSettings):
     host: str = Field(default="127.0.0.1", description="address the API listens on")
     port: int = Field(default=8000, ge=1, le=65535, description="API port")
     ui_port: int = Field(default=8080, ge=1, le=65535, description="3D planner port")
+    mqtt_broker: str | None = Field(
+        default=None,
+        description="MQTT broker the API dispatches orders to (mqtt://HOST:PORT); unset: "
+        "dispatch is refused",
+    )
     api_keys: list[str] = Field(
         default_factory=list,
         description="accepted API keys, stored hashed as 'sha256:<hex>' (pickstop api-key makes "

@@ -330,6 +330,9 @@ class PlannerApp:
             self.snap = gui.add_button("Download PNG snapshot")
             self.snap.on_click(self._snapshot)
             self.link = gui.add_markdown("")
+        from pickstop_ui.fleet_view import FleetView
+
+        self.fleet = FleetView(self.server, self.api, self._store_plan)
         self.stops_md = gui.add_markdown("")
 
     def _play_clicked(self, _: Any) -> None:

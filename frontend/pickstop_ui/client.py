@@ -88,6 +88,15 @@ class PickStopClient:
         body = r.json()
         return PlanResult(Plan.model_validate(body["plan"]), body["id"], r.elapsed.total_seconds())
 
+    def dispatch(self, plan_id: str, body: dict[str, Any]) -> dict[str, Any]:
+        """Start a dispatch job of a stored plan (the service's MQTT broker)."""
+        return dict(
+            self._check(self.http.post(f"{API}/plans/{plan_id}/dispatch", json=body)).json()
+        )
+
+    def job(self, job_id: str) -> dict[str, Any]:
+        return dict(self._check(self.http.get(f"{API}/jobs/{job_id}")).json())
+
     def plan_url(self, plan_id: str) -> str:
         return f"{self.base_url}{API}/plans/{plan_id}"
 

@@ -634,4 +634,7 @@ def _router(settings: Settings) -> APIRouter:
             raise Problem(404, "Not found", f"no job {job_id!r}")
         return _job(row)
 
+    from pickstop.api.fleet import add_fleet_routes
+
+    add_fleet_routes(r, W, R)
     return r

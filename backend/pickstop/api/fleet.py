@@ -1,0 +1,176 @@
+"""Fleet routes: a stored plan as a VDA 5050 order or a Nav2 goal, and dispatch over MQTT.
+
+The broker is the service's (``PICKSTOP_MQTT_BROKER``), never the caller's: the API does not
+connect wherever a request says.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Query, Request, Response
+from pydantic import BaseModel, ConfigDict, Field
+
+from pickstop.api.problems import Problem
+from pickstop.errors import PickStopError
+
+Level = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[^/+#]+$")]
+
+
+class DispatchRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    manufacturer: Level = "pickstop"
+    serial_number: Level = "sim-1"
+    interface_name: Level = "uagv"
+    vda_version: Literal["2.1", "3.0"] = "2.1"
+    map_id: Annotated[str, Field(min_length=1, max_length=100)] | None = None
+    timeout: float = Field(default=600.0, gt=0, le=24 * 3600, description="[s]")
+    wait_vehicle: float = Field(default=10.0, gt=0, le=600, description="[s]")
+
+
+def _job_record(row: dict[str, Any]) -> dict[str, Any]:
+    """A job row as ``GET /jobs/{id}`` answers it (params and result decoded)."""
+    return {
+        **row,
+        "params": json.loads(row["params"]),
+        "result": json.loads(row["result"]) if row.get("result") else None,
+    }
+
+
+def _stored(s: Any, plan_id: str) -> tuple[Any, dict[str, Any]]:
+    from pickstop.fleet import route as rt
+
+    row = s.store.plan(plan_id)
+    if row is None:
+        raise Problem(404, "Not found", f"no plan {plan_id!r}")
+    return rt.load_plan(json.loads(row["doc"])), json.loads(row["scene_doc"])
+
+
+def _yaws(scene_doc: dict[str, Any]) -> tuple[float | None, float | None]:
+    def yaw(key: str) -> float | None:
+        v = scene_doc.get(key) or {}
+        return float(v["yaw"]) if isinstance(v, dict) and "yaw" in v else None
+
+    return yaw("start"), yaw("goal")
+
+
+def _export(s: Any, plan_id: str, q: dict[str, Any]) -> tuple[str, str]:
+    from pickstop.fleet import nav2
+    from pickstop.fleet import order as orders
+    from pickstop.fleet import vda5050 as v
+
+    plan, scene_doc = _stored(s, plan_id)
+    start_yaw, goal_yaw = _yaws(scene_doc)
+    if q["format"] == "vda5050":
+        opts = orders.OrderOptions(
+            version=q["vda_version"],
+            manufacturer=q["manufacturer"],
+            serial_number=q["serial_number"],
+            map_id=q["map_id"],
+            order_id=plan_id,
+            start_yaw=start_yaw,
+            goal_yaw=goal_yaw,
+        )
+        return json.dumps(v.dump(orders.build_order(plan, opts))), "application/json"
+    doc = nav2.build_nav2(plan, q["map_id"] or "map", q["distro"], start_yaw, goal_yaw)
+    if q["nav2_format"] == "yaml":
+        return nav2.dumps(doc, "yaml"), "application/yaml"
+    return nav2.dumps(doc, "json"), "application/json"
+
+
+def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
+    """Add the fleet routes to ``r``; ``W`` / ``R``: the write and read key dependencies."""
+
+    def svc(request: Request) -> Any:
+        return request.app.state.service
+
+    def _problem(e: PickStopError) -> Problem:
+        return Problem(422, "Invalid input", e.message, kind="validation", field=e.field)
+
+    @r.get("/plans/{plan_id}/export", tags=["fleet"], dependencies=R)
+    async def export_plan(
+        request: Request,
+        plan_id: str,
+        format: Literal["vda5050", "nav2"] = "vda5050",
+        vda_version: Literal["2.1", "3.0"] = "2.1",
+        manufacturer: Annotated[
+            str, Query(min_length=1, max_length=100, pattern=r"^[^/+#]+$")
+        ] = "pickstop",
+        serial_number: Annotated[
+            str, Query(min_length=1, max_length=100, pattern=r"^[^/+#]+$")
+        ] = "sim-1",
+        map_id: Annotated[str | None, Query(min_length=1, max_length=100)] = None,
+        nav2_format: Literal["json", "yaml"] = "json",
+        distro: Literal["humble", "jazzy", "kilted"] = "jazzy",
+    ) -> Response:
+        """The plan as a VDA 5050 order (orderId = the plan id) or a Nav2 goal."""
+        q = dict(format=format, vda_version=vda_version, manufacturer=manufacturer,
+                 serial_number=serial_number, map_id=map_id, nav2_format=nav2_format,
+                 distro=distro)  # fmt: skip
+        s = svc(request)
+        try:
+            body, media = await asyncio.get_running_loop().run_in_executor(
+                s.pool, _export, s, plan_id, q
+            )
+        except PickStopError as e:
+            raise _problem(e) from None
+        return Response(body, media_type=media)
+
+    @r.post("/plans/{plan_id}/dispatch", tags=["fleet"], dependencies=W, status_code=202)
+    async def dispatch_plan(
+        request: Request, response: Response, plan_id: str, body: DispatchRequest
+    ) -> dict[str, Any]:
+        """Send the plan's order to a vehicle over the service's MQTT broker, as a job whose
+        record follows the order (nodes reached, picks running, finished, failed)."""
+        from pickstop.fleet import mqtt
+        from pickstop.fleet import order as orders
+        from pickstop.fleet.dispatch_job import start_dispatch_job
+
+        s = svc(request)
+        configured = s.settings.mqtt_broker
+        if not configured:
+            raise Problem(
+                409,
+                "No broker",
+                "this service has no MQTT broker configured (PICKSTOP_MQTT_BROKER)",
+                field="broker",
+            )
+
+        def build() -> Any:
+            plan, scene_doc = _stored(s, plan_id)
+            start_yaw, goal_yaw = _yaws(scene_doc)
+            return orders.build_order(
+                plan,
+                orders.OrderOptions(
+                    version=body.vda_version,
+                    manufacturer=body.manufacturer,
+                    serial_number=body.serial_number,
+                    map_id=body.map_id,
+                    order_id=plan_id,
+                    start_yaw=start_yaw,
+                    goal_yaw=goal_yaw,
+                ),
+            )
+
+        try:
+            broker = mqtt.parse_broker(configured)
+            order = await asyncio.get_running_loop().run_in_executor(s.pool, build)
+        except PickStopError as e:
+            raise _problem(e) from None
+        params = {"plan_id": plan_id, **body.model_dump(), "order_id": order.order_id}
+        job = s.store.add_job("dispatch", params)
+        start_dispatch_job(
+            s.store.set_job,
+            job["id"],
+            order,
+            broker,
+            body.interface_name,
+            body.timeout,
+            body.wait_vehicle,
+            lambda: job["id"] in s._cancel,
+        )
+        response.headers["Location"] = f"/api/v1/jobs/{job['id']}"
+        return _job_record(s.store.job(job["id"]))

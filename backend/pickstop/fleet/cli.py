@@ -1,0 +1,287 @@
+"""The fleet commands of ``pickstop``: export, dispatch, sim-vehicle, execute-sim.
+
+Each is a thin edge over :mod:`pickstop.fleet`; bad input raises :class:`InputError` (exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from pickstop.errors import InputError
+from pickstop.fleet import mqtt
+from pickstop.fleet import order as orders
+from pickstop.fleet import route as rt
+from pickstop.sequence import plan_model as pm
+
+MAX_PLAN_BYTES = 64 * 1024 * 1024
+
+
+def read_plan(path: str) -> pm.Plan:
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"plan {path}: no such file", field="plan")
+    if p.stat().st_size > MAX_PLAN_BYTES:
+        raise InputError(f"plan {path}: larger than {MAX_PLAN_BYTES} bytes", field="plan")
+    try:
+        doc = json.loads(p.read_text())
+    except (ValueError, UnicodeDecodeError) as e:
+        raise InputError(f"plan {path}: not JSON ({e})", field="plan") from None
+    return rt.load_plan(doc, f"plan {path}")
+
+
+def _scene(path: str | None, plan: pm.Plan | None = None) -> Any:
+    if path is None:
+        return None
+    from pickstop.scene.model import load_scene
+    from pickstop.sequence.plan import scene_hash
+
+    scene = load_scene(path)
+    if plan is not None and scene_hash(scene) != plan.scene_hash:
+        raise InputError(
+            f"--scene {path}: not the scene this plan was made for (its hash differs from the "
+            "plan's scene_hash)",
+            field="scene",
+        )
+    return scene
+
+
+def _yaw_tolerance(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
+    """``--yaw-tolerance``, or with ``--verify-yaw`` each stop's, checked exactly."""
+    if not getattr(args, "verify_yaw", False):
+        return args.yaw_tolerance
+    if scene is None:
+        raise InputError("--verify-yaw needs --scene (the plan's scene file)", field="scene")
+    from pickstop.fleet.yaw import verified_yaw_tolerances
+
+    return verified_yaw_tolerances(
+        _checker(args.scene, scene, args, args.db or plan.database), plan
+    )
+
+
+def _order_options(
+    args: argparse.Namespace, scene: Any, plan: pm.Plan | None = None
+) -> orders.OrderOptions:
+    return orders.OrderOptions(
+        version=orders.version_of(args.vda_version),
+        manufacturer=mqtt.check_level("manufacturer", args.manufacturer),
+        serial_number=mqtt.check_level("serial", args.serial),
+        map_id=args.map_id,
+        order_id=args.order_id,
+        release_stops=args.release_stops,
+        start_yaw=None if scene is None else scene.start.yaw,
+        goal_yaw=None if scene is None else scene.goal.yaw,
+        yaw_tolerance=args.yaw_tolerance if plan is None else _yaw_tolerance(args, plan, scene),
+    )
+
+
+def _write(out: str | None, text: str) -> None:
+    if out is None:
+        sys.stdout.write(text)
+        return
+    path = Path(out)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from pickstop.fleet import nav2
+    from pickstop.fleet import vda5050 as v
+
+    plan = read_plan(args.plan)
+    scene = _scene(args.scene, plan)
+    if args.format == "vda5050":
+        order = orders.build_order(plan, _order_options(args, scene, plan))
+        text = json.dumps(v.dump(order), indent=1) + "\n"
+    else:
+        yaml_out = (args.out or "").endswith((".yaml", ".yml"))
+        fmt: Literal["json", "yaml"] = "yaml" if (args.nav2_format or "") == "yaml" else "json"
+        if args.nav2_format is None and yaml_out:
+            fmt = "yaml"
+        doc = nav2.build_nav2(
+            plan,
+            frame_id=args.map_id or "map",
+            distro=args.distro,
+            start_yaw=None if scene is None else scene.start.yaw,
+            goal_yaw=None if scene is None else scene.goal.yaw,
+            yaw_tolerance=_yaw_tolerance(args, plan, scene),
+        )
+        text = nav2.dumps(doc, fmt)
+    _write(args.out, text)
+    if args.out:
+        print(json.dumps({"format": args.format, "out": args.out, "stops": len(plan.stops)}))
+    return 0
+
+
+def cmd_dispatch(args: argparse.Namespace) -> int:
+    from pickstop.fleet.dispatch import Dispatcher
+
+    plan = read_plan(args.plan)
+    scene = _scene(args.scene, plan)
+    broker = mqtt.parse_broker(args.broker)
+    order = orders.build_order(plan, _order_options(args, scene, plan))
+    mqtt.check_level("interface", args.interface)
+    d = Dispatcher(broker, args.manufacturer, args.serial, order.version, args.interface)
+    d.start()
+    try:
+
+        def progress(s: dict[str, Any]) -> None:
+            if not args.quiet:
+                print(
+                    f"nodes {s['nodes_reached']}/{s['nodes']}, picks finished "
+                    f"{s['actions_finished']}, failed {s['actions_failed']}",
+                    file=sys.stderr,
+                )
+
+        summary = d.run(order, timeout=args.timeout, wait_vehicle=args.wait, progress=progress)
+    finally:
+        d.stop()
+    print(json.dumps(summary, indent=1))
+    return 0 if summary["actions_failed"] == 0 else 4
+
+
+def _checker(scene_path: str, scene: Any, args: argparse.Namespace, db: str | None) -> Any:
+    from pickstop.fleet.pickcheck import PickChecker
+    from pickstop.regions.loader import planner_for
+    from pickstop.settings import data_dir
+
+    planner = planner_for(scene, Path(scene_path).resolve().parent, data_dir(args.data_dir), db)
+    return PickChecker(planner, scene)
+
+
+def cmd_sim_vehicle(args: argparse.Namespace) -> int:
+    from pickstop.fleet.sim_node import VehicleNode
+    from pickstop.fleet.vehicle import Motion, SimVehicle, error_model
+
+    if args.rate <= 0:
+        raise InputError(f"--rate: must be > 0, got {args.rate}", field="rate")
+    if args.time_scale < 0:
+        raise InputError(f"--time-scale: must be >= 0, got {args.time_scale}", field="time-scale")
+    if args.sigma is not None and not 0 <= args.sigma <= 1:
+        raise InputError(f"--sigma: must be in [0, 1] m, got {args.sigma}", field="sigma")
+    scene = _scene(args.scene)
+    broker = mqtt.parse_broker(args.broker)
+    mqtt.check_level("interface", args.interface)
+    m = scene.motion
+    sigma = scene.sigma if args.sigma is None else args.sigma
+    veh = SimVehicle(
+        manufacturer=mqtt.check_level("manufacturer", args.manufacturer),
+        serial_number=mqtt.check_level("serial", args.serial),
+        motion=Motion(m.max_speed, m.max_acceleration, m.stop_time, m.pick_time),
+        error=error_model(scene.error_model.kind, sigma, scene.error_model.yaw_sigma),
+        check=_checker(args.scene, scene, args, args.db),
+        rng=np.random.default_rng(args.seed),
+        version=orders.version_of(args.vda_version),
+        x=scene.start.x,
+        y=scene.start.y,
+        theta=scene.start.yaw,
+        map_id=args.map_id or "map",
+    )
+    node = VehicleNode(veh, broker, args.interface, args.rate, args.time_scale).start()
+    print(json.dumps({"vehicle": node.topics, "broker": broker.url, "sigma": sigma}), flush=True)
+    try:
+        while True:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.stop()
+    return 0
+
+
+def cmd_execute_sim(args: argparse.Namespace) -> int:
+    from pickstop.fleet import execution
+
+    plan = read_plan(args.plan)
+    scene = _scene(args.scene, plan)
+    check = _checker(args.scene, scene, args, args.db or plan.database)
+    broker = None if args.broker is None else mqtt.parse_broker(args.broker)
+    outcomes = execution.execute(plan, check, args.runs, args.seed, args.vda_version, broker)
+    rep = execution.report(plan, outcomes)
+    print(execution.table(rep))
+    if args.out:
+        _write(args.out, json.dumps(rep, indent=1) + "\n")
+    return 0
+
+
+def _finite(text: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(x):
+        raise argparse.ArgumentTypeError(f"{text!r} is not finite")
+    return x
+
+
+def _vehicle_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--manufacturer", default="pickstop", help="VDA 5050 manufacturer")
+    p.add_argument("--serial", default="sim-1", help="VDA 5050 serialNumber")
+    p.add_argument("--interface", default=mqtt.INTERFACE, help="topic interface name")
+    p.add_argument("--vda-version", default="2.1", help="2.1 (default) or 3.0")
+    p.add_argument("--map-id", help="mapId / frame id (default: map)")
+
+
+def _order_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scene", help="the plan's scene file: start and goal yaw, checked by hash")
+    p.add_argument("--order-id", help="default: derived from the plan")
+    p.add_argument("--release-stops", type=int, help="release this many stops (default: all)")
+    p.add_argument("--yaw-tolerance", type=_finite, help="allowedDeviationTheta [rad]")
+    p.add_argument(
+        "--verify-yaw",
+        action="store_true",
+        help="each stop's yaw tolerance from exact checks at its centre (needs --scene)",
+    )
+    p.add_argument("--db", help="database for --verify-yaw (default: the plan's)")
+
+
+def add_commands(sub: Any) -> None:
+    ex = sub.add_parser("export", help="a plan as a VDA 5050 order or a Nav2 goal")
+    ex.add_argument("plan", help="plan JSON (from pickstop plan)")
+    ex.add_argument("--format", choices=["vda5050", "nav2"], required=True)
+    ex.add_argument("--out", help="write here (default: stdout)")
+    ex.add_argument("--nav2-format", choices=["json", "yaml"], help="default: by --out suffix")
+    ex.add_argument("--distro", default="jazzy", choices=["humble", "jazzy", "kilted"])
+    _vehicle_args(ex)
+    _order_args(ex)
+    ex.set_defaults(func=cmd_export)
+
+    dp = sub.add_parser("dispatch", help="send a plan's order to a vehicle over MQTT, follow it")
+    dp.add_argument("plan")
+    dp.add_argument("--broker", required=True, help="mqtt://HOST:PORT")
+    dp.add_argument("--timeout", type=_finite, default=600.0, help="[s] until the order is done")
+    dp.add_argument("--wait", type=_finite, default=10.0, help="[s] for the vehicle to appear")
+    dp.add_argument("--quiet", action="store_true")
+    _vehicle_args(dp)
+    _order_args(dp)
+    dp.set_defaults(func=cmd_dispatch)
+
+    sv = sub.add_parser("sim-vehicle", help="a simulated VDA 5050 vehicle for a scene")
+    sv.add_argument("--broker", required=True, help="mqtt://HOST:PORT")
+    sv.add_argument("--scene", required=True, help="scene JSON file")
+    sv.add_argument("--sigma", type=_finite, help="positioning error [m] (default: the scene's)")
+    sv.add_argument("--rate", type=_finite, default=1.0, help="state messages per second")
+    sv.add_argument("--time-scale", type=_finite, default=1.0, help="sim s per s; 0: at once")
+    sv.add_argument("--seed", type=int, default=0)
+    sv.add_argument("--db", help="reachability database id")
+    _vehicle_args(sv)
+    sv.set_defaults(func=cmd_sim_vehicle)
+
+    es = sub.add_parser("execute-sim", help="run a plan N times on a simulated vehicle")
+    es.add_argument("plan")
+    es.add_argument("--scene", required=True, help="the plan's scene file")
+    es.add_argument("--runs", type=int, default=200)
+    es.add_argument("--seed", type=int, default=0)
+    es.add_argument("--broker", help="mqtt://HOST:PORT (default: a local Mosquitto)")
+    es.add_argument("--vda-version", default="2.1")
+    es.add_argument("--db", help="reachability database id (default: the plan's)")
+    es.add_argument("--out", help="write the report JSON here")
+    es.set_defaults(func=cmd_execute_sim)

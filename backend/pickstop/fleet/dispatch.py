@@ -1,0 +1,165 @@
+"""Send an order to a vehicle over MQTT and follow it to the end.
+
+The order goes to ``{interface}/{major}/{manufacturer}/{serial}/order``; the vehicle's
+``state`` topic feeds an :class:`OrderTracker`. Until a state names the order it is sent
+again every ``resend`` seconds (QoS 0, as VDA 5050 recommends, may lose it, e.g. across a
+broker restart; a vehicle discards a repeat of the order it runs).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from pickstop.errors import PickStopError
+from pickstop.fleet import mqtt
+from pickstop.fleet import order as orders
+from pickstop.fleet import vda5050 as v
+from pickstop.fleet.tracker import OrderTracker
+
+REFUSALS = ("orderError", "validationError", "orderUpdateError", "noRouteError")
+
+
+def refusal(doc: dict[str, Any], order_id: str, since_sent: float) -> str | None:
+    """Why a state says our order was refused, or None. An error naming the order (an
+    ``orderId`` reference) counts at once; one naming none only a second after sending, since
+    a state published before the vehicle read the order may carry an older order's error."""
+    errors = doc.get("errors")
+    why = []
+    for e in errors if isinstance(errors, list) else []:
+        if not isinstance(e, dict) or e.get("errorType") not in REFUSALS:
+            continue
+        raw = e.get("errorReferences")
+        refs: list[Any] = raw if isinstance(raw, list) else []
+        named = [r.get("referenceValue") for r in refs if isinstance(r, dict)
+                 and r.get("referenceKey") == "orderId"]  # fmt: skip
+        if order_id in named or (not named and since_sent > 1.0):
+            why.append(str(e.get("errorDescription") or e.get("errorType")))
+    return "; ".join(why) or None
+
+
+class DispatchError(PickStopError):
+    """The order did not complete (no vehicle, refused, timeout, cancelled)."""
+
+
+class DispatchCancelled(DispatchError):
+    """Whoever started the dispatch stopped following it."""
+
+
+class Dispatcher:
+    """One MQTT connection following one vehicle; orders are run one after another."""
+
+    def __init__(
+        self,
+        broker: mqtt.Broker,
+        manufacturer: str,
+        serial_number: str,
+        version: str = "2.1.0",
+        interface: str = mqtt.INTERFACE,
+    ) -> None:
+        mqtt.check_level("manufacturer", manufacturer)
+        mqtt.check_level("serial_number", serial_number)
+        mqtt.check_level("interface", interface)
+
+        def t(leaf: str) -> str:
+            return mqtt.topic(interface, version, manufacturer, serial_number, leaf)
+
+        self.topics = {k: t(k) for k in ("order", "state", "connection")}
+        self.link = mqtt.Link(broker)
+        self.tracker: OrderTracker | None = None
+        self._cond = threading.Condition()
+        self.vehicle_seen = threading.Event()
+        self.connection: str | None = None
+        self.refused: str | None = None  # why the vehicle refused the current order
+        self._last_sent = 0.0  # [s] monotonic
+        self._header = -1  # headerId of the last order message sent
+        self.link.subscribe(self.topics["state"], self._on_state)
+        self.link.subscribe(self.topics["connection"], self._on_connection, qos=1)
+
+    def start(self) -> Dispatcher:
+        self.link.start()
+        return self
+
+    def stop(self) -> None:
+        self.link.stop()
+
+    def _on_state(self, _topic: str, doc: dict[str, Any]) -> None:
+        self.vehicle_seen.set()
+        with self._cond:
+            tr = self.tracker
+            if tr is None:
+                return
+            if tr.update(doc):
+                self._cond.notify_all()
+            elif tr.acknowledged_at is None and self.refused is None:
+                # Still on another order, with an error about an order: ours was refused.
+                why = refusal(doc, tr.order.order_id, time.monotonic() - self._last_sent)
+                if why:
+                    self.refused = why
+                    self._cond.notify_all()
+
+    def _on_connection(self, _topic: str, doc: dict[str, Any]) -> None:
+        self.connection = doc.get("connectionState")
+        if self.connection == "ONLINE":
+            self.vehicle_seen.set()
+
+    def run(
+        self,
+        order: v.Order21 | v.Order30,
+        timeout: float = 600.0,
+        wait_vehicle: float = 10.0,
+        resend: float = 2.0,
+        progress: Callable[[dict[str, Any]], None] | None = None,
+        cancelled: Callable[[], bool] | None = None,
+    ) -> dict[str, Any]:
+        """Publish ``order``, follow it until done; returns the tracker's summary."""
+        if not self.vehicle_seen.wait(wait_vehicle):
+            raise DispatchError(
+                f"no vehicle on {self.topics['state']} (no state or ONLINE connection in "
+                f"{wait_vehicle:.0f} s)"
+            )
+        doc = v.dump(order)
+        self._header = max(self._header + 1, order.header_id)
+        doc["headerId"] = self._header  # per topic, one more with every message sent
+        with self._cond:
+            self.tracker = tr = OrderTracker(order)
+            self.refused = None
+            tr.sent_at = time.monotonic()
+        self._last_sent = time.monotonic()
+        self.link.publish(self.topics["order"], doc)
+        t_end = tr.sent_at + timeout
+        last_sent, last_report = tr.sent_at, 0.0
+        while True:
+            with self._cond:
+                if tr.done:
+                    break
+                self._cond.wait(0.1)
+                done = tr.done
+                summary = tr.summary() if progress else None
+            now = time.monotonic()
+            if done:
+                break
+            if self.refused is not None:
+                raise DispatchError(f"the vehicle refused order {order.order_id}: {self.refused}")
+            if cancelled is not None and cancelled():
+                raise DispatchCancelled(f"order {order.order_id} cancelled")
+            if now > t_end:
+                raise DispatchError(
+                    f"order {order.order_id} not done after {timeout:.0f} s: "
+                    f"{len(tr.reached)}/{len(order.nodes)} nodes reached"
+                )
+            if tr.acknowledged_at is None and now - last_sent > resend:
+                self._header += 1
+                doc = {**doc, "headerId": self._header, "timestamp": orders.timestamp()}
+                self.link.publish(self.topics["order"], doc)
+                last_sent = self._last_sent = now
+            if progress is not None and summary is not None and now - last_report > 0.5:
+                progress(summary)
+                last_report = now
+        with self._cond:
+            summary = tr.summary()
+        if progress is not None:
+            progress(summary)
+        return summary

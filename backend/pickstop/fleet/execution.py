@@ -1,0 +1,191 @@
+"""Execute a plan many times on a simulated vehicle and set the outcome beside the prediction.
+
+Each run dispatches the plan's VDA 5050 order over MQTT to a :class:`SimVehicle` that lands at
+each stop off by the scene's error model and checks every pick with the exact pipeline. A stop
+succeeds in a run when all its picks do, the plan when every stop does. Rates carry 95% Wilson
+intervals; the prediction is the plan's Monte Carlo (per stop) and its product (per plan).
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pickstop.errors import InputError
+from pickstop.fleet import order as orders
+from pickstop.fleet.broker import LocalMosquitto
+from pickstop.fleet.dispatch import Dispatcher
+from pickstop.fleet.mqtt import Broker
+from pickstop.fleet.sim_node import VehicleNode
+from pickstop.fleet.vehicle import Check, Motion, SimVehicle, error_model
+from pickstop.sequence import plan_model as pm
+from pickstop.sequence.success import Rate
+
+MAX_RUNS = 100_000
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    stops_ok: tuple[bool, ...]
+    time: float  # [s] simulated, order accepted to goal reached
+    failures: tuple[str, ...]  # results of failed picks
+    latency: float | None  # [s] publish to the first state naming the order
+
+
+def vehicle_for(
+    plan: pm.Plan, check: Check, seed: int, version: str = "2.1.0", kind: str | None = None
+) -> SimVehicle:
+    """A simulated vehicle with the plan's time model and error model."""
+    p = plan.parameters
+    return SimVehicle(
+        manufacturer="pickstop",
+        serial_number="sim-1",
+        motion=Motion(p.max_speed, p.max_acceleration, p.stop_time, p.pick_time),
+        error=error_model(kind or p.error_model, p.sigma, p.yaw_sigma),  # type: ignore[arg-type]
+        check=check,
+        rng=np.random.default_rng(seed),
+        version=version,
+    )
+
+
+def execute(
+    plan: pm.Plan,
+    check: Check,
+    runs: int,
+    seed: int = 0,
+    version: str = "2.1.0",
+    broker: Broker | None = None,
+) -> list[RunOutcome]:
+    """``runs`` executions of the plan (a local Mosquitto unless ``broker`` is given)."""
+    if not 1 <= runs <= MAX_RUNS:
+        raise InputError(f"runs: must be in 1..{MAX_RUNS}, got {runs}", field="runs")
+    version = orders.version_of(version)
+    local = LocalMosquitto().start() if broker is None else None
+    try:
+        where = broker or local.broker  # type: ignore[union-attr]
+        veh = vehicle_for(plan, check, seed, version)
+        node = VehicleNode(veh, where, time_scale=0).start()
+        disp = Dispatcher(where, veh.manufacturer, veh.serial_number, version).start()
+        try:
+            base = orders.order_id_of(plan)
+            out = []
+            for r in range(runs):
+                order = orders.build_order(
+                    plan,
+                    orders.OrderOptions(
+                        version=version,
+                        manufacturer=veh.manufacturer,
+                        serial_number=veh.serial_number,
+                        order_id=f"{base}-run{r}",
+                        header_id=r,
+                    ),
+                )
+                s = disp.run(order, timeout=120.0)
+                stops = s["stops"]
+                out.append(
+                    RunOutcome(
+                        tuple(st["status"] == "finished" for st in stops),
+                        float((veh.finished_at or veh.clock) - veh.started_at),
+                        tuple(f["result"] or "" for st in stops for f in st["failed"]),
+                        s["latency"],
+                    )
+                )
+            return out
+        finally:
+            disp.stop()
+            node.stop()
+    finally:
+        if local is not None:
+            local.stop()
+
+
+def report(plan: pm.Plan, outcomes: list[RunOutcome]) -> dict[str, Any]:
+    """Executed success per stop and per plan (95% Wilson intervals) beside the prediction,
+    and the executed time beside the predicted one."""
+    n = len(outcomes)
+    stops = []
+    for k, s in enumerate(plan.stops):
+        rate = Rate(n, sum(o.stops_ok[k] for o in outcomes))
+        pred = s.success
+        stops.append(
+            {
+                "stop": k,
+                "trays": s.trays,
+                "guaranteed_radius": s.inscribed_radius,
+                "executed": rate.rate,
+                "executed_interval": list(rate.interval),
+                "predicted": None if pred is None else pred.rate,
+                "predicted_interval": None if pred is None else list(pred.interval),
+                "predicted_samples": None if pred is None else pred.samples,
+            }
+        )
+    whole = Rate(n, sum(all(o.stops_ok) for o in outcomes))
+    times = [o.time for o in outcomes]
+    lat = [o.latency for o in outcomes if o.latency is not None]
+    reasons = Counter(f.split(";")[0] for o in outcomes for f in o.failures)
+    t = plan.totals
+    return {
+        "scene": plan.scene,
+        "rule": plan.parameters.rule,
+        "sigma": plan.parameters.sigma,
+        "error_model": plan.parameters.error_model,
+        "runs": n,
+        "stops": stops,
+        "plan": {
+            "executed": whole.rate,
+            "executed_interval": list(whole.interval),
+            "predicted": t.success,
+            "predicted_interval": None if t.success_interval is None else list(t.success_interval),
+        },
+        "time": {
+            "executed_mean": statistics.fmean(times),
+            "executed_sd": statistics.pstdev(times) if n > 1 else 0.0,
+            "executed_min": min(times),
+            "executed_max": max(times),
+            "predicted": t.time.total,
+        },
+        "dispatch_latency": {
+            "median": statistics.median(lat) if lat else None,
+            "max": max(lat) if lat else None,
+        },
+        "failures": [{"reason": r, "count": c} for r, c in reasons.most_common(5)],
+    }
+
+
+def _pct(x: float | None) -> str:
+    return "    -" if x is None else f"{x:6.1%}"
+
+
+def _iv(iv: list[float] | None) -> str:
+    return "        -        " if iv is None else f"[{iv[0]:6.1%}, {iv[1]:6.1%}]"
+
+
+def table(rep: dict[str, Any]) -> str:
+    """The report as text."""
+    lines = [
+        f"{rep['scene']}: rule {rep['rule']}, sigma {rep['sigma']:.3f} m ({rep['error_model']}), "
+        f"{rep['runs']} runs",
+        f"{'':10} {'executed':>8} {'95% interval':>18}   {'predicted':>9} {'95% interval':>18}",
+    ]
+    for s in rep["stops"]:
+        lines.append(
+            f"stop {s['stop']:<5} {_pct(s['executed']):>8} {_iv(s['executed_interval']):>18}   "
+            f"{_pct(s['predicted']):>9} {_iv(s['predicted_interval']):>18}"
+        )
+    p = rep["plan"]
+    lines.append(
+        f"{'plan':10} {_pct(p['executed']):>8} {_iv(p['executed_interval']):>18}   "
+        f"{_pct(p['predicted']):>9} {_iv(p['predicted_interval']):>18}"
+    )
+    t = rep["time"]
+    lines.append(
+        f"time: executed {t['executed_mean']:.1f} s (sd {t['executed_sd']:.2f}, "
+        f"{t['executed_min']:.1f} to {t['executed_max']:.1f}), predicted {t['predicted']:.1f} s"
+    )
+    for f in rep["failures"]:
+        lines.append(f"  {f['count']} x {f['reason']}")
+    return "\n".join(lines)

@@ -1,0 +1,65 @@
+"""Is a tray's every part still graspable from where the base actually stopped?
+
+The plan's own off-grid test (:func:`pickstop.regions.base_region.feasible_near`: footprint,
+IK by query, refinement seeded by the region's nearest verified cells, exact collision checks),
+the one its stop centres and Monte Carlo samples pass, at the real pose instead of a sample.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import OrderedDict
+
+import numpy as np
+
+from pickstop.regions.base_region import RegionPlanner, TrayRegion, feasible_near
+from pickstop.scene.model import Scene
+
+CACHE = 4096  # results kept per checker (poses repeat across runs only by chance)
+
+
+class PickChecker:
+    """``checker(tray_id, x, y, yaw) -> (ok, reason)`` for one scene; thread-safe."""
+
+    def __init__(self, planner: RegionPlanner, scene: Scene) -> None:
+        self.planner, self.scene = planner, scene
+        self._lock = threading.Lock()
+        with self._lock:
+            self.regions: dict[tuple[str, float], TrayRegion] = planner.regions(scene)
+        self._cache: OrderedDict[tuple[str, float, float, float], tuple[bool, str]] = OrderedDict()
+        self.calls = 0
+
+    def region(self, tray_id: str, yaw: float) -> TrayRegion | None:
+        """The tray's region at the scene's base yaw nearest ``yaw``."""
+        mine = [(t, y) for t, y in self.regions if t == tray_id]
+        if not mine:
+            return None
+
+        def gap(y: float) -> float:
+            return abs(math.atan2(math.sin(y - yaw), math.cos(y - yaw)))
+
+        return self.regions[min(mine, key=lambda k: gap(k[1]))]
+
+    def __call__(self, tray_id: str, x: float, y: float, yaw: float) -> tuple[bool, str]:
+        key = (tray_id, round(x, 6), round(y, 6), round(yaw, 6))
+        with self._lock:
+            hit = self._cache.get(key)
+            if hit is not None:
+                return hit
+            region = self.region(tray_id, yaw)
+            if region is None:
+                out = (False, f"tray {tray_id!r} is not in the scene")
+            else:
+                self.calls += 1
+                ok, _, _ = feasible_near(self.planner, self.scene, region, np.array([[x, y]]), yaw)
+                out = (
+                    (True, "graspable collision-free")
+                    if ok[0]
+                    else (False, f"no collision-free grasp of every part of tray {tray_id} "
+                                 "from this base pose (exact check)")
+                )  # fmt: skip
+            self._cache[key] = out
+            while len(self._cache) > CACHE:
+                self._cache.popitem(last=False)
+            return out

@@ -1,0 +1,149 @@
+"""A plan as a vehicle drives it: waypoints (start, floor-path corners, stops, goal) with the
+tolerance each must be reached within, and the picks at each stop.
+
+Shared by the VDA 5050 and Nav2 exports and by the simulated vehicle. A stop's *guaranteed
+radius* is the largest circle around it inside which every part of its trays stays graspable:
+the inscribed circle of the regions' intersection the stop is the centre of (every floor cell
+in it is exactly verified for all those trays). Its yaw tolerance is what the plan's Monte Carlo
+sampled: two standard deviations of the scene's yaw error, and at least the yaw lattice.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from pydantic import ValidationError
+
+from pickstop.errors import InputError
+from pickstop.sequence import plan_model as pm
+from pickstop.sequence.success import YAW_LATTICE
+
+MAX_WAYPOINTS = 10_000  # a route longer than this is refused before any export
+VIA_TOLERANCE = 0.25  # [m] how close a floor-path corner must be passed (Nav2's default)
+
+Kind = Literal["start", "via", "stop", "goal"]
+
+
+@dataclass(frozen=True)
+class Pick:
+    """One part to pick at a stop, with the witness arm configuration the plan verified."""
+
+    tray_id: str
+    part_id: str
+    grasp_index: int
+    joints: tuple[str, ...]
+    theta: tuple[float, ...]  # [rad or m], in ``joints`` order
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    """A pose the vehicle passes (``via``) or stops at, in the scene's map frame."""
+
+    id: str
+    kind: Kind
+    x: float  # [m]
+    y: float  # [m]
+    yaw: float | None  # [rad]; None: the vehicle chooses
+    tolerance_xy: float  # [m] radius within which it counts as reached
+    tolerance_yaw: float | None  # [rad]
+    stop: int | None = None  # stop index for kind "stop"
+    picks: tuple[Pick, ...] = ()
+    predicted_success: float | None = None
+
+
+def wrap(angle: float) -> float:
+    """``angle`` [rad] into [-pi, pi]."""
+    return math.atan2(math.sin(angle), math.cos(angle))
+
+
+def guaranteed_radius(stop: pm.Stop) -> float:
+    """Radius [m] around the stop inside which every part of its trays stays graspable."""
+    return float(stop.inscribed_radius)
+
+
+def yaw_tolerance(plan: pm.Plan) -> float:
+    """Half-width [rad] of the yaw band the plan's success estimate covers."""
+    return max(2.0 * plan.parameters.yaw_sigma, YAW_LATTICE)
+
+
+def load_plan(doc: Any, source: str = "plan") -> pm.Plan:
+    """Validate a plan document; a bad one raises :class:`InputError` naming the field."""
+    try:
+        return pm.Plan.model_validate(doc)
+    except ValidationError as e:
+        err = e.errors()[0]
+        loc = ".".join(str(p) for p in err["loc"]) or "(root)"
+        raise InputError(f"{source}: {loc}: {err['msg']}", field=loc) from None
+
+
+def waypoints(
+    plan: pm.Plan,
+    start_yaw: float | None = None,
+    goal_yaw: float | None = None,
+    yaw_tol: float | Sequence[float] | None = None,
+) -> list[Waypoint]:
+    """The route as waypoints: start, the corners of each leg's floor path, stops, goal.
+
+    ``yaw_tol``: the stops' yaw tolerance [rad], one for all or one per stop (e.g. from
+    :func:`pickstop.fleet.yaw.verified_yaw_tolerances`); default :func:`yaw_tolerance`.
+    """
+    n = sum(max(0, len(leg.polyline) - 1) for leg in plan.legs) + 1
+    if n > MAX_WAYPOINTS:
+        raise InputError(
+            f"legs: the route has {n} waypoints, more than {MAX_WAYPOINTS}", field="legs"
+        )
+    if len(plan.legs) != len(plan.stops) + 1:
+        raise InputError(
+            f"legs: {len(plan.legs)} legs for {len(plan.stops)} stops (expected stops + 1)",
+            field="legs",
+        )
+    if yaw_tol is None or isinstance(yaw_tol, float | int):
+        tols = [yaw_tolerance(plan) if yaw_tol is None else float(yaw_tol)] * len(plan.stops)
+    else:
+        tols = [float(t) for t in yaw_tol]
+        if len(tols) != len(plan.stops):
+            raise InputError(
+                f"yaw_tolerance: {len(tols)} values for {len(plan.stops)} stops",
+                field="yaw_tolerance",
+            )
+    if any(not 0 <= t <= math.pi for t in tols):
+        raise InputError("yaw_tolerance: each must be in [0, pi] rad", field="yaw_tolerance")
+    joints = tuple(plan.joints)
+    if not plan.legs or not plan.legs[0].polyline:
+        raise InputError("legs: the plan has no route", field="legs")
+    x0, y0 = plan.legs[0].polyline[0]
+    out = [Waypoint("start", "start", x0, y0, start_yaw, VIA_TOLERANCE, None)]
+    for k, leg in enumerate(plan.legs):
+        line = leg.polyline
+        for i, (x, y) in enumerate(line[1:-1], start=1):
+            out.append(Waypoint(f"leg{k}-via{i}", "via", x, y, None, VIA_TOLERANCE, None))
+        x, y = line[-1]
+        if k < len(plan.stops):
+            s = plan.stops[k]
+            picks = tuple(
+                Pick(w.tray_id, w.part_id, w.grasp_index, joints, tuple(w.theta))
+                for w in s.witnesses
+            )
+            out.append(
+                Waypoint(
+                    f"stop{k}",
+                    "stop",
+                    s.x,
+                    s.y,
+                    wrap(s.yaw),
+                    guaranteed_radius(s),
+                    tols[k],
+                    stop=k,
+                    picks=picks,
+                    predicted_success=None if s.success is None else s.success.rate,
+                )
+            )
+        else:
+            out.append(
+                Waypoint("goal", "goal", x, y, None if goal_yaw is None else wrap(goal_yaw),
+                         VIA_TOLERANCE, None)
+            )  # fmt: skip
+    return out

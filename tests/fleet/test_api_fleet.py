@@ -1,0 +1,152 @@
+"""The fleet routes: export of a stored plan, dispatch as a job over a live Mosquitto to a
+simulated vehicle; the job record and the planner's fleet panel show every node reached and
+every pick finished."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import jsonschema
+import pytest
+import yaml
+from fastapi.testclient import TestClient
+
+from pickstop.api.app import create_app
+from pickstop.fleet import nav2
+from pickstop.fleet.execution import vehicle_for
+from pickstop.fleet.pickcheck import PickChecker
+from pickstop.fleet.route import load_plan
+from pickstop.fleet.sim_node import VehicleNode
+from pickstop.settings import Settings, hash_key
+from tests.fleet.conftest import EXAMPLES, scene_of
+from tests.fleet.test_order import schema
+
+KEY = "fleet-test-key-0123456789"
+AUTH = {"Authorization": f"Bearer {KEY}"}
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture()
+def fleet_client(region_db, mosquitto):
+    folder, _ = region_db
+    settings = Settings(data_dir=folder, api_keys=[hash_key(KEY)], mqtt_broker=mosquitto.broker.url)
+    with TestClient(create_app(settings)) as c:
+        yield c
+
+
+@pytest.fixture()
+def stored_plan(fleet_client):
+    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
+    r = fleet_client.post(
+        "/api/v1/plans",
+        headers=AUTH,
+        json={"scene": doc, "options": {"sigma": 0.1, "samples": 200}},
+    )
+    assert r.status_code == 201, r.text
+    return r.json()["id"], load_plan(r.json()["plan"])
+
+
+def test_export_of_a_stored_plan(fleet_client, stored_plan):
+    plan_id, plan = stored_plan
+    r = fleet_client.get(f"/api/v1/plans/{plan_id}/export?format=vda5050&vda_version=3.0")
+    assert r.status_code == 200
+    order = r.json()
+    jsonschema.validate(order, schema("order", "3.0.0"))
+    assert order["orderId"] == plan_id and order["version"] == "3.0.0"
+    r = fleet_client.get(f"/api/v1/plans/{plan_id}/export?format=nav2&nav2_format=yaml")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("application/yaml")
+    doc = yaml.safe_load(r.text)
+    assert len(doc["segments"]) == len(plan.stops) + 1
+    assert nav2.goal_poses(doc)[-1][:2] == pytest.approx(plan.route[-1])
+    bad = fleet_client.get(f"/api/v1/plans/{plan_id}/export?format=pdf")
+    assert bad.status_code == 422
+    assert fleet_client.get("/api/v1/plans/pln_nope/export").status_code == 404
+
+
+def test_dispatch_job_follows_the_order_to_the_end(fleet_client, stored_plan, mosquitto, planner):
+    """Dispatched from the planner's fleet panel, as a user does: the panel starts the job
+    through the API and follows it; the job record and the panel end with every node reached
+    and every pick finished."""
+    import viser
+
+    from pickstop_ui.client import PickStopClient
+    from pickstop_ui.fleet_view import COLOURS, FleetView, panel
+
+    plan_id, plan = stored_plan
+    veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=0)
+    veh.serial_number = "agv-7"
+    veh.forced_error = (0.0, 0.0, 0.0)
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=100).start()
+    server = viser.ViserServer(port=0, verbose=False)
+    api = PickStopClient("http://testserver")
+    api.http = fleet_client  # the app in process (TestClient is an httpx client)
+    fleet_client.headers.update(AUTH)
+    try:
+        view = FleetView(server, api, lambda: plan_id)
+        view.serial.value = "agv-7"
+        view._dispatch()
+        t_end = time.monotonic() + 60
+        while time.monotonic() < t_end and (view.job is None or view.job["state"] != "done"):
+            time.sleep(0.1)
+        job = fleet_client.get(f"/api/v1/jobs/{view.job['id']}").json()
+        assert job["kind"] == "dispatch" and job["state"] == "done", job
+        res = job["result"]
+        assert res["done"] and res["nodes_reached"] == res["nodes"]
+        assert res["actions_finished"] == res["actions"] > 0
+        assert [s["status"] for s in res["stops"]] == ["finished"] * len(plan.stops)
+        # the panel: the vehicle at the goal, every stop green, the text says so
+        assert tuple(view.vehicle.position[:2]) == pytest.approx(plan.route[-1])
+        assert len(view.stops) == len(plan.stops)
+        assert all(h.color == COLOURS["finished"] for h in view.stops.values())
+        text = view.md.content
+        assert text == panel(view.job) and text.count("**finished**") == len(plan.stops)
+        assert f"nodes reached {res['nodes']}/{res['nodes']}" in text
+    finally:
+        for k in AUTH:
+            fleet_client.headers.pop(k, None)
+        server.stop()
+        node.stop()
+
+
+def test_dispatch_bad_input_and_no_broker(fleet_client, stored_plan, region_db):
+    plan_id, _ = stored_plan
+    url = f"/api/v1/plans/{plan_id}/dispatch"
+    assert fleet_client.post(url, json={}).status_code == 401
+    r = fleet_client.post(url, headers=AUTH, json={"serial_number": "a/b"})
+    assert r.status_code == 422 and r.json()["field"].endswith("serial_number")
+    r = fleet_client.post(url, headers=AUTH, json={"timeout": -1})
+    assert r.status_code == 422
+    assert (
+        fleet_client.post("/api/v1/plans/pln_x/dispatch", headers=AUTH, json={}).status_code == 404
+    )
+    folder, _ = region_db
+    with TestClient(create_app(Settings(data_dir=folder, api_keys=[hash_key(KEY)]))) as c:
+        r = c.post(url, headers=AUTH, json={})
+        assert r.status_code == 409 and "PICKSTOP_MQTT_BROKER" in r.json()["detail"]
+
+
+def test_a_dispatch_job_can_be_cancelled(fleet_client, stored_plan, mosquitto, planner):
+    plan_id, plan = stored_plan
+    veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=0)
+    veh.serial_number = "agv-8"
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=5, time_scale=1).start()  # ~60 s order
+    try:
+        r = fleet_client.post(
+            f"/api/v1/plans/{plan_id}/dispatch", headers=AUTH, json={"serial_number": "agv-8"}
+        )
+        job_id = r.json()["id"]
+        t_end = time.monotonic() + 20
+        job = r.json()
+        while time.monotonic() < t_end and not (job["result"] or {}).get("states"):
+            time.sleep(0.1)
+            job = fleet_client.get(f"/api/v1/jobs/{job_id}").json()
+        assert job["state"] == "running" and job["result"]["nodes_reached"] >= 1
+        assert fleet_client.post(f"/api/v1/jobs/{job_id}/cancel", headers=AUTH).status_code == 200
+        while time.monotonic() < t_end and job["state"] == "running":
+            time.sleep(0.1)
+            job = fleet_client.get(f"/api/v1/jobs/{job_id}").json()
+        assert job["state"] == "cancelled" and "cancelled" in job["error"]
+    finally:
+        node.stop()

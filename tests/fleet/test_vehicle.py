@@ -1,0 +1,108 @@
+"""The simulated vehicle and the tracker without a broker: the order runs to the end on
+simulated time, states validate against the official schemas, and a stop outside the
+guaranteed radius fails its pick (exact check) with the reason."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+import pytest
+
+from pickstop.fleet import order as od
+from pickstop.fleet import vda5050 as v
+from pickstop.fleet.execution import vehicle_for
+from pickstop.fleet.pickcheck import PickChecker
+from pickstop.fleet.tracker import OrderTracker
+
+SCHEMAS = Path(v.__file__).parent / "schemas"
+
+
+@pytest.fixture(scope="module")
+def paper(example_plans, planner):
+    scene, plan = example_plans["paper_experiment"]
+    return scene, plan, PickChecker(planner, scene)
+
+
+def drive(veh, order, tracker, schema=None, max_dt=2.0):
+    assert veh.accept(v.dump(order))
+    tracker.update(veh.state())
+    states = 0
+    while veh.busy:
+        veh.advance(min(max_dt, veh.next_event()))
+        st = veh.state()
+        if schema is not None:
+            jsonschema.validate(st, schema)
+        tracker.update(st)
+        states += 1
+    return states
+
+
+@pytest.mark.parametrize("version", ["2.1.0", "3.0.0"])
+def test_an_order_runs_to_the_end_and_every_state_is_valid(paper, version):
+    scene, plan, check = paper
+    veh = vehicle_for(plan, check, seed=1, version=version)
+    veh.forced_error = (0.0, 0.0, 0.0)  # exactly at the stops: every pick is feasible
+    order = od.build_order(plan, od.OrderOptions(version=version))
+    tracker = OrderTracker(order)
+    schema = json.loads((SCHEMAS / f"state-{version}.schema.json").read_text())
+    drive(veh, order, tracker, schema)
+    s = tracker.summary()
+    assert s["done"] and s["nodes_reached"] == len(order.nodes)
+    assert s["reached"] == [n.node_id for n in order.nodes]
+    assert s["actions_finished"] == s["actions"] == sum(len(st.witnesses) for st in plan.stops)
+    assert all(st["status"] == "finished" for st in s["stops"])
+    assert s["position"]["x"] == pytest.approx(scene.goal.x)
+    # Exactly at the stops the executed time is the predicted one.
+    assert veh.finished_at - veh.started_at == pytest.approx(plan.totals.time.total, rel=1e-6)
+
+
+def test_a_stop_outside_the_guaranteed_radius_fails_its_pick_with_the_reason(paper):
+    _, plan, check = paper
+    veh = vehicle_for(plan, check, seed=1)
+    r = plan.stops[0].inscribed_radius
+    veh.forced_error = (0.0, -(r + 0.35), 0.0)  # far outside, away from the table
+    order = od.build_order(plan)
+    tracker = OrderTracker(order)
+    drive(veh, order, tracker)
+    s = tracker.summary()
+    assert s["done"] and s["actions_failed"] == s["actions"]  # every stop landed too far
+    first = s["stops"][0]
+    assert first["status"] == "failed" and first["failed"]
+    reason = first["failed"][0]["result"]
+    assert "not graspable" in reason and "outside its guaranteed radius" in reason
+    assert f"{r:.3f} m" in reason
+    assert any(e["errorType"] == "pickFailed" for e in s["errors"])
+
+
+def test_the_tracker_ignores_other_orders_and_stale_states(paper):
+    _, plan, check = paper
+    veh = vehicle_for(plan, check, seed=2)
+    order = od.build_order(plan, od.OrderOptions(order_id="mine"))
+    tracker = OrderTracker(order)
+    veh.accept(v.dump(od.build_order(plan, od.OrderOptions(order_id="other"))))
+    assert not tracker.update(veh.state()) and tracker.states == 0
+    veh.accept(v.dump(order))
+    st = veh.state()
+    assert tracker.update(st) and not tracker.update(st)  # the same headerId again: stale
+    assert not tracker.update({"garbage": 1})
+    assert tracker.ignored == 3
+
+
+def test_errors_are_drawn_from_the_scene_model(paper):
+    _, plan, check = paper
+    veh = vehicle_for(plan, check, seed=3)
+    d = np.array([veh.error(veh.rng)[:2] for _ in range(4000)])
+    mean = np.linalg.norm(d, axis=1).mean()
+    assert mean == pytest.approx(plan.parameters.sigma, rel=0.05)  # gaussian: mean error sigma
+
+
+def test_a_malformed_order_is_refused_with_an_error_in_the_state(paper):
+    _, plan, check = paper
+    veh = vehicle_for(plan, check, seed=4)
+    doc = v.dump(od.build_order(plan))
+    doc["nodes"][1]["sequenceId"] = 3
+    assert not veh.accept(doc)
+    assert veh.state()["errors"][0]["errorType"] == "orderError"
