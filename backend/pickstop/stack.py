@@ -125,7 +125,7 @@ def start(
     if not ui:
         return Stack(api_url, None, None, server, None)
 
-    from pickstop_ui.app import PlannerApp, load_robot_urdf
+    from pickstop_ui.app import PlannerApp
     from pickstop_ui.client import PickStopClient
 
     client = PickStopClient(api_url, ui_key)
@@ -140,6 +140,5 @@ def start(
             else:
                 doc = json.loads(EXAMPLE_SCENE.read_text(encoding="utf-8"))
                 scene_id = client.create_scene(doc).id
-    app = PlannerApp(client, scene_id, host=host, port=settings.ui_port,
-                     robot_urdf=load_robot_urdf())  # fmt: skip
+    app = PlannerApp(client, scene_id, host=host, port=settings.ui_port)
     return Stack(api_url, f"http://{host}:{app.port}/", scene_id, server, app)

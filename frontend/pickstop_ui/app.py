@@ -35,6 +35,7 @@ from pickstop_ui.geometry import (
     route_segments,
     yaw_quat,
 )
+from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 
 log = logging.getLogger("pickstop.ui")
 
@@ -101,10 +102,12 @@ class PlannerApp:
         scene_id: str,
         host: str = "127.0.0.1",
         port: int = 8080,
-        robot_urdf: Any = None,
+        draw_robot: bool = True,
     ) -> None:
         self.api = client
         stored = client.scene(scene_id)
+        # The scene's own robot, from the API (URDF, meshes, locked and pre-grasp joints).
+        robot = fetch_robot(client, scene_robot_name(stored.doc)) if draw_robot else None
         self.state = PlannerState(stored, copy.deepcopy(stored.doc))
         self.server = viser.ViserServer(host=host, port=port, label="PickStop", verbose=False)
         self.port = self.server.get_port()
@@ -112,8 +115,9 @@ class PlannerApp:
         self._pending: _Request | None = None
         self._wake = threading.Event()
         self._stop = False
-        self._urdf = robot_urdf
-        self._locked = _locked_joints(stored.doc)
+        self.robot = robot
+        self._urdf = robot.urdf if robot is not None else None
+        self._locked = robot.joint_values if robot is not None else {}
         self._ghosts: list[Any] = []
         self._tray_ui: dict[str, Any] = {}
         self._draw_scene()
@@ -590,7 +594,8 @@ class PlannerApp:
             frame.position, frame.wxyz = (s.x, s.y, 0.0), yaw_quat(s.yaw)
             frame.visible = self.show_robots.value
             if s.witnesses:
-                urdf.update_cfg(self._cfg(urdf, plan.joints, s.witnesses[0].theta))
+                w = s.witnesses[0]
+                urdf.update_cfg(self._cfg(urdf, plan.joints, w.theta, w.hand))
 
     def _robots_visible(self) -> None:
         st = self.state
@@ -599,10 +604,20 @@ class PlannerApp:
         for k, (frame, _) in enumerate(self._ghosts):
             frame.visible = self.show_robots.value and k < n
 
-    def _cfg(self, urdf: Any, joints: list[str], theta: list[float]) -> np.ndarray:
+    def _cfg(
+        self,
+        urdf: Any,
+        joints: list[str],
+        theta: list[float],
+        hand: dict[str, float] | None = None,
+    ) -> np.ndarray:
+        """The URDF's actuated joint values: the arm's, then the witness's hand values, then
+        the robot's locked (and pre-grasp) values."""
         names = urdf.get_actuated_joint_names()
         cfg = np.zeros(len(names))
         values = dict(zip(joints, theta, strict=True))
+        for name, value in (hand or {}).items():
+            values.setdefault(name, value)
         for name, value in self._locked.items():
             values.setdefault(name, value)
         for i, n in enumerate(names):
@@ -722,19 +737,6 @@ class PlannerApp:
                 robot.update_cfg(self._cfg(robot, plan.joints, [0.0] * len(plan.joints)))
 
 
-def _locked_joints(doc: dict[str, Any]) -> dict[str, float]:
-    """The robot config's fixed joint values (e.g. TIAGo's head looking down), for drawing."""
-    from pickstop.errors import PickStopError
-    from pickstop.robot.config import resolve_robot
-
-    preset = (doc.get("robot") or {}).get("preset") or "tiago"
-    try:
-        config, _ = resolve_robot(preset)
-    except PickStopError:
-        return {}
-    return {k: float(v) for k, v in config.locked_joints.items() if isinstance(v, int | float)}
-
-
 def _poly(rings: list[list[tuple[float, float]]]) -> Polygon:
     return Polygon(rings[0], rings[1:]) if rings else Polygon()
 
@@ -748,32 +750,6 @@ def _segments(sc: Any, name: str, parts: list[np.ndarray], colour: Any, width: f
     sc.add_line_segments(name, pts, colors=colour, thickness=width)
 
 
-def load_robot_urdf(name: str = "tiago") -> Any:
-    """The robot's visual model for viser (meshes from example-robot-data)."""
-    import yourdfpy
-
-    from pickstop.robot.config import example_robot_data_share, resolve_robot
-
-    share = example_robot_data_share()
-    cfg, root = resolve_robot(name)
-    ref = cfg.urdf
-    path = share / ref.removeprefix("package://") if ref.startswith("package://") else root / ref
-
-    def handler(fname: str) -> str:
-        if fname.startswith("package://"):
-            return str(share / fname.removeprefix("package://"))
-        return fname
-
-    return yourdfpy.URDF.load(
-        str(path),
-        filename_handler=handler,
-        load_meshes=True,
-        build_scene_graph=True,
-        load_collision_meshes=True,
-        build_collision_scene_graph=True,
-    )
-
-
 def run(api_url: str, scene_id: str, api_key: str | None, host: str, port: int) -> PlannerApp:
     client = PickStopClient(api_url, api_key)
-    return PlannerApp(client, scene_id, host=host, port=port, robot_urdf=load_robot_urdf())
+    return PlannerApp(client, scene_id, host=host, port=port)

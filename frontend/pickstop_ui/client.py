@@ -58,6 +58,14 @@ class PickStopClient:
     def health(self) -> dict[str, Any]:
         return dict(self._check(self.http.get(f"{API}/health")).json())
 
+    def robot_model(self, name: str) -> dict[str, Any]:
+        """A robot's URDF (mesh references ``files/<id>``), arm joints and joint values."""
+        return dict(self._check(self.http.get(f"{API}/robots/{name}/model")).json())
+
+    def robot_file(self, name: str, file_id: str) -> bytes:
+        """One mesh file of a robot's model."""
+        return self._check(self.http.get(f"{API}/robots/{name}/files/{file_id}")).content
+
     def scene(self, scene_id: str) -> StoredScene:
         r = self._check(self.http.get(f"{API}/scenes/{scene_id}"))
         body = r.json()

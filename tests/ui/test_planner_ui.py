@@ -42,13 +42,13 @@ pytestmark = pytest.mark.skipif(
 
 @pytest.fixture(scope="module")
 def planner_app(live_api):
-    from pickstop_ui.app import PlannerApp, load_robot_urdf
+    from pickstop_ui.app import PlannerApp
     from pickstop_ui.client import PickStopClient
 
     client = PickStopClient(live_api, LIVE_KEY)
     doc = json.loads(SCENE.read_text())
     stored = client.create_scene(doc)
-    app = PlannerApp(client, stored.id, port=free_port(), robot_urdf=load_robot_urdf())
+    app = PlannerApp(client, stored.id, port=free_port())
     yield app
     app.close()
 

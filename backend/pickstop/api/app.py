@@ -13,7 +13,17 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, Depends, FastAPI, Header, Query, Request, Response
+from fastapi import (
+    APIRouter,
+    Body,
+    Depends,
+    FastAPI,
+    Header,
+    HTTPException,
+    Query,
+    Request,
+    Response,
+)
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from starlette.types import ASGIApp, Receive, Scope, Send
@@ -336,6 +346,38 @@ def _router(settings: Settings) -> APIRouter:
             "dof": robot.dof,
             "robot_hash": robot.robot_hash,
         }
+
+    @r.get("/robots/{name}/check", tags=["robots"], dependencies=R)
+    async def robot_check(request: Request, name: str) -> dict[str, Any]:
+        """What PickStop makes of the robot (``pickstop robot check``): the resolved tool,
+        hand, footprint, self-collision pairs and their source, the screen's false rejection,
+        and each step's time."""
+        from pickstop.api.robot_views import check_of
+
+        s = svc(request)
+        return await asyncio.get_running_loop().run_in_executor(s.pool, check_of, s, name)
+
+    @r.get("/robots/{name}/model", tags=["robots"], dependencies=R)
+    async def robot_model(request: Request, name: str) -> dict[str, Any]:
+        """The robot's URDF (mesh references ``files/<id>``), its arm joints and the values
+        of every other joint (locked, or the hand's pre-grasp), for drawing it."""
+        from pickstop.api.robot_views import model_of
+
+        s = svc(request)
+        return await asyncio.get_running_loop().run_in_executor(s.pool, model_of, s, name)
+
+    @r.get("/robots/{name}/files/{file_id}", tags=["robots"], dependencies=R)
+    async def robot_file(request: Request, name: str, file_id: str) -> Any:
+        """One mesh of the robot's model."""
+        from fastapi.responses import FileResponse
+
+        from pickstop.api.robot_views import file_of
+
+        s = svc(request)
+        path = await asyncio.get_running_loop().run_in_executor(s.pool, file_of, s, name, file_id)
+        if path is None:
+            raise HTTPException(404, f"robot {name!r} has no file {file_id!r}")
+        return FileResponse(path, media_type="application/octet-stream")
 
     # databases ---------------------------------------------------------------------------------
     @r.get("/databases", tags=["databases"], dependencies=R)

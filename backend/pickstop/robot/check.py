@@ -13,11 +13,12 @@ from __future__ import annotations
 import fnmatch
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
 
-from pickstop.robot.config import resolve_robot
+from pickstop.robot.config import RobotConfig, resolve_robot
 from pickstop.robot.model import RobotModel, load_robot
 
 T = TypeVar("T")
@@ -29,11 +30,21 @@ CHECK_SAMPLES = 10_000
 
 def check_robot(ref: str, cache_dir: Any = None) -> dict[str, Any]:
     """The report of the robot ``ref`` (a preset name or a config file) as plain data."""
+    t0 = time.perf_counter()
+    config, root = resolve_robot(ref)
+    return check_config(config, root, ref, cache_dir, round(time.perf_counter() - t0, 3))
+
+
+def check_config(
+    config: RobotConfig, root: Path, label: str, cache_dir: Any = None, parse_s: float = 0.0
+) -> dict[str, Any]:
+    """The report of a parsed robot config whose relative paths start at ``root``."""
     from pickstop.robot.artifacts import screen_quality, self_collision
     from pickstop.robot.link_geometry import DENSE_TRIANGLES, collision_links
     from pickstop.robot.selfcollision import disabled_pairs
 
-    seconds: dict[str, float] = {}
+    seconds: dict[str, float] = {"config": parse_s}
+    ref = label
 
     def step(name: str, fn: Callable[[], T]) -> T:
         t0 = time.perf_counter()
@@ -41,7 +52,6 @@ def check_robot(ref: str, cache_dir: Any = None) -> dict[str, Any]:
         seconds[name] = round(time.perf_counter() - t0, 3)
         return out
 
-    config, root = step("config", lambda: resolve_robot(ref))
     robot: RobotModel = step("model", lambda: load_robot(config, root))
     links = step("collision_links", lambda: collision_links(robot))
     disabled, _ = step("screen", lambda: self_collision(robot, cache_dir))

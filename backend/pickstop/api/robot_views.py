@@ -1,0 +1,59 @@
+"""What the API shows of a robot: its check report, and its drawing (URDF with portable mesh
+references, and those files).
+
+Only files the robot's own URDF references are served, and each is confined again when it is
+opened (its real path, symlinks resolved, must lie in the allowed folders); answers never name
+server paths.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from pickstop.robot.assets import RobotAssets, robot_assets
+from pickstop.robot.model import load_robot
+
+
+def assets_of(service: Any, name: str) -> RobotAssets:
+    """The drawing assets of a preset or registered robot (made once per robot)."""
+    config, root = service.robot_config(name)
+    cache = service.__dict__.setdefault("_robot_assets", {})
+    key = (name, config.model_dump_json())
+    if key not in cache:
+        cache[key] = robot_assets(load_robot(config, root))
+    return cache[key]
+
+
+def model_of(service: Any, name: str) -> dict[str, Any]:
+    a = assets_of(service, name)
+    return {
+        "name": a.name,
+        "urdf": a.urdf,
+        "files": sorted(a.files),
+        "arm_joints": a.arm_joints,
+        "joint_values": a.joint_values,
+        "hand_joints": a.hand_joints,
+    }
+
+
+def file_of(service: Any, name: str, file_id: str) -> Path | None:
+    """The server file behind one of the robot's file ids, confined at this open (None: no
+    such file, or it now leads outside the allowed folders)."""
+    path = assets_of(service, name).files.get(file_id)
+    if path is None:
+        return None
+    real = path.resolve(strict=False)
+    roots = [Path(r).resolve() for r in service.allowed_roots()]
+    if not any(real.is_relative_to(r) for r in roots) or not real.is_file():
+        return None
+    return real
+
+
+def check_of(service: Any, name: str) -> dict[str, Any]:
+    """``pickstop robot check`` of a preset or registered robot (file names only, no paths)."""
+    from pickstop.robot.check import check_config
+    from pickstop.settings import cache_dir
+
+    config, root = service.robot_config(name)
+    return check_config(config, root, name, cache_dir(service.data_dir))
