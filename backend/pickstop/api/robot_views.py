@@ -56,4 +56,9 @@ def check_of(service: Any, name: str) -> dict[str, Any]:
     from pickstop.settings import cache_dir
 
     config, root = service.robot_config(name)
-    return check_config(config, root, name, cache_dir(service.data_dir))
+    # A check takes seconds (disabled pairs, the screen and its quality): once per config.
+    cache = service.__dict__.setdefault("_robot_checks", {})
+    key = (name, config.model_dump_json())
+    if key not in cache:
+        cache[key] = check_config(config, root, name, cache_dir(service.data_dir))
+    return dict(cache[key])
