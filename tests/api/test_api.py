@@ -84,7 +84,9 @@ def test_scene_lifecycle_with_etags(client, paper_doc):
     assert client.get(f"/api/v1/scenes/{sid}").json()["scene"]["sigma"] == 0.05
 
     _problem(client.delete(f"/api/v1/scenes/{sid}", headers={**AUTH, "If-Match": etag}), 412)
-    assert client.delete(f"/api/v1/scenes/{sid}", headers=AUTH).status_code == 204
+    _problem(client.delete(f"/api/v1/scenes/{sid}", headers=AUTH), 428)  # If-Match required
+    gone = client.delete(f"/api/v1/scenes/{sid}", headers={**AUTH, "If-Match": new_etag})
+    assert gone.status_code == 204
     _problem(client.get(f"/api/v1/scenes/{sid}"), 404, "Not found")
 
 
