@@ -1,0 +1,60 @@
+"""Scene documents for the API tests: example scenes grown to hostile sizes."""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+from typing import Any
+
+EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
+
+
+def paper() -> dict[str, Any]:
+    return json.loads((EXAMPLES / "paper_experiment.json").read_text())
+
+
+def many_trays(n: int) -> dict[str, Any]:
+    """The paper scene with ``n`` trays (copies of its first, in a row)."""
+    doc = paper()
+    first = doc["trays"][0]
+    doc["trays"] = [
+        {**copy.deepcopy(first), "id": f"t{i}", "name": f"t{i}",
+         "pose": {**first["pose"], "x": 0.4 * i}}
+        for i in range(n)
+    ]  # fmt: skip
+    doc.pop("task", None)
+    return doc
+
+
+def many_parts(n: int, tray: int = 0) -> dict[str, Any]:
+    """The paper scene with ``n`` small parts in one tray (a grid of 1 cm cubes)."""
+    doc = paper()
+    t = doc["trays"][tray]
+    t["parts"] = [
+        {"id": f"p{i}", "geometry": {"shape": "box", "size": [0.01, 0.01, 0.01]},
+         "pose": {"x": -0.12 + 0.02 * (i % 13), "y": -0.08 + 0.02 * (i // 13 % 9), "z": 0.0}}
+        for i in range(n)
+    ]  # fmt: skip
+    return doc
+
+
+def many_obstacles(n: int) -> dict[str, Any]:
+    doc = paper()
+    doc["obstacles"] += [
+        {"id": f"o{i}", "geometry": {"shape": "box", "size": [0.01, 0.01, 0.01]},
+         "pose": {"x": 4.5, "y": -0.9 + i * 1e-4}}
+        for i in range(n)
+    ]  # fmt: skip
+    return doc
+
+
+def problem(resp: Any, status: int, field: str | None = None) -> dict[str, Any]:
+    """Assert ``resp`` is a problem document of ``status`` (naming ``field``); return it."""
+    assert resp.status_code == status, resp.text
+    assert resp.headers["content-type"].startswith("application/problem+json")
+    body = resp.json()
+    assert body["status"] == status and body["detail"]
+    if field is not None:
+        assert body.get("field") == field, body
+    return dict(body)
