@@ -27,15 +27,15 @@ def many_trays(n: int) -> dict[str, Any]:
     return doc
 
 
-def many_parts(n: int, tray: int = 0) -> dict[str, Any]:
-    """The paper scene with ``n`` small parts in one tray (a grid of 1 cm cubes)."""
+def many_parts(n: int, tray: int | tuple[int, ...] = 0) -> dict[str, Any]:
+    """The paper scene with ``n`` small parts (a grid of 1 cm cubes) in each tray given."""
     doc = paper()
-    t = doc["trays"][tray]
-    t["parts"] = [
-        {"id": f"p{i}", "geometry": {"shape": "box", "size": [0.01, 0.01, 0.01]},
-         "pose": {"x": -0.12 + 0.02 * (i % 13), "y": -0.08 + 0.02 * (i // 13 % 9), "z": 0.0}}
-        for i in range(n)
-    ]  # fmt: skip
+    for k in (tray,) if isinstance(tray, int) else tray:
+        doc["trays"][k]["parts"] = [
+            {"id": f"p{k}_{i}", "geometry": {"shape": "box", "size": [0.01, 0.01, 0.01]},
+             "pose": {"x": -0.12 + 0.02 * (i % 13), "y": -0.08 + 0.02 * (i // 13 % 9), "z": 0}}
+            for i in range(n)
+        ]  # fmt: skip
     return doc
 
 

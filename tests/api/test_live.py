@@ -47,3 +47,44 @@ def test_no_server_errors_and_responses_match_the_spec(case):
     case.call_and_validate(
         headers=AUTH, timeout=120, checks=[not_a_server_error, response_schema_conformance]
     )
+
+
+def test_health_answers_while_heavy_requests_run(live_api):
+    """The event loop never computes: /health answers within 100 ms while an uncached
+    regions request of four 48-part trays and hostile bodies are in flight."""
+    import threading
+    import time
+
+    from .factories import many_parts, many_trays
+
+    with httpx.Client(base_url=live_api, timeout=120) as c:
+        doc = many_parts(48, tray=(0, 1, 2, 3))
+        sid = c.post("/api/v1/scenes", json=doc, headers=AUTH).json()["id"]
+        done = threading.Event()
+        answers: list[int] = []
+
+        def heavy() -> None:
+            with httpx.Client(base_url=live_api, timeout=120) as h:
+                answers.append(h.get(f"/api/v1/scenes/{sid}/regions").status_code)
+                plan = {"scene_id": sid, "options": {"samples": 5000}, "store": False}
+                answers.append(h.post("/api/v1/plans", json=plan, headers=AUTH).status_code)
+                big = many_trays(2000)
+                answers.append(h.post("/api/v1/scenes", json=big, headers=AUTH).status_code)
+            done.set()
+
+        worker = threading.Thread(target=heavy)
+        worker.start()
+        latencies = []
+        time.sleep(0.2)
+        while not done.is_set() and len(latencies) < 2000:
+            t0 = time.perf_counter()
+            assert c.get("/api/v1/health").status_code == 200
+            latencies.append(time.perf_counter() - t0)
+            time.sleep(0.02)
+        worker.join()
+    assert answers[0] == 200 and answers[1] in (200, 422) and answers[2] == 413, answers
+    latencies.sort()
+    print(f"/health during heavy requests: {len(latencies)} polls, "
+          f"p50 {latencies[len(latencies) // 2] * 1e3:.1f} ms, max {latencies[-1] * 1e3:.1f} ms")  # fmt: skip
+    assert len(latencies) >= 10
+    assert latencies[int(len(latencies) * 0.95)] < 0.1, latencies[-10:]
