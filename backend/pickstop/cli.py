@@ -516,7 +516,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     overrides: dict[str, Any] = {"data_dir": folder, "ui_port": args.ui_port}
     if args.port is not None:
         overrides["port"] = args.port
-    run = stack.start(Settings(**overrides), ui=True)
+    run = stack.start(Settings(**overrides), ui=True, move_if_busy=True)
     client = run.ui.api  # the planner's own client, with this run's key
     doc = client.scene(run.scene_id or "").doc
     from pickstop_ui.client import ApiProblem
