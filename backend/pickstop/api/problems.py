@@ -153,7 +153,8 @@ def install(app: FastAPI) -> None:
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "Error")
         headers = dict(getattr(exc, "headers", None) or {})
-        if exc.status_code == 405 and "Allow" not in headers:
+        if exc.status_code == 405:  # every route at the path, not only the first one matched
+            headers = {k: v for k, v in headers.items() if k.lower() != "allow"}
             headers["Allow"] = ", ".join(_allowed(request))
         p = Problem(exc.status_code, title, str(exc.detail), headers=headers or None)
         return problem_response(p, request.url.path)
