@@ -30,7 +30,15 @@ schema = schemathesis.pytest.from_fixture("live_schema")
 
 @pytest.fixture(scope="module")
 def live_schema(live_api):
-    return schemathesis.openapi.from_url(f"{live_api}/api/v1/openapi.json")
+    schema = schemathesis.openapi.from_url(f"{live_api}/api/v1/openapi.json")
+    # A schema-valid scene or robot can still be refused with a documented 422: a tray inside
+    # an obstacle, a URDF that is not there, sizes over the limits. The schema cannot say so.
+    accept = schema.config.checks.positive_data_acceptance
+    accept.expected_statuses = [*accept.expected_statuses, "422"]
+    # A batch over the limit is refused as too large (413), as any oversized body is.
+    refuse = schema.config.checks.negative_data_rejection
+    refuse.expected_statuses = [*refuse.expected_statuses, "413"]
+    return schema
 
 
 @schema.parametrize()
@@ -41,21 +49,18 @@ def live_schema(live_api):
     derandomize=True,
 )
 def test_no_server_errors_and_responses_match_the_spec(case):
-    from schemathesis.checks import not_a_server_error
-    from schemathesis.specs.openapi.checks import response_schema_conformance
-
-    case.call_and_validate(
-        headers=AUTH, timeout=120, checks=[not_a_server_error, response_schema_conformance]
-    )
+    """Every check schemathesis has, over every operation."""
+    case.call_and_validate(headers=AUTH, timeout=120)
 
 
 def test_health_answers_while_heavy_requests_run(live_api):
-    """The event loop never computes: /health answers within 100 ms while an uncached
-    regions request of four 48-part trays and hostile bodies are in flight."""
+    """The event loop never computes: /health answers within 100 ms while a regions request
+    of four 48-part trays, a plan with 20,000 Monte Carlo samples per stop and a 2,000-tray
+    body are in flight."""
     import threading
     import time
 
-    from .factories import many_parts, many_trays
+    from .factories import many_parts, many_trays, paper
 
     with httpx.Client(base_url=live_api, timeout=120) as c:
         doc = many_parts(48, tray=(0, 1, 2, 3))
@@ -66,7 +71,9 @@ def test_health_answers_while_heavy_requests_run(live_api):
         def heavy() -> None:
             with httpx.Client(base_url=live_api, timeout=120) as h:
                 answers.append(h.get(f"/api/v1/scenes/{sid}/regions").status_code)
-                plan = {"scene_id": sid, "options": {"samples": 5000}, "store": False}
+                seed = time.time_ns() % 2**31  # nothing cached
+                plan = {"scene": paper(), "options": {"samples": 20000, "seed": seed},
+                        "store": False}  # fmt: skip
                 answers.append(h.post("/api/v1/plans", json=plan, headers=AUTH).status_code)
                 big = many_trays(2000)
                 answers.append(h.post("/api/v1/scenes", json=big, headers=AUTH).status_code)
@@ -82,7 +89,7 @@ def test_health_answers_while_heavy_requests_run(live_api):
             latencies.append(time.perf_counter() - t0)
             time.sleep(0.02)
         worker.join()
-    assert answers[0] == 200 and answers[1] in (200, 422) and answers[2] == 413, answers
+    assert answers == [200, 200, 413], answers
     latencies.sort()
     p50, top = latencies[len(latencies) // 2] * 1e3, latencies[-1] * 1e3
     print(f"/health during heavy requests: {len(latencies)} polls, p50 {p50:.1f} ms, "

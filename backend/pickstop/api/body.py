@@ -106,17 +106,25 @@ def finite_problem(doc: Any) -> tuple[str, str] | None:
 
 def validate(model: type[M], doc: Any, prefix: str = "") -> M:
     """``doc`` as ``model``, or a 422 naming every offending field (dotted, from the body's
-    root)."""
+    root). Strict as JSON is: ``false`` is no number and ``"1"`` no integer."""
     if not isinstance(doc, dict):
         raise invalid(prefix.rstrip(".") or "body", f"expected a JSON object, got {_kind(doc)}")
+    errors = type_errors(model, doc, prefix)
+    if errors:
+        raise invalid(errors[0][0], errors[0][1], errors)
+    return model.model_validate(doc)
+
+
+def type_errors(model: type[BaseModel], doc: Any, prefix: str = "") -> list[tuple[str, str]]:
+    """What strict JSON validation of ``doc`` as ``model`` finds, as (field, message)."""
     try:
-        return model.model_validate(doc)
+        model.model_validate_json(json.dumps(doc), strict=True)
     except ValidationError as e:
-        errors = [
+        return [
             (prefix + (".".join(str(p) for p in err["loc"]) or "body"), err["msg"])
             for err in e.errors()
         ]
-        raise invalid(errors[0][0], errors[0][1], errors) from None
+    return []
 
 
 def _kind(v: Any) -> str:

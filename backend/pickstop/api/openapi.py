@@ -72,6 +72,7 @@ def install(app: FastAPI, settings: Settings, models: dict[str, type[BaseModel]]
                 schemas.setdefault(k, v)
             schemas[name] = js
         _link(doc)
+        _limits(schemas, settings)
         comps.setdefault("securitySchemes", {})["bearer"] = {"type": "http", "scheme": "bearer"}
         for path, ops in doc["paths"].items():
             for method, op in ops.items():
@@ -80,6 +81,26 @@ def install(app: FastAPI, settings: Settings, models: dict[str, type[BaseModel]]
         return doc
 
     app.openapi = openapi  # type: ignore[method-assign]
+
+
+def _limits(schemas: dict[str, Any], s: Settings) -> None:
+    """The size limits of the settings as the schemas' own bounds, so that a client (and a
+    schema-driven test) knows them before sending."""
+
+    def bound(model: str, prop: str, **kw: Any) -> None:
+        target = schemas.get(model, {}).get("properties", {}).get(prop)
+        if target is not None:
+            target.update(kw)
+
+    bound("BatchRequest", "scenes", maxItems=s.max_batch)
+    bound("Scene", "trays", maxItems=s.max_trays)
+    bound("Scene", "obstacles", maxItems=s.max_obstacles)
+    bound("Tray", "parts", maxItems=s.max_parts_per_tray)
+    bound("BuildRequest", "samples", maximum=s.max_samples)
+    samples = schemas.get("PlanOptions", {}).get("properties", {}).get("samples", {})
+    for branch in [samples, *samples.get("anyOf", []), *samples.get("allOf", [])]:
+        if "maximum" in branch:
+            branch["maximum"] = min(branch["maximum"], s.max_mc_samples)
 
 
 def _link(node: Any) -> None:

@@ -105,15 +105,17 @@ def from_error(e: PickStopError) -> Problem:
 
 
 def _allowed(request: Request) -> list[str]:
-    """Methods some route serves at the request's path (for a 405's Allow header)."""
-    from starlette.routing import Match
-
-    methods: set[str] = set()
-    for route in request.app.router.routes:
-        for method in ("GET", "POST", "PUT", "DELETE", "PATCH"):
-            scope = {**request.scope, "method": method}
-            if route.matches(scope)[0] == Match.FULL:
-                methods.add(method)
+    """Methods the OpenAPI document gives the request's path (for a 405's Allow header): the
+    resource ``/jobs/batch`` itself, not the job "batch" of ``/jobs/{job_id}``."""
+    paths: dict[str, dict[str, Any]] = request.app.openapi()["paths"]
+    path = request.url.path
+    ops = paths.get(path)
+    if ops is None:
+        for template, candidate in paths.items():
+            if re.fullmatch(re.sub(r"\{[^/]+\}", "[^/]+", template), path):
+                ops = candidate
+                break
+    methods = {m.upper() for m in ops or {}}
     if "GET" in methods:
         methods.add("HEAD")
     return sorted(methods)

@@ -23,6 +23,7 @@ from typing import Any
 import shapely
 
 from pickstop.api import limits as lim
+from pickstop.api.body import type_errors
 from pickstop.api.problems import Problem
 from pickstop.api.store import ServiceStore
 from pickstop.api.work import Cancelled, Work
@@ -110,6 +111,9 @@ class Service:
 
     def register_robot(self, data: dict[str, Any]) -> RobotModel:
         """Validate a robot config whose files lie in the allowed folders, and keep it."""
+        strict = type_errors(RobotConfig, data) if isinstance(data, dict) else []
+        if strict:
+            raise RobotConfigError("; ".join(f"{f}: {m}" for f, m in strict), field=strict[0][0])
         config = parse_config(data, "robot")
         if config.name in preset_names() or self.store.rows(
             "SELECT 1 FROM robots WHERE name = ?", [config.name]
@@ -189,10 +193,15 @@ class Service:
             raise SceneError([(loc + f, m) for f, m in e.problems]) from None
         triangles = 0
         for _, geom in lim.mesh_geometries(resolved):
-            triangles += lim.mesh_triangles(Path(geom["path"]))
+            path = geom.get("path")
+            if isinstance(path, str) and Path(path).is_file():  # else the model names it
+                triangles += lim.mesh_triangles(Path(path))
         if triangles > self.limits.max_mesh_triangles:
             raise SceneError([(f"{loc}trays", f"the scene's meshes hold {triangles} triangles, "
                                f"over the limit of {self.limits.max_mesh_triangles}")])  # fmt: skip
+        strict = type_errors(Scene, resolved, loc) if isinstance(resolved, dict) else []
+        if strict:
+            raise SceneError(strict)
         try:
             scene = parse_scene(resolved, "scene")
         except SceneError as e:
