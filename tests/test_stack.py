@@ -59,3 +59,13 @@ def test_a_port_really_taken_is_an_error_naming_it():
         taken.close()
     assert proc.returncode != 0
     assert f"port {port}" in proc.stderr and "takes" not in proc.stderr
+
+
+def test_the_listening_socket_lets_asyncio_disable_nagle():
+    """asyncio sets TCP_NODELAY only on IPPROTO_TCP sockets; without it every small answer
+    waits 40 ms for a delayed ACK."""
+    sock = listen("127.0.0.1", 0)
+    try:
+        assert sock.proto == socket.IPPROTO_TCP
+    finally:
+        sock.close()

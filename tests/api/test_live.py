@@ -96,3 +96,21 @@ def test_health_answers_while_heavy_requests_run(live_api):
           f"max {top:.1f} ms")  # fmt: skip
     assert len(latencies) >= 10
     assert latencies[int(len(latencies) * 0.95)] < 0.1, latencies[-10:]
+
+
+def test_the_planner_client_deletes_with_its_etag(live_api, paper_doc):
+    from pickstop_ui.client import ApiProblem, PickStopClient
+
+    from .conftest import KEY
+
+    client = PickStopClient(live_api, KEY)
+    stored = client.create_scene(paper_doc)
+    assert client.limits()["max_trays"] >= len(paper_doc["trays"])
+    changed = client.save_scene(stored.id, {**paper_doc, "sigma": 0.05}, stored.etag)
+    with pytest.raises(ApiProblem) as e:
+        client.delete_scene(stored.id, stored.etag)  # stale
+    assert e.value.status == 412
+    client.delete_scene(stored.id, changed.etag)
+    with pytest.raises(ApiProblem) as e:
+        client.scene(stored.id)
+    assert e.value.status == 404

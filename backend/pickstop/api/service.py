@@ -258,6 +258,21 @@ class Service:
         return self.submit("batch", {"scenes": [item], "options": body.options.model_dump(),
                                      "database": body.database})  # fmt: skip
 
+    def precheck(self, doc: Any) -> None:
+        """The size limits of a plan or batch request's raw inline scenes, before the request
+        model copies and validates them."""
+        if not isinstance(doc, dict):
+            return
+        problems = lim.scene_problems(doc.get("scene"), self.limits, "scene.")
+        scenes = doc.get("scenes")
+        for i, item in enumerate(scenes if isinstance(scenes, list) else []):
+            if isinstance(item, dict):
+                problems += lim.scene_problems(item.get("scene"), self.limits, f"scenes.{i}.scene.")
+        if problems:
+            from pickstop.scene.model import SceneError
+
+            raise SceneError(problems)
+
     def check_batch_size(self, doc: Any) -> None:
         scenes = doc.get("scenes") if isinstance(doc, dict) else None
         if isinstance(scenes, list) and len(scenes) > self.limits.max_batch:

@@ -27,6 +27,7 @@ def _missing(job_id: str) -> Problem:
 )
 def batch(service: ServiceDep, doc: JsonBody, response: Response) -> Job:
     service.check_batch_size(doc)  # before validating 10,000 items
+    service.precheck(doc)
     job = service.submit_batch(validate(BatchRequest, doc))
     response.headers["Location"] = f"{API_PREFIX}/jobs/{job['id']}"
     return Job.of(job)

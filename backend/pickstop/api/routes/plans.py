@@ -34,6 +34,7 @@ IMMUTABLE = {"Cache-Control": "public, max-age=31536000, immutable"}
 async def create_plan(
     request: Request, service: ServiceDep, doc: JsonBody, response: Response
 ) -> Any:
+    await run_in_threadpool(service.precheck, doc)
     body = await run_in_threadpool(validate, PlanRequest, doc)
     if body.mode == "job":
         job = await run_in_threadpool(service.submit_plan_job, body)
