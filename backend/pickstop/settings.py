@@ -49,7 +49,6 @@ class Settings(BaseSettings):
     max_mc_samples: int = Field(
         default=20_000, ge=0, description="Monte Carlo samples per stop of a plan"
     )
-    max_json_depth: int = Field(default=32, ge=4, description="nesting depth of a JSON body")
     request_deadline: float = Field(
         default=60.0, gt=0, description="seconds a synchronous request may compute (then 504)"
     )

@@ -53,7 +53,8 @@ def test_the_key_is_checked_before_the_body(client):
     [
         (b'{"name": "x",}', "line 1 column 14"),
         (b'{"name": "\xff"}', "UTF-8 at byte 10"),
-        (b"[" * 5000 + b"]" * 5000, "nested 5000 levels"),
+        (b"[" * 5000 + b"]" * 5000, "nested too deeply"),
+        (b'{"trays": ' + b"[" * 990 + b"]" * 990 + b"}", "nested too deeply"),
         (b'{"sigma": ' + b"9" * 5000 + b"}", "5000 digits"),
     ],
 )

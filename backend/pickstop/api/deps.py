@@ -66,7 +66,7 @@ def _is_json(content_type: str) -> bool:
     )
 
 
-async def json_body(request: Request, service: ServiceDep) -> Any:
+async def json_body(request: Request) -> Any:
     """The request's JSON document, decoded off the event loop (415 unless it says JSON)."""
     ctype = request.headers.get("content-type")
     if ctype is None or not _is_json(ctype):
@@ -81,7 +81,7 @@ async def json_body(request: Request, service: ServiceDep) -> Any:
             )
     else:
         raw = await request.body()
-    return await run_in_threadpool(body.decode, raw, service.settings.max_json_depth)
+    return await run_in_threadpool(body.decode, raw)
 
 
 JsonBody = Annotated[Any, Depends(json_body)]

@@ -20,7 +20,6 @@ class Limits(BaseModel):
     """What one request may ask for; larger requests are refused (422, or 413 for a body)."""
 
     max_body_bytes: int = Field(description="request body [bytes]")
-    max_json_depth: int = Field(description="nesting depth of a JSON body")
     max_trays: int = Field(description="trays per scene")
     max_parts_per_tray: int = Field(description="parts per tray")
     max_parts: int = Field(description="parts per scene")
@@ -37,7 +36,6 @@ class Limits(BaseModel):
     def of(cls, s: Settings) -> Limits:
         return cls(
             max_body_bytes=s.max_body_bytes,
-            max_json_depth=s.max_json_depth,
             max_trays=s.max_trays,
             max_parts_per_tray=s.max_parts_per_tray,
             max_parts=s.max_parts,

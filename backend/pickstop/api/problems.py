@@ -161,6 +161,13 @@ def install(app: FastAPI) -> None:
         p = Problem(exc.status_code, title, str(exc.detail), headers=headers or None)
         return problem_response(p, request.url.path)
 
+    @app.exception_handler(RecursionError)
+    async def _nested(request: Request, exc: RecursionError) -> JSONResponse:
+        # Only a request body nested deeper than Python recurses gets here.
+        p = Problem(422, "Invalid input", "body: nested too deeply (arrays or objects inside "
+                    "each other)", kind="validation", field="body")  # fmt: skip
+        return problem_response(p, request.url.path)
+
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
         import logging
