@@ -114,3 +114,22 @@ def test_the_planner_client_deletes_with_its_etag(live_api, paper_doc):
     with pytest.raises(ApiProblem) as e:
         client.scene(stored.id)
     assert e.value.status == 404
+
+
+def test_a_client_that_leaves_stops_its_computation(live_api, paper_doc):
+    """A plan whose client disconnects is stopped and releases the planner: the next plan of
+    the same robot is served at once, not after the abandoned one's seconds of Monte Carlo."""
+    import time
+
+    with httpx.Client(base_url=live_api, timeout=120) as c:
+        quick = {"scene": paper_doc, "options": {"samples": 0}, "store": False}
+        assert c.post("/api/v1/plans", json=quick, headers=AUTH).status_code == 200  # warm
+        heavy = {"scene": paper_doc, "store": False,
+                 "options": {"samples": 20000, "seed": time.time_ns() % 2**31}}  # fmt: skip
+        with pytest.raises(httpx.TimeoutException):
+            c.post("/api/v1/plans", json=heavy, headers=AUTH, timeout=1.0)
+        t0 = time.perf_counter()
+        r = c.post("/api/v1/plans", json=quick, headers=AUTH)
+        seconds = time.perf_counter() - t0
+    assert r.status_code == 200, r.text
+    assert seconds < 3.0, seconds  # the abandoned plan alone takes about 6 s
