@@ -55,9 +55,6 @@ class Settings(BaseSettings):
     job_deadline: float = Field(
         default=6 * 3600.0, gt=0, description="seconds a job may run (then it fails)"
     )
-    workers: int = Field(
-        default=1, ge=1, le=64, description="API processes sharing the port (pickstop serve)"
-    )
 
 
 def hash_key(key: str) -> str:

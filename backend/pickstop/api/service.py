@@ -186,6 +186,10 @@ class Service:
         problems = lim.scene_problems(doc, self.limits, loc)
         if problems:
             raise SceneError(problems)
+        # The model's own checks, strict as JSON, before anything walks the document.
+        strict = type_errors(Scene, doc, loc) if isinstance(doc, dict) else []
+        if strict:
+            raise SceneError(strict)
         meshes = self.data_dir / "meshes"
         try:
             resolved = resolve_mesh_paths(doc, meshes, [meshes])
@@ -199,9 +203,6 @@ class Service:
         if triangles > self.limits.max_mesh_triangles:
             raise SceneError([(f"{loc}trays", f"the scene's meshes hold {triangles} triangles, "
                                f"over the limit of {self.limits.max_mesh_triangles}")])  # fmt: skip
-        strict = type_errors(Scene, resolved, loc) if isinstance(resolved, dict) else []
-        if strict:
-            raise SceneError(strict)
         try:
             scene = parse_scene(resolved, "scene")
         except SceneError as e:
