@@ -196,13 +196,14 @@ class Service:
         except SceneError as e:
             raise SceneError([(loc + f, m) for f, m in e.problems]) from None
         triangles = 0
-        for _, geom in lim.mesh_geometries(resolved):
+        for where, geom in lim.mesh_geometries(resolved):
             path = geom.get("path")
             if isinstance(path, str) and Path(path).is_file():  # else the model names it
                 triangles += lim.mesh_triangles(Path(path))
-        if triangles > self.limits.max_mesh_triangles:
-            raise SceneError([(f"{loc}trays", f"the scene's meshes hold {triangles} triangles, "
-                               f"over the limit of {self.limits.max_mesh_triangles}")])  # fmt: skip
+            if triangles > self.limits.max_mesh_triangles:
+                raise SceneError([(f"{loc}{where}.path", f"the scene's meshes hold {triangles} "
+                                   f"triangles up to this one, over the limit of "
+                                   f"{self.limits.max_mesh_triangles}")])  # fmt: skip
         try:
             scene = parse_scene(resolved, "scene")
         except SceneError as e:

@@ -64,7 +64,7 @@ def test_a_mesh_with_too_many_triangles_is_refused(client, api_settings):
     doc = paper()
     doc["obstacles"].append({"id": "m", "geometry": {"shape": "mesh", "path": "huge.stl"},
                              "pose": {"x": 4.5, "y": -0.5}})  # fmt: skip
-    body = problem(client.post(SCENES, json=doc, headers=AUTH), 422, "trays")
+    body = problem(client.post(SCENES, json=doc, headers=AUTH), 422, "obstacles.2.geometry.path")
     assert "10000000 triangles" in body["detail"]
 
 
