@@ -60,8 +60,8 @@ def _num(x: Any) -> float | None:
 def grid_cells(doc: dict[str, Any]) -> float | None:
     """Cells of a raw scene's base grid (a float: it may be astronomically large), or None if
     the extent or resolution is malformed (the scene model names that)."""
-    grid = doc.get("base_grid") if isinstance(doc.get("base_grid"), dict) else {}
-    ext = grid.get("extent") if isinstance(grid.get("extent"), dict) else doc.get("floor")
+    grid: dict[str, Any] = doc["base_grid"] if isinstance(doc.get("base_grid"), dict) else {}
+    ext = grid["extent"] if isinstance(grid.get("extent"), dict) else doc.get("floor")
     res = _num(grid.get("resolution", 0.025))
     if not isinstance(ext, dict) or res is None or not res > 0:
         return None
@@ -69,9 +69,10 @@ def grid_cells(doc: dict[str, Any]) -> float | None:
     if not (isinstance(lo, list) and isinstance(hi, list) and len(lo) == len(hi) == 2):
         return None
     vals = [_num(v) for v in (*lo, *hi)]
-    if any(v is None or not math.isfinite(v) for v in vals):
+    finite = [v for v in vals if v is not None and math.isfinite(v)]
+    if len(finite) != 4:
         return None
-    x0, y0, x1, y1 = vals  # type: ignore[misc]
+    x0, y0, x1, y1 = finite
     # Float arithmetic throughout: an extent of 1e308 gives inf, never an OverflowError.
     nx, ny = (x1 - x0) / res, (y1 - y0) / res
     if not (nx > 0 and ny > 0):

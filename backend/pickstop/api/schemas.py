@@ -124,7 +124,7 @@ class DatabaseInfo(BaseModel):
         shards = row.get("shards")
         if shards is not None:
             out["shards"], out["bytes"] = len(shards), sum(s["bytes"] for s in shards)
-        return cls(**out)
+        return cls.model_validate(out)
 
 
 class BuildRequest(BaseModel):

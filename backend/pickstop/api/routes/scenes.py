@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Header, Query, Request, Response
 from starlette.concurrency import run_in_threadpool
@@ -131,8 +131,9 @@ async def scene_regions(
 ) -> Regions:
     """Base regions and intersections (GeoJSON); computed under the request deadline."""
     scene = await run_in_threadpool(service.stored_scene, scene_id)
-    return await compute(service.pool, service.regions, scene, sigma, database,
+    regions: dict[str, Any] = await compute(service.pool, service.regions, scene, sigma, database,
                          deadline=service.settings.request_deadline, request=request)  # fmt: skip
+    return Regions.model_validate(regions)
 
 
 @router.get("/scenes/{scene_id}/plans", dependencies=[ReadKey], tags=["plans"])
