@@ -158,6 +158,29 @@ async def run(url: str, seconds: float, clients: int, planners: int, build: int)
           f"{len(lost)}")  # fmt: skip
 
 
+def memory(pid: int) -> str:
+    """Resident and peak memory of the service process (and any child processes left)."""
+    try:
+        import psutil
+    except ImportError:
+        return "memory: psutil not installed"
+    main = psutil.Process(pid)
+    parts = []
+    for p in [main, *main.children(recursive=True)]:
+        with p.oneshot():
+            rss = p.memory_info().rss / 2**20
+            peak = _peak_kib(p.pid) / 1024
+        parts.append(f"pid {p.pid} {p.name()}: {rss:.0f} MiB resident, peak {peak:.0f} MiB")
+    return "memory per process: " + "; ".join(parts)
+
+
+def _peak_kib(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return float(line.split()[1])
+    return float("nan")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=60)
@@ -175,6 +198,7 @@ def main() -> None:
     try:
         print(f"service up in {time.time() - t0:.1f} s (database loaded at start-up)")
         asyncio.run(run(url, args.seconds, args.clients, args.planners, args.build_samples))
+        print(memory(proc.pid))
     finally:
         proc.terminate()
         proc.wait(timeout=30)
