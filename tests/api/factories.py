@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -58,3 +59,29 @@ def problem(resp: Any, status: int, field: str | None = None) -> dict[str, Any]:
     if field is not None:
         assert body.get("field") == field, body
     return dict(body)
+
+
+def titled_problem(resp, status, title=None):
+    """Assert ``resp`` is a problem document of ``status`` (titled ``title``); return it."""
+    assert resp.status_code == status, resp.text
+    assert resp.headers["content-type"].startswith("application/problem+json")
+    body = resp.json()
+    assert body["status"] == status and body["type"].startswith("https://pickstop.dev/problems/")
+    assert body["detail"]
+    if title:
+        assert body["title"] == title
+    return body
+
+
+def count(client, path):
+    return len(client.get(path, params={"limit": 500}).json())
+
+
+def wait_job(client, job_id, timeout=120):
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        job = client.get(f"/api/v1/jobs/{job_id}").json()
+        if job["state"] not in ("queued", "running"):
+            return job
+        time.sleep(0.2)
+    raise AssertionError(f"job {job_id} still {job['state']}")

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from .conftest import AUTH
-from .factories import paper, problem
+from .factories import paper, problem, titled_problem
 
 SCENES = "/api/v1/scenes"
 JSON = {"content-type": "application/json"}
@@ -73,3 +73,9 @@ def test_a_nan_is_reported_as_not_a_number(client):
     raw = json.dumps(plan).replace("Infinity", "1e400").encode()
     problem(client.post("/api/v1/plans", content=raw, headers={**AUTH, **JSON}), 422,
             "options.sigma")  # fmt: skip
+
+
+def test_unknown_paths_are_problems(client):
+    titled_problem(client.get("/api/v1/plans/nope"), 404)
+    titled_problem(client.get("/api/v1/nothing"), 404)
+    titled_problem(client.get("/api/v1/scenes", params={"limit": 0}), 422)

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import copy
 import time
 
 from fastapi.testclient import TestClient
 
 from pickstop.api.app import create_app
+from pickstop.api.store import ServiceStore
+from pickstop.settings import Settings
 
 from ..conftest import AUTH
-from ..factories import paper
+from ..factories import paper, titled_problem, wait_job
 
 
 def _until(c, job_id, states, timeout=60.0):
@@ -47,3 +50,48 @@ def test_a_job_over_its_deadline_fails_saying_so(api_settings):
         job = c.post("/api/v1/jobs/batch", json=heavy(), headers=AUTH).json()
         done = _until(c, job["id"], {"failed", "done", "cancelled"})
     assert done["state"] == "failed" and "deadline of 0.5 s" in done["error"], done
+
+
+def test_batch_job_plans_every_scene(client, paper_doc):
+    sid = client.post("/api/v1/scenes", json=paper_doc, headers=AUTH).json()["id"]
+    wide = copy.deepcopy(paper_doc)
+    wide["sigma"] = 0.6
+    r = client.post(
+        "/api/v1/jobs/batch",
+        json={"scenes": [{"scene_id": sid}, {"scene": wide}], "options": {"samples": 0}},
+        headers=AUTH,
+    )
+    assert r.status_code == 202
+    job = wait_job(client, r.json()["id"])
+    assert job["state"] == "done" and job["progress"] == 1.0
+    res = job["result"]
+    assert res["planned"] == 1 and res["failed"] == 1
+    assert "no plan with sigma" in res["plans"][1]["error"]
+    pid = res["plans"][0]["plan_id"]
+    assert client.get(f"/api/v1/plans/{pid}").json()["scene_id"] == sid
+
+
+def test_batch_limits_and_bad_items(client, paper_doc):
+    titled_problem(client.post("/api/v1/jobs/batch", json={"scenes": [{"scene_id": "nope"}]},
+             headers=AUTH), 422)  # fmt: skip
+    many = {"scenes": [{"scene_id": "x"}] * 201}
+    titled_problem(client.post("/api/v1/jobs/batch", json=many, headers=AUTH), 413)
+
+
+def test_cancel_a_queued_job(client, paper_doc):
+    svc = client.app.state.service
+    job = svc.store.add_job("batch", {"scenes": [{"scene": paper_doc}]})  # not queued to run
+    r = client.post(f"/api/v1/jobs/{job['id']}/cancel", headers=AUTH)
+    assert r.json()["state"] == "cancelled"
+    titled_problem(client.post("/api/v1/jobs/nope/cancel", headers=AUTH), 404)
+
+
+def test_job_cut_off_by_a_restart_is_interrupted(api_settings, tmp_path):
+    settings = Settings(data_dir=tmp_path, api_keys=api_settings.api_keys)
+    store = ServiceStore(tmp_path)
+    job = store.add_job("batch", {"scenes": []})
+    store.set_job(job["id"], state="running", progress=0.4)
+    with TestClient(create_app(settings, preload=False)) as c:
+        got = c.get(f"/api/v1/jobs/{job['id']}").json()
+        assert got["state"] == "interrupted" and "service stopped" in got["error"]
+        assert c.get("/api/v1/health").json()["interrupted_jobs_at_start"] == 1

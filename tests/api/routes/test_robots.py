@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import shutil
 
+import pytest
+
 from tests.utils import TIAGO_URDF
 
 from ..conftest import AUTH
-from ..factories import paper, problem
+from ..factories import paper, problem, titled_problem
 
 ARM = ["torso_lift_joint"] + [f"arm_{i}_joint" for i in range(1, 8)]
 
@@ -53,3 +55,32 @@ def test_problem_details_name_no_server_folder(client, api_settings):
     body = problem(client.post("/api/v1/robots", json=bad, headers=AUTH), 422)
     assert "/" + str(api_settings.data_dir).strip("/") not in body["detail"]
     assert "site-packages" not in body["detail"]
+
+
+@pytest.mark.parametrize(
+    ("config", "field"),
+    [
+        ({"urdf": "/etc/passwd"}, "urdf"),
+        ({"urdf": "../../../etc/robot.urdf"}, "urdf"),
+        ({"urdf": "robot.urdf", "package_dirs": ["../../.."]}, "package_dirs.0"),
+    ],
+)
+def test_robot_paths_are_confined(client, config, field):
+    base = {"name": "evil", "arm_joints": ["j1"], "tool_frame": "tool",
+            "footprint": {"radius": 0.3}}  # fmt: skip
+    body = titled_problem(client.post("/api/v1/robots", json={**base, **config}, headers=AUTH), 422)
+    assert "outside the allowed folders" in body["detail"] and body["field"] == field
+    assert "evil" not in [r["name"] for r in client.get("/api/v1/robots").json()]
+
+
+def test_register_a_robot_from_the_bundled_data(client):
+    pr2 = {"name": "tiago_copy", "urdf": "package://example-robot-data/robots/tiago_description/"
+           "robots/tiago.urdf", "arm_joints": ["torso_lift_joint", "arm_1_joint", "arm_2_joint",
+           "arm_3_joint", "arm_4_joint", "arm_5_joint", "arm_6_joint", "arm_7_joint"],
+           "tool_frame": "hand_grasping_frame", "footprint": {"radius": 0.275}}  # fmt: skip
+    r = client.post("/api/v1/robots", json=pr2, headers=AUTH)
+    assert r.status_code == 201, r.text
+    assert r.json()["dof"] == 8
+    names = [x["name"] for x in client.get("/api/v1/robots").json()]
+    assert "tiago" in names and "tiago_copy" in names
+    titled_problem(client.post("/api/v1/robots", json=pr2, headers=AUTH), 422)  # exists already

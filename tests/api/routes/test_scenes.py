@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import time
 
 import pytest
@@ -10,7 +11,15 @@ from fastapi.testclient import TestClient
 from pickstop.api.app import create_app
 
 from ..conftest import AUTH
-from ..factories import many_obstacles, many_parts, many_trays, paper, problem
+from ..factories import (
+    count,
+    many_obstacles,
+    many_parts,
+    many_trays,
+    paper,
+    problem,
+    titled_problem,
+)
 
 SCENES = "/api/v1/scenes"
 
@@ -95,3 +104,85 @@ def test_if_match_star_weak_tags_and_lists(client):
     problem(client.delete(url, headers=AUTH), 428, "If-Match")
     assert client.delete(url, headers={**AUTH, "If-Match": "*"}).status_code == 204
     problem(client.get(url), 404)
+
+
+def test_scene_lifecycle_with_etags(client, paper_doc):
+    r = client.post("/api/v1/scenes", json=paper_doc, headers=AUTH)
+    assert r.status_code == 201
+    sid, etag = r.json()["id"], r.headers["etag"]
+    assert r.headers["location"] == f"/api/v1/scenes/{sid}"
+    got = client.get(f"/api/v1/scenes/{sid}")
+    assert got.headers["etag"] == etag and got.json()["scene"] == paper_doc
+
+    changed = copy.deepcopy(paper_doc)
+    changed["sigma"] = 0.05
+    titled_problem(client.put(f"/api/v1/scenes/{sid}", json=changed, headers=AUTH), 428)
+    ok = client.put(f"/api/v1/scenes/{sid}", json=changed, headers={**AUTH, "If-Match": etag})
+    assert ok.status_code == 200 and ok.json()["revision"] == 2
+    new_etag = ok.headers["etag"]
+    assert new_etag != etag
+    # A second editor still holding the old ETag is refused; nothing is overwritten.
+    stale = copy.deepcopy(paper_doc)
+    stale["sigma"] = 0.2
+    body = titled_problem(
+        client.put(f"/api/v1/scenes/{sid}", json=stale, headers={**AUTH, "If-Match": etag}), 412
+    )
+    assert "changed since you read it" in body["detail"]
+    assert client.get(f"/api/v1/scenes/{sid}").json()["scene"]["sigma"] == 0.05
+
+    titled_problem(client.delete(f"/api/v1/scenes/{sid}", headers={**AUTH, "If-Match": etag}), 412)
+    titled_problem(client.delete(f"/api/v1/scenes/{sid}", headers=AUTH), 428)  # If-Match required
+    gone = client.delete(f"/api/v1/scenes/{sid}", headers={**AUTH, "If-Match": new_etag})
+    assert gone.status_code == 204
+    titled_problem(client.get(f"/api/v1/scenes/{sid}"), 404, "Not found")
+
+
+def test_invalid_scene_names_the_field_and_stores_nothing(client, paper_doc):
+    before = count(client, "/api/v1/scenes")
+    doc = copy.deepcopy(paper_doc)
+    doc["trays"][0]["inner_size"] = [-0.3, 0.2]
+    body = titled_problem(
+        client.post("/api/v1/scenes", json=doc, headers=AUTH), 422, "Invalid input"
+    )
+    assert body["field"] == "trays.0.inner_size.0"
+    assert any(e["field"] == "trays.0.inner_size.0" for e in body["errors"])
+    doc = copy.deepcopy(paper_doc)
+    doc["robot"] = {"config": "../../etc/robot.yaml"}
+    body = titled_problem(client.post("/api/v1/scenes", json=doc, headers=AUTH), 422)
+    assert body["field"] == "robot.config"
+    titled_problem(client.post("/api/v1/scenes", content=b"{not json", headers={**AUTH,
+             "content-type": "application/json"}), 422)  # fmt: skip
+    assert count(client, "/api/v1/scenes") == before
+
+
+def test_grid_and_body_limits(client, paper_doc):
+    doc = copy.deepcopy(paper_doc)
+    doc["base_grid"] = {"resolution": 0.005}
+    body = titled_problem(client.post("/api/v1/scenes", json=doc, headers=AUTH), 422)
+    assert "exceeds the limit" in body["detail"] and body["field"] == "base_grid"
+    big = copy.deepcopy(paper_doc)
+    big["description"] = "x" * 400_000
+    titled_problem(client.post("/api/v1/scenes", json=big, headers=AUTH), 413, "Request too large")
+
+
+def test_regions_and_intersections(client, paper_doc):
+    sid = client.post("/api/v1/scenes", json=paper_doc, headers=AUTH).json()["id"]
+    body = client.get(f"/api/v1/scenes/{sid}/regions", params={"sigma": 0.1}).json()
+    feats = body["regions"]["features"]
+    assert {f["properties"]["tray_id"] for f in feats} == {"tray_1", "tray_2", "tray_4"}
+    inter = body["intersections"]["features"]
+    assert any(f["properties"]["order"] == 2 for f in inter)
+    for f in inter:
+        p = f["properties"]
+        assert p["kept"] == (p["inscribed_radius"] >= 0.1)
+
+
+def test_mesh_paths_outside_the_data_folder_are_refused(client, paper_doc):
+    before = count(client, "/api/v1/scenes")
+    doc = copy.deepcopy(paper_doc)
+    mesh = {"shape": "mesh", "path": "../../../etc/passwd"}
+    doc["obstacles"].append({"id": "evil", "geometry": mesh, "pose": {"x": 2.5, "y": 0.0}})
+    body = titled_problem(client.post("/api/v1/scenes", json=doc, headers=AUTH), 422)
+    assert body["field"] == "obstacles.2.geometry.path"
+    assert "outside the allowed folders" in body["detail"]
+    assert count(client, "/api/v1/scenes") == before
