@@ -1,6 +1,7 @@
 """The REST service under load: 50 concurrent clients on loopback for 60 s.
 
     python benchmarks/bench_api.py [--seconds 60] [--clients 50] [--planners 2] [--build-samples N]
+                                   [--workers N]
 
 Starts ``pickstop serve`` on 127.0.0.1 (default data folder, warm database), stores the
 paper-like scene and one plan, then for the duration runs ``clients`` concurrent clients:
@@ -187,9 +188,11 @@ def main() -> None:
     ap.add_argument("--clients", type=int, default=50)
     ap.add_argument("--planners", type=int, default=2)
     ap.add_argument("--build-samples", type=int, default=20_000_000)
+    ap.add_argument("--workers", type=int, default=1, help="API processes (serve --workers)")
     args = ap.parse_args()
     port = _port()
-    env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]'}
+    env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]',
+           "PICKSTOP_WORKERS": str(args.workers)}  # fmt: skip
     log_path = Path(tempfile.gettempdir()) / "pickstop-bench-serve.log"
     url = f"http://127.0.0.1:{port}"
     t0 = time.time()

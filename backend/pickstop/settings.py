@@ -52,6 +52,9 @@ class Settings(BaseSettings):
     request_deadline: float = Field(
         default=60.0, gt=0, description="seconds a synchronous request may compute (then 504)"
     )
+    workers: int = Field(
+        default=1, ge=1, le=32, description="API processes sharing the port (pickstop serve)"
+    )
     job_deadline: float = Field(
         default=6 * 3600.0, gt=0, description="seconds a job may run (then it fails)"
     )

@@ -148,19 +148,27 @@ def start(
     ui_key = secrets.token_urlsafe(24) if ui else None
     keys = list(settings.api_keys) + ([hash_key(ui_key)] if ui_key else [])
     settings = settings.model_copy(update={"port": port, "api_keys": keys})
-    server = uvicorn.Server(
-        uvicorn.Config(create_app(settings), host=host, port=port, log_level=log_level)
-    )
-    thread = threading.Thread(
-        target=server.run, kwargs={"sockets": [sock]}, name="pickstop-api", daemon=True
-    )
-    thread.start()
-    t0 = time.time()
-    while not server.started:
-        if not thread.is_alive() or time.time() - t0 > 300:
-            raise PickStopError(f"the API did not start on {host}:{port}")
-        time.sleep(0.1)
     api_url = f"http://{host}:{port}"
+    server: Any
+    if settings.workers > 1:
+        from pickstop.api.workers import WorkerPool, wait_healthy
+
+        server = WorkerPool(sock, settings, log_level)
+        sock.close()  # the workers hold it
+        wait_healthy(api_url, server)
+    else:
+        server = uvicorn.Server(
+            uvicorn.Config(create_app(settings), host=host, port=port, log_level=log_level)
+        )
+        thread = threading.Thread(
+            target=server.run, kwargs={"sockets": [sock]}, name="pickstop-api", daemon=True
+        )
+        thread.start()
+        t0 = time.time()
+        while not server.started:
+            if not thread.is_alive() or time.time() - t0 > 300:
+                raise PickStopError(f"the API did not start on {host}:{port}")
+            time.sleep(0.1)
     if not ui:
         return Stack(api_url, None, None, server, None)
 

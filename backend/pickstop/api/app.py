@@ -31,7 +31,10 @@ ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.
            jobs.router)  # fmt: skip
 
 
-def create_app(settings: Settings | None = None, preload: bool = True) -> FastAPI:
+def create_app(
+    settings: Settings | None = None, preload: bool = True, job_runner: bool = True
+) -> FastAPI:
+    """The app; ``job_runner``: this process runs the jobs (worker 0 of ``--workers N``)."""
     settings = settings or Settings()
 
     @asynccontextmanager
@@ -39,7 +42,7 @@ def create_app(settings: Settings | None = None, preload: bool = True) -> FastAP
         # Planning threads hold the GIL in long stretches; switching more often keeps the
         # event loop (health, reads) responsive while a plan computes.
         sys.setswitchinterval(0.001)
-        svc = await asyncio.to_thread(Service, settings)
+        svc = await asyncio.to_thread(Service, settings, job_runner)
         if preload:
             await asyncio.to_thread(svc.preload)
         app.state.service = svc

@@ -77,6 +77,7 @@ class LoadedPlanner(BaseModel):
 class Health(BaseModel):
     status: Literal["ok"]
     version: str
+    process: int = Field(description="id of the API process that answered")
     loaded: list[LoadedPlanner]
     interrupted_jobs_at_start: int
     limits: Limits

@@ -60,8 +60,12 @@ class _Slot:
     lock: threading.Lock = field(default_factory=threading.Lock)
 
 
+CANCEL_REQUESTED = "cancel requested"
+
+
 class Service:
-    def __init__(self, settings: Settings) -> None:
+    def __init__(self, settings: Settings, job_runner: bool = True) -> None:
+        """job_runner: this process runs the jobs (one process of a worker pool does)."""
         self.settings = settings
         self.limits = lim.Limits.of(settings)
         self.key_hashes = frozenset(k.strip() for k in settings.api_keys if k.strip())
@@ -70,7 +74,8 @@ class Service:
         self.robot_dir = self.data_dir / "robots"
         self.robot_dir.mkdir(exist_ok=True)
         self.store = ServiceStore(self.data_dir)
-        self.interrupted = self.store.interrupt_stale_jobs()
+        self.job_runner = job_runner
+        self.interrupted = self.store.interrupt_stale_jobs() if job_runner else 0
         self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="pickstop-plan")
         self._slots: dict[tuple[str, str], _Slot] = {}
         self._slots_lock = threading.Lock()
@@ -82,11 +87,13 @@ class Service:
         self._job_thread = threading.Thread(
             target=self._job_loop, name="pickstop-jobs", daemon=True
         )
-        self._job_thread.start()
+        if job_runner:
+            self._job_thread.start()
 
     def close(self) -> None:
-        self._jobs.put(None)
-        self._job_thread.join(timeout=10)
+        if self.job_runner:
+            self._jobs.put(None)
+            self._job_thread.join(timeout=10)
         self.pool.shutdown(wait=False, cancel_futures=True)
         for slot in self._slots.values():
             slot.planner.regions.close()
@@ -435,8 +442,11 @@ class Service:
         elif job["state"] == "running":
             self._cancel.add(job_id)
             with self._running_lock:
-                if self._running is not None and self._running[0] == job_id:
-                    self._running[1].stop()
+                here = self._running is not None and self._running[0] == job_id
+                if here:
+                    self._running[1].stop()  # type: ignore[index]
+            if not here:  # another worker process runs it: tell it through the record
+                self.store.set_job(job_id, error=CANCEL_REQUESTED)
             for _ in range(100):  # the record says so once the work has unwound
                 job = self.store.job(job_id)
                 if job is None or job["state"] != "running":
@@ -446,7 +456,12 @@ class Service:
 
     def _job_loop(self) -> None:
         while True:
-            job_id = self._jobs.get()
+            try:
+                job_id = self._jobs.get(timeout=1.0)
+            except queue.Empty:  # jobs other worker processes queued
+                job_id = self.store.next_queued_job()
+                if job_id is None:
+                    continue
             if job_id is None:
                 return
             job = self.store.job(job_id)
@@ -459,6 +474,9 @@ class Service:
             timer = threading.Timer(self.settings.job_deadline, work.stop)
             timer.daemon = True
             timer.start()
+            finished = threading.Event()
+            threading.Thread(target=self._watch, args=(job_id, work, finished), daemon=True,
+                             name="pickstop-job-watch").start()  # fmt: skip
             try:
                 params = json.loads(job["params"])
                 run = self._run_build if job["kind"] == "build" else self._run_batch
@@ -476,10 +494,20 @@ class Service:
                 log.exception("job %s failed", job_id)
                 self.store.set_job(job_id, state="failed", error=f"{type(e).__name__}: {e}")
             finally:
+                finished.set()
                 timer.cancel()
                 with self._running_lock:
                     self._running = None
                 self._cancel.discard(job_id)
+
+    def _watch(self, job_id: str, work: Work, finished: threading.Event) -> None:
+        """Stop the running job when a cancel reached another worker process."""
+        while not finished.wait(0.5):
+            row = self.store.job(job_id)
+            if row is not None and row["error"] == CANCEL_REQUESTED:
+                self._cancel.add(job_id)
+                work.stop()
+                return
 
     def _check_cancel(self, job_id: str) -> None:
         if job_id in self._cancel:

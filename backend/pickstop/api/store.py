@@ -195,6 +195,11 @@ class ServiceStore:
             "SELECT * FROM jobs ORDER BY created, id LIMIT ? OFFSET ?", [limit, offset]
         )
 
+    def next_queued_job(self) -> str | None:
+        """The oldest queued job, if any."""
+        rows = self.rows("SELECT id FROM jobs WHERE state = 'queued' ORDER BY created, id LIMIT 1")
+        return str(rows[0]["id"]) if rows else None
+
     def set_job(self, job_id: str, **fields: Any) -> None:
         fields["updated"] = now()
         for k in ("result",):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 from fastapi import APIRouter
 
 from pickstop import __version__
@@ -18,6 +20,7 @@ async def health(service: ServiceDep) -> Health:
     return Health(
         status="ok",
         version=__version__,
+        process=os.getpid(),
         loaded=[LoadedPlanner(**x) for x in service.loaded],
         interrupted_jobs_at_start=service.interrupted,
         limits=service.limits,
