@@ -1,7 +1,9 @@
 """What route handlers receive: the service, the key checks, a JSON body, a stored scene.
 
 Route-level ``dependencies=[WriteKey]`` run before a handler's own parameters, so a request
-without a valid key is answered 401 before its body is read or validated.
+without a valid key is answered 401 before its body is read or validated. The light ones (the
+service, the key checks: a hash and a compare) are coroutines, so they cost no hop to a worker
+thread; anything touching SQLite is a plain function, run in the thread pool.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ bearer = HTTPBearer(auto_error=False)
 Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]
 
 
-def get_service(request: Request) -> Service:
+async def get_service(request: Request) -> Service:
     service: Service = request.app.state.service
     return service
 
@@ -47,11 +49,11 @@ def _check_key(service: Service, cred: HTTPAuthorizationCredentials | None, what
     )
 
 
-def write_key(service: ServiceDep, cred: Credentials) -> None:
+async def write_key(service: ServiceDep, cred: Credentials) -> None:
     _check_key(service, cred, "this request (a write)")
 
 
-def read_key(service: ServiceDep, cred: Credentials) -> None:
+async def read_key(service: ServiceDep, cred: Credentials) -> None:
     if service.settings.read_requires_key:
         _check_key(service, cred, "this request (reads need a key on this server)")
 
