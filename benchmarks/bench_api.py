@@ -160,7 +160,8 @@ async def run(url: str, seconds: float, clients: int, planners: int, build: int)
 
 
 def memory(pid: int) -> str:
-    """Resident and peak memory of the service process (and any child processes left)."""
+    """Memory of the service's processes: resident, proportional (shared pages split among
+    their users) and own (pages no other process maps), and the peak resident."""
     try:
         import psutil
     except ImportError:
@@ -168,10 +169,11 @@ def memory(pid: int) -> str:
     main = psutil.Process(pid)
     parts = []
     for p in [main, *main.children(recursive=True)]:
-        with p.oneshot():
-            rss = p.memory_info().rss / 2**20
-            peak = _peak_kib(p.pid) / 1024
-        parts.append(f"pid {p.pid} {p.name()}: {rss:.0f} MiB resident, peak {peak:.0f} MiB")
+        full = p.memory_full_info()
+        rss, pss, uss = full.rss / 2**20, full.pss / 2**20, full.uss / 2**20
+        peak = _peak_kib(p.pid) / 1024
+        parts.append(f"pid {p.pid}: {rss:.0f} MiB resident ({pss:.0f} proportional, {uss:.0f} "
+                     f"own), peak {peak:.0f} MiB")  # fmt: skip
     return "memory per process: " + "; ".join(parts)
 
 

@@ -33,15 +33,27 @@ def two_workers(region_db, tmp_path_factory):
     except subprocess.TimeoutExpired:
         proc.kill()
     log.close()
+    for pid in SEEN:  # the workers stop with the parent
+        t0 = time.time()
+        while time.time() - t0 < 15:
+            try:
+                os.kill(pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.1)
+        else:
+            raise AssertionError(f"worker {pid} outlived the parent")
+
+
+SEEN: set[int] = set()
 
 
 def test_two_processes_answer_and_share_the_records(two_workers):
-    seen = set()
     for _ in range(60):
-        seen.add(httpx.get(f"{two_workers}/api/v1/health", timeout=10).json()["process"])
-        if len(seen) == 2:
+        SEEN.add(httpx.get(f"{two_workers}/api/v1/health", timeout=10).json()["process"])
+        if len(SEEN) == 2:
             break
-    assert len(seen) == 2, seen
+    assert len(SEEN) == 2, SEEN
     with httpx.Client(base_url=two_workers, timeout=60) as c:
         sid = c.post("/api/v1/scenes", json=paper(), headers=AUTH).json()["id"]
     for _ in range(10):  # a fresh connection each time: either process answers

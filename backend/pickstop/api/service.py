@@ -62,6 +62,20 @@ class _Slot:
 
 CANCEL_REQUESTED = "cancel requested"
 
+# The default robot's database, loaded by a parent before it forks its API workers: their
+# services take it from here, so the arrays are shared copy-on-write, not loaded N times.
+_INHERITED: dict[tuple[str, str], Any] = {}
+
+
+def load_default_database(data_dir: Path) -> None:
+    """Load the default robot's database into this process for forked workers to inherit."""
+    from pickstop.regions.loader import robot_for
+
+    robot = robot_for(*resolve_robot("tiago"))
+    if any(r["robot_hash"] == robot.robot_hash and r["state"] == "complete"
+           for r in list_databases(data_dir)):  # fmt: skip
+        _INHERITED[(robot.robot_hash, "")] = open_database(data_dir, robot)
+
 
 class Service:
     def __init__(self, settings: Settings, job_runner: bool = True) -> None:
@@ -318,7 +332,7 @@ class Service:
         with self._slots_lock:
             slot = self._slots.get(key)
             if slot is None:
-                db = open_database(self.data_dir, robot, db_id)
+                db = _INHERITED.get(key) or open_database(self.data_dir, robot, db_id)
                 rp = RegionPlanner(robot, db, cache_dir=cache_dir(self.data_dir))
                 slot = self._slots[key] = _Slot(StopPlanner(rp))
             return slot
@@ -334,9 +348,10 @@ class Service:
                 r["robot_hash"] == robot.robot_hash and r["state"] == "complete"
                 for r in list_databases(self.data_dir)
             ):
-                db = open_database(self.data_dir, robot)
+                key = (robot.robot_hash, "")
+                db = _INHERITED.get(key) or open_database(self.data_dir, robot)
                 rp = RegionPlanner(robot, db, cache_dir=cache_dir(self.data_dir))
-                self._slots[(robot.robot_hash, "")] = _Slot(StopPlanner(rp))
+                self._slots[key] = _Slot(StopPlanner(rp))
         except PickStopError as e:
             log.warning("default planner not loaded: %s", e.message)
 
@@ -575,6 +590,9 @@ class Service:
         rows = cat.query("SELECT id FROM reach_databases WHERE id = ?", [db_id])
         if not rows:
             return False
+        for key, db in list(_INHERITED.items()):
+            if db.id == db_id:
+                del _INHERITED[key]
         with self._slots_lock:
             for key, slot in list(self._slots.items()):
                 if slot.planner.regions.db.id == db_id:

@@ -1,22 +1,22 @@
 """Several API processes on one listening socket (``pickstop serve --workers N``).
 
-The parent binds the port once (:func:`pickstop.stack.listen`) and starts N processes that
-inherit the socket; the kernel spreads connections over them, so a reader is never queued
-behind another process's plan. Worker 0 alone runs jobs: it marks jobs a previous run left
-``interrupted`` at start and picks up the jobs any worker queued from SQLite; a cancel that
-reaches another worker is passed on through the job's record.
-
-    python -m pickstop.api.workers FD INDEX LOG_LEVEL     (started by the parent, not by hand)
+The parent binds the port once (:func:`pickstop.stack.listen`), loads the default robot's
+reachability database and forks N processes that inherit both; the kernel spreads connections
+over them, so a reader is never queued behind another process's plan. Worker 0 alone runs
+jobs: it marks jobs a previous run left ``interrupted`` at start and picks up the jobs any
+worker queued from SQLite; a cancel that reaches another worker is passed on through the
+job's record.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
-import subprocess
-import sys
+import threading
 import time
+from pathlib import Path
 from typing import Any
 
 from pickstop.settings import Settings
@@ -34,49 +34,69 @@ def settings_env(settings: Settings) -> dict[str, str]:
 
 
 class WorkerPool:
-    """The worker processes of one socket; ``should_exit = True`` stops them."""
+    """The worker processes of one socket, forked once the default robot's reachability
+    database is loaded, so that they share its arrays (copy-on-write: nothing writes them)
+    instead of loading one copy each. ``should_exit = True`` stops them."""
 
     def __init__(self, sock: socket.socket, settings: Settings, log_level: str) -> None:
-        env = {**os.environ, **settings_env(settings)}
-        self.procs = [
-            subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "pickstop.api.workers",
-                    str(sock.fileno()),
-                    str(i),
-                    log_level,
-                ],
-                env=env,
-                pass_fds=(sock.fileno(),),
-            )
-            for i in range(settings.workers)
-        ]
+        from pickstop.api.service import load_default_database
+
+        load_default_database(Path(settings.data_dir))
+        self.pids: list[int] = []
+        for i in range(settings.workers):
+            pid = os.fork()
+            if pid == 0:  # the worker: serve until told to stop, never return into the parent
+                code = 1
+                try:
+                    _die_with_parent()
+                    code = serve(sock, settings, i, log_level)
+                finally:
+                    os._exit(code)
+            self.pids.append(pid)
         self._stopped = False
+        self._exited: set[int] = set()
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, self._terminated)
+
+    def _terminated(self, signum: int, frame: Any) -> None:
+        """SIGTERM to the parent stops the workers first."""
+        self.should_exit = True
+        raise SystemExit(0)
 
     @property
     def started(self) -> bool:
         return True
 
+    def _reap(self) -> None:
+        for pid in self.pids:
+            if pid not in self._exited and os.waitpid(pid, os.WNOHANG)[0] == pid:
+                self._exited.add(pid)
+
     @property
     def should_exit(self) -> bool:
-        return self._stopped or all(p.poll() is not None for p in self.procs)
+        self._reap()
+        return self._stopped or len(self._exited) == len(self.pids)
 
     @should_exit.setter
     def should_exit(self, value: bool) -> None:
-        if value and not self._stopped:
-            self._stopped = True
-            for p in self.procs:
-                p.terminate()
-            for p in self.procs:
-                try:
-                    p.wait(timeout=20)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+        if not value or self._stopped:
+            return
+        self._stopped = True
+        self._reap()
+        for pid in self.pids:
+            if pid not in self._exited:
+                os.kill(pid, signal.SIGTERM)
+        t0 = time.time()
+        while len(self._exited) < len(self.pids) and time.time() - t0 < 20:
+            time.sleep(0.1)
+            self._reap()
+        for pid in set(self.pids) - self._exited:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
 
     def alive(self) -> bool:
-        return all(p.poll() is None for p in self.procs)
+        self._reap()
+        return not self._exited
 
 
 def wait_healthy(url: str, pool: WorkerPool, timeout: float = 300.0) -> None:
@@ -99,18 +119,21 @@ def wait_healthy(url: str, pool: WorkerPool, timeout: float = 300.0) -> None:
     raise PickStopError(f"the API workers did not answer at {url} within {timeout:g} s")
 
 
-def main(argv: list[str]) -> int:
+def _die_with_parent() -> None:
+    """Linux: the kernel sends this process SIGTERM if the parent dies (even by kill -9)."""
+    import ctypes
+    from contextlib import suppress
+
+    with suppress(OSError):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+
+
+def serve(sock: socket.socket, settings: Settings, index: int, log_level: str) -> int:
+    """One worker: the app on the inherited socket; worker 0 runs the jobs."""
     import uvicorn
 
     from pickstop.api.app import create_app
 
-    fd, index, log_level = int(argv[0]), int(argv[1]), argv[2]
-    sock = socket.socket(fileno=fd)
-    app: Any = create_app(Settings(), job_runner=index == 0)
-    server = uvicorn.Server(uvicorn.Config(app, log_level=log_level))
-    server.run(sockets=[sock])
+    app: Any = create_app(settings, job_runner=index == 0)
+    uvicorn.Server(uvicorn.Config(app, log_level=log_level)).run(sockets=[sock])
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
