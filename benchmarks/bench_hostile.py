@@ -4,8 +4,10 @@ takes, and how fast ``/health`` answers meanwhile.
     python benchmarks/bench_hostile.py [--data-dir DIR] [--samples N]
 
 Starts ``pickstop serve`` on 127.0.0.1 over a data folder (default: a fresh temporary one with
-a small TIAGo database built first) with a 20 MB body limit, so that the scene limits, not the
-body limit, answer the big scenes. For each case, one client sends the request while another
+a small TIAGo database built first) with a 20 MB body limit (``--max-body-bytes``; the default
+of 2 MB answers the 10,000-tray scene 413 at once), so that the scene limits, not the body
+limit, answer the big scenes. First times the refusal of the 2,000- and 10,000-tray scenes by
+one client alone. For each case, one client sends the request while another
 polls ``/health`` every 10 ms; prints the status, the request's time (min-max over
 ``--repeat`` runs) and the health latency (worst p50, max) during it.
 """
@@ -175,11 +177,29 @@ def _field(r: httpx.Response) -> str:
         return ""
 
 
+def rejections(url: str, runs: int = 10) -> None:
+    """Time to refuse the 2,000- and 10,000-tray scenes, one client alone (no health poller
+    sharing its process)."""
+    with httpx.Client(base_url=url, timeout=60) as c:
+        for n in (2000, 10_000):
+            body = json.dumps(trays(n)).encode()
+            times = []
+            for _ in range(runs):
+                t0 = time.perf_counter()
+                r = c.post("/api/v1/scenes", content=body, headers={**AUTH, **JSON})
+                times.append((time.perf_counter() - t0) * 1e3)
+            times.sort()
+            print(f"refuse {n:,} trays ({len(body) / 1e6:.1f} MB) alone: {r.status_code} "
+                  f"{_field(r)}, min {times[0]:.0f} ms, median {times[len(times) // 2]:.0f} "
+                  f"ms, max {times[-1]:.0f} ms")  # fmt: skip
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", help="data folder with a TIAGo database (default: build one)")
     ap.add_argument("--samples", type=int, default=1_000_000, help="samples of that build")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each quick case (min-max)")
+    ap.add_argument("--max-body-bytes", default="20000000", help="the service's body limit")
     args = ap.parse_args()
     folder = Path(args.data_dir or tempfile.mkdtemp(prefix="pickstop-hostile-"))
     if not args.data_dir:
@@ -193,7 +213,7 @@ def main() -> int:
         port = s.getsockname()[1]
     env = {**os.environ, "PICKSTOP_DATA_DIR": str(folder),
            "PICKSTOP_API_KEYS": json.dumps([hash_key(KEY)]),
-           "PICKSTOP_MAX_BODY_BYTES": "20000000"}  # fmt: skip
+           "PICKSTOP_MAX_BODY_BYTES": args.max_body_bytes}  # fmt: skip
     log = (folder / "hostile-serve.log").open("w")
     proc = spawn_api(port, env, log)
     url = f"http://127.0.0.1:{port}"
@@ -207,6 +227,7 @@ def main() -> int:
             heavy_sid = heavy.json()["id"]
             limits = c.get("/api/v1/limits").json()
         print(f"limits: {json.dumps(limits)}")
+        rejections(url)
         print(f"{'case':52} {'status':>6} {'field':24} {'time':>11} {'polls':>5} "
               f"{'health p50':>10} {'max':>8}")  # fmt: skip
         for name, send in cases(sid, heavy_sid):
