@@ -496,7 +496,7 @@ class Service:
                 params = json.loads(job["params"])
                 run = self._run_build if job["kind"] == "build" else self._run_batch
                 result = work.run(run, job_id, params)
-                self.store.set_job(job_id, state="done", progress=1.0, result=result)
+                self.store.set_job(job_id, state="done", progress=1.0, result=result, error=None)
             except (JobCancelled, Cancelled):
                 if job_id in self._cancel:
                     self.store.set_job(job_id, state="cancelled", error="cancelled while running")
