@@ -116,20 +116,26 @@ def test_the_planner_client_deletes_with_its_etag(live_api, paper_doc):
     assert e.value.status == 404
 
 
-def test_a_client_that_leaves_stops_its_computation(live_api, paper_doc):
+def test_a_client_that_leaves_stops_its_computation(live_api):
     """A plan whose client disconnects is stopped and releases the planner: the next plan of
-    the same robot is served at once, not after the abandoned one's seconds of Monte Carlo."""
+    the same robot is served at once, not after the abandoned one's Monte Carlo (20,000
+    samples at each of the factory cell's six stops: half a minute here)."""
+    import json
     import time
 
+    from .factories import EXAMPLES
+
+    cell = json.loads((EXAMPLES / "factory_cell.json").read_text())
     with httpx.Client(base_url=live_api, timeout=120) as c:
-        quick = {"scene": paper_doc, "options": {"samples": 0}, "store": False}
+        quick = {"scene": cell, "options": {"samples": 0}, "store": False}
         assert c.post("/api/v1/plans", json=quick, headers=AUTH).status_code == 200  # warm
-        heavy = {"scene": paper_doc, "store": False,
+        time.sleep(3)  # let the background checks of the other candidates settle
+        heavy = {"scene": cell, "store": False,
                  "options": {"samples": 20000, "seed": time.time_ns() % 2**31}}  # fmt: skip
         with pytest.raises(httpx.TimeoutException):
-            c.post("/api/v1/plans", json=heavy, headers=AUTH, timeout=1.0)
+            c.post("/api/v1/plans", json=heavy, headers=AUTH, timeout=1.5)
         t0 = time.perf_counter()
         r = c.post("/api/v1/plans", json=quick, headers=AUTH)
         seconds = time.perf_counter() - t0
     assert r.status_code == 200, r.text
-    assert seconds < 3.0, seconds  # the abandoned plan alone takes about 6 s
+    assert seconds < 10.0, seconds
