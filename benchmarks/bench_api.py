@@ -1,6 +1,7 @@
 """The REST service under load: 50 concurrent clients on loopback for 60 s.
 
     python benchmarks/bench_api.py [--seconds 60] [--clients 50] [--planners 2] [--build-samples N]
+                                   [--workers N]
 
 Starts ``pickstop serve`` on 127.0.0.1 (default data folder, warm database), stores the
 paper-like scene and one plan, then for the duration runs ``clients`` concurrent clients:
@@ -158,15 +159,42 @@ async def run(url: str, seconds: float, clients: int, planners: int, build: int)
           f"{len(lost)}")  # fmt: skip
 
 
+def memory(pid: int) -> str:
+    """Memory of the service's processes: resident, proportional (shared pages split among
+    their users) and own (pages no other process maps), and the peak resident."""
+    try:
+        import psutil
+    except ImportError:
+        return "memory: psutil not installed"
+    main = psutil.Process(pid)
+    parts = []
+    for p in [main, *main.children(recursive=True)]:
+        full = p.memory_full_info()
+        rss, pss, uss = full.rss / 2**20, full.pss / 2**20, full.uss / 2**20
+        peak = _peak_kib(p.pid) / 1024
+        parts.append(f"pid {p.pid}: {rss:.0f} MiB resident ({pss:.0f} proportional, {uss:.0f} "
+                     f"own), peak {peak:.0f} MiB")  # fmt: skip
+    return "memory per process: " + "; ".join(parts)
+
+
+def _peak_kib(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return float(line.split()[1])
+    return float("nan")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=60)
     ap.add_argument("--clients", type=int, default=50)
     ap.add_argument("--planners", type=int, default=2)
     ap.add_argument("--build-samples", type=int, default=20_000_000)
+    ap.add_argument("--workers", type=int, default=1, help="API processes (serve --workers)")
     args = ap.parse_args()
     port = _port()
-    env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]'}
+    env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]',
+           "PICKSTOP_WORKERS": str(args.workers)}  # fmt: skip
     log_path = Path(tempfile.gettempdir()) / "pickstop-bench-serve.log"
     url = f"http://127.0.0.1:{port}"
     t0 = time.time()
@@ -175,6 +203,7 @@ def main() -> None:
     try:
         print(f"service up in {time.time() - t0:.1f} s (database loaded at start-up)")
         asyncio.run(run(url, args.seconds, args.clients, args.planners, args.build_samples))
+        print(memory(proc.pid))
     finally:
         proc.terminate()
         proc.wait(timeout=30)

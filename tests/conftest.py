@@ -91,6 +91,7 @@ def live_api(region_db, tmp_path_factory):
         "PICKSTOP_MAX_SAMPLES": "40000",
         "PICKSTOP_MAX_BATCH": "3",
         "PICKSTOP_MAX_BODY_BYTES": "200000",
+        "PICKSTOP_REQUEST_DEADLINE": "20",
     }
     log = (tmp_path_factory.mktemp("live") / "serve.log").open("w")
     proc = spawn_api(port, env, log, timeout=120)

@@ -451,7 +451,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     overrides: dict[str, Any] = {}
     if args.data_dir:
         overrides["data_dir"] = Path(args.data_dir)
-    for name in ("host", "port", "ui_port"):
+    for name in ("host", "port", "ui_port", "workers"):
         if getattr(args, name) is not None:
             overrides[name] = getattr(args, name)
     settings = Settings(**overrides)
@@ -540,7 +540,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     overrides: dict[str, Any] = {"data_dir": folder, "ui_port": args.ui_port}
     if args.port is not None:
         overrides["port"] = args.port
-    run = stack.start(Settings(**overrides), ui=True)
+    run = stack.start(Settings(**overrides), ui=True, move_if_busy=True)
     client = run.ui.api  # the planner's own client, with this run's key
     doc = client.scene(run.scene_id or "").doc
     from pickstop_ui.client import ApiProblem
@@ -613,6 +613,8 @@ def build_parser() -> argparse.ArgumentParser:
     sv.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
     sv.add_argument("--ui-port", type=_positive_int, help="3D planner port (default 8080)")
     sv.add_argument("--no-ui", action="store_true", help="the API alone")
+    sv.add_argument("--workers", type=_positive_int,
+                    help="API processes on the port (default: $PICKSTOP_WORKERS or 1)")  # fmt: skip
     sv.add_argument("--scene", help="scene the planner opens (default: the first stored one)")
     sv.add_argument("--scene-file", help="or a scene file, stored first")
     sv.set_defaults(func=cmd_serve)

@@ -45,6 +45,24 @@ class Settings(BaseSettings):
     max_samples: int = Field(default=50_000_000, ge=1, description="samples per database build")
     max_batch: int = Field(default=200, ge=1, description="scenes per batch job")
     max_trays: int = Field(default=40, ge=1, description="trays per scene")
+    max_parts_per_tray: int = Field(default=50, ge=1, description="parts per tray")
+    max_parts: int = Field(default=300, ge=1, description="parts per scene, all trays")
+    max_obstacles: int = Field(default=200, ge=0, description="obstacles per scene")
+    max_mesh_triangles: int = Field(
+        default=200_000, ge=0, description="triangles of every mesh of a scene together"
+    )
+    max_mc_samples: int = Field(
+        default=20_000, ge=0, description="Monte Carlo samples per stop of a plan"
+    )
+    request_deadline: float = Field(
+        default=60.0, gt=0, description="seconds a synchronous request may compute (then 504)"
+    )
+    workers: int = Field(
+        default=1, ge=1, le=32, description="API processes sharing the port (pickstop serve)"
+    )
+    job_deadline: float = Field(
+        default=6 * 3600.0, gt=0, description="seconds a job may run (then it fails)"
+    )
 
 
 def hash_key(key: str) -> str:

@@ -25,12 +25,36 @@ EXAMPLE_SCENE = (
 )
 
 
+class PortInUse(PickStopError):
+    """The configured port is taken by another program; the service does not move."""
+
+
+def listen(host: str, port: int) -> socket.socket:
+    """A listening socket on ``host:port`` with SO_REUSEADDR, as uvicorn binds: a socket left
+    in TIME_WAIT by a crashed run does not count as busy, one that really listens does."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    # proto given: asyncio sets TCP_NODELAY only on IPPROTO_TCP sockets (else Nagle and
+    # delayed ACKs add 40 ms to every small answer).
+    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+        sock.listen(2048)
+    except OSError as e:
+        sock.close()
+        raise PortInUse(
+            f"port {port} on {host} is not available ({e.strerror}); stop the program using "
+            f"it, or choose another with --port or PICKSTOP_PORT"
+        ) from None
+    sock.set_inheritable(True)
+    return sock
+
+
 def port_free(host: str, port: int) -> bool:
-    with socket.socket() as s:
-        try:
-            s.bind((host, port))
-        except OSError:
-            return False
+    try:
+        listen(host, port).close()
+    except PortInUse:
+        return False
     return True
 
 
@@ -97,31 +121,54 @@ def start(
     scene_id: str | None = None,
     scene_file: Path | None = None,
     log_level: str = "warning",
+    move_if_busy: bool = False,
 ) -> Stack:
-    """Start the API in a thread, then (``ui``) the planner on a stored or example scene."""
+    """Start the API in a thread, then (``ui``) the planner on a stored or example scene.
+
+    The API listens on the configured port or not at all (:class:`PortInUse`): an MES
+    configured for it must find it there. ``move_if_busy`` (the demo): take a free port and
+    say so."""
     import uvicorn
 
     from pickstop.api.app import create_app
 
     host, port = settings.host, settings.port
-    if not port_free(host, port):
+    try:
+        sock = listen(host, port)
+    except PortInUse:
+        if not move_if_busy:
+            raise
         new = free_port(host)
-        print(f"pickstop: port {port} is busy; the API takes {new}", file=sys.stderr)
-        port = new
+        print(f"pickstop: port {port} is busy; the demo's API takes {new}", file=sys.stderr)
+        port, sock = new, listen(host, new)
+    if ui and not move_if_busy and not port_free(host, settings.ui_port):
+        sock.close()
+        raise PortInUse(f"port {settings.ui_port} on {host} (the 3D planner's) is not "
+                        "available; choose another with --ui-port or PICKSTOP_UI_PORT")  # fmt: skip
     ui_key = secrets.token_urlsafe(24) if ui else None
     keys = list(settings.api_keys) + ([hash_key(ui_key)] if ui_key else [])
     settings = settings.model_copy(update={"port": port, "api_keys": keys})
-    server = uvicorn.Server(
-        uvicorn.Config(create_app(settings), host=host, port=port, log_level=log_level)
-    )
-    thread = threading.Thread(target=server.run, name="pickstop-api", daemon=True)
-    thread.start()
-    t0 = time.time()
-    while not server.started:
-        if not thread.is_alive() or time.time() - t0 > 300:
-            raise PickStopError(f"the API did not start on {host}:{port}")
-        time.sleep(0.1)
     api_url = f"http://{host}:{port}"
+    server: Any
+    if settings.workers > 1:
+        from pickstop.api.workers import WorkerPool, wait_healthy
+
+        server = WorkerPool(sock, settings, log_level)
+        sock.close()  # the workers hold it
+        wait_healthy(api_url, server)
+    else:
+        server = uvicorn.Server(
+            uvicorn.Config(create_app(settings), host=host, port=port, log_level=log_level)
+        )
+        thread = threading.Thread(
+            target=server.run, kwargs={"sockets": [sock]}, name="pickstop-api", daemon=True
+        )
+        thread.start()
+        t0 = time.time()
+        while not server.started:
+            if not thread.is_alive() or time.time() - t0 > 300:
+                raise PickStopError(f"the API did not start on {host}:{port}")
+            time.sleep(0.1)
     if not ui:
         return Stack(api_url, None, None, server, None)
 

@@ -84,6 +84,15 @@ class PickStopClient:
         body = r.json()
         return StoredScene(body["id"], _etag(r), body["revision"], body["scene"])
 
+    def delete_scene(self, scene_id: str, etag: str) -> None:
+        """Delete the stored scene; ApiProblem 412 if someone changed it since ``etag`` (the
+        API requires If-Match on every change, deletes included)."""
+        self._check(self.http.delete(f"{API}/scenes/{scene_id}", headers={"If-Match": f'"{etag}"'}))
+
+    def limits(self) -> dict[str, Any]:
+        """What one request may ask for (trays, parts, samples, body size, deadlines)."""
+        return dict(self._check(self.http.get(f"{API}/limits")).json())
+
     def plan(
         self, scene: dict[str, Any], options: dict[str, Any], store: bool = False
     ) -> PlanResult:

@@ -12,7 +12,11 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request, Response
 from pydantic import BaseModel, ConfigDict, Field
+from starlette.concurrency import run_in_threadpool
 
+from pickstop.api.body import validate
+from pickstop.api.deps import JsonBody
+from pickstop.api.openapi import json_request
 from pickstop.api.problems import Problem
 from pickstop.errors import PickStopError
 
@@ -119,9 +123,15 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
             raise _problem(e) from None
         return Response(body, media_type=media)
 
-    @r.post("/plans/{plan_id}/dispatch", tags=["fleet"], dependencies=W, status_code=202)
+    @r.post(
+        "/plans/{plan_id}/dispatch",
+        tags=["fleet"],
+        dependencies=W,
+        status_code=202,
+        openapi_extra=json_request("DispatchRequest", "the vehicle and the order's options"),
+    )
     async def dispatch_plan(
-        request: Request, response: Response, plan_id: str, body: DispatchRequest
+        request: Request, response: Response, plan_id: str, doc: JsonBody
     ) -> dict[str, Any]:
         """Send the plan's order to a vehicle over the service's MQTT broker, as a job whose
         record follows the order (nodes reached, picks running, finished, failed)."""
@@ -129,6 +139,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         from pickstop.fleet import order as orders
         from pickstop.fleet.dispatch_job import start_dispatch_job
 
+        body = await run_in_threadpool(validate, DispatchRequest, doc)
         s = svc(request)
         configured = s.settings.mqtt_broker
         if not configured:
@@ -161,7 +172,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         except PickStopError as e:
             raise _problem(e) from None
         params = {"plan_id": plan_id, **body.model_dump(), "order_id": order.order_id}
-        job = s.store.add_job("dispatch", params)
+        job = await run_in_threadpool(s.store.add_job, "dispatch", params)
         start_dispatch_job(
             s.store.set_job,
             job["id"],
@@ -173,4 +184,4 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
             lambda: job["id"] in s._cancel,
         )
         response.headers["Location"] = f"/api/v1/jobs/{job['id']}"
-        return _job_record(s.store.job(job["id"]))
+        return _job_record(await run_in_threadpool(s.store.job, job["id"]))

@@ -6,6 +6,7 @@ add ``field`` (the first offending field, dotted) and ``errors`` (every field wi
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -45,19 +46,44 @@ class Problem(Exception):
         self.field, self.errors, self.headers = field, errors, headers
 
 
+_ROOTS: list[str] = []
+
+
+def server_roots(*paths: Any) -> None:
+    """Folders of this server never to be shown in an answer (the data folder, the install,
+    the temporary folder, home): a path under one is shown relative to it."""
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parents[3]  # the checkout or site-packages
+    found = {str(Path(p)) for p in paths if p} | {str(Path(p).resolve()) for p in paths if p}
+    found |= {sys.prefix, sys.base_prefix, tempfile.gettempdir(), str(Path.home()), str(here)}
+    found |= {str(Path(tempfile.gettempdir()).resolve())}
+    _ROOTS[:] = sorted({r.rstrip("/") for r in found if len(r) > 1}, key=len, reverse=True)
+
+
+def scrub(text: str) -> str:
+    """``text`` without server folders: ``/srv/data/robots/x.urdf`` becomes ``robots/x.urdf``."""
+    for root in _ROOTS:
+        if root in text:
+            text = re.sub(re.escape(root) + r"/?", "", text)
+    return text
+
+
 def problem_response(p: Problem, instance: str | None = None) -> JSONResponse:
     body: dict[str, Any] = {
         "type": BASE + p.kind,
         "title": p.title,
         "status": p.status,
-        "detail": p.detail,
+        "detail": scrub(p.detail),
     }
     if instance:
         body["instance"] = instance
     if p.field:
         body["field"] = p.field
     if p.errors:
-        body["errors"] = p.errors
+        body["errors"] = [{**e, "message": scrub(e["message"])} for e in p.errors]
     return JSONResponse(body, status_code=p.status, media_type=MEDIA, headers=p.headers)
 
 
@@ -76,6 +102,23 @@ def from_error(e: PickStopError) -> Problem:
             422, "Invalid input", e.message, kind="validation", field=e.field, errors=errors
         )
     return Problem(500, "Internal error", e.message, kind="internal")
+
+
+def _allowed(request: Request) -> list[str]:
+    """Methods the OpenAPI document gives the request's path (for a 405's Allow header): the
+    resource ``/jobs/batch`` itself, not the job "batch" of ``/jobs/{job_id}``."""
+    paths: dict[str, dict[str, Any]] = request.app.openapi()["paths"]
+    path = request.url.path
+    ops = paths.get(path)
+    if ops is None:
+        for template, candidate in paths.items():
+            if re.fullmatch(re.sub(r"\{[^/]+\}", "[^/]+", template), path):
+                ops = candidate
+                break
+    methods = {m.upper() for m in ops or {}}
+    if "GET" in methods:
+        methods.add("HEAD")
+    return sorted(methods)
 
 
 def _loc(loc: tuple[Any, ...] | list[Any]) -> str:
@@ -111,7 +154,18 @@ def install(app: FastAPI) -> None:
     @app.exception_handler(StarletteHTTPException)
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "Error")
-        p = Problem(exc.status_code, title, str(exc.detail), headers=getattr(exc, "headers", None))
+        headers = dict(getattr(exc, "headers", None) or {})
+        if exc.status_code == 405:  # every route at the path, not only the first one matched
+            headers = {k: v for k, v in headers.items() if k.lower() != "allow"}
+            headers["Allow"] = ", ".join(_allowed(request))
+        p = Problem(exc.status_code, title, str(exc.detail), headers=headers or None)
+        return problem_response(p, request.url.path)
+
+    @app.exception_handler(RecursionError)
+    async def _nested(request: Request, exc: RecursionError) -> JSONResponse:
+        # Only a request body nested deeper than Python recurses gets here.
+        p = Problem(422, "Invalid input", "body: nested too deeply (arrays or objects inside "
+                    "each other)", kind="validation", field="body")  # fmt: skip
         return problem_response(p, request.url.path)
 
     @app.exception_handler(Exception)

@@ -15,13 +15,18 @@ import queue
 import shutil
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import shapely
 
+from pickstop.api import limits as lim
+from pickstop.api.body import type_errors
+from pickstop.api.problems import Problem
 from pickstop.api.store import ServiceStore
+from pickstop.api.work import Cancelled, Work
 from pickstop.errors import InputError, PickStopError, RobotConfigError
 from pickstop.reach.database import list_databases, open_database
 from pickstop.regions.base_region import RegionPlanner
@@ -45,35 +50,64 @@ class JobCancelled(Exception):
     pass
 
 
+class JobDeadline(Exception):
+    pass
+
+
 @dataclass
 class _Slot:
     planner: StopPlanner
     lock: threading.Lock = field(default_factory=threading.Lock)
 
 
+CANCEL_REQUESTED = "cancel requested"
+
+# The default robot's database, loaded by a parent before it forks its API workers: their
+# services take it from here, so the arrays are shared copy-on-write, not loaded N times.
+_INHERITED: dict[tuple[str, str], Any] = {}
+
+
+def load_default_database(data_dir: Path) -> None:
+    """Load the default robot's database into this process for forked workers to inherit."""
+    from pickstop.regions.loader import robot_for
+
+    robot = robot_for(*resolve_robot("tiago"))
+    if any(r["robot_hash"] == robot.robot_hash and r["state"] == "complete"
+           for r in list_databases(data_dir)):  # fmt: skip
+        _INHERITED[(robot.robot_hash, "")] = open_database(data_dir, robot)
+
+
 class Service:
-    def __init__(self, settings: Settings) -> None:
+    def __init__(self, settings: Settings, job_runner: bool = True) -> None:
+        """job_runner: this process runs the jobs (one process of a worker pool does)."""
         self.settings = settings
+        self.limits = lim.Limits.of(settings)
+        self.key_hashes = frozenset(k.strip() for k in settings.api_keys if k.strip())
         self.data_dir = Path(settings.data_dir)
         self.data_dir.mkdir(parents=True, exist_ok=True)
         self.robot_dir = self.data_dir / "robots"
         self.robot_dir.mkdir(exist_ok=True)
         self.store = ServiceStore(self.data_dir)
-        self.interrupted = self.store.interrupt_stale_jobs()
+        self.job_runner = job_runner
+        self.interrupted = self.store.interrupt_stale_jobs() if job_runner else 0
         self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="pickstop-plan")
         self._slots: dict[tuple[str, str], _Slot] = {}
         self._slots_lock = threading.Lock()
         self._jobs: queue.Queue[str | None] = queue.Queue()
         self._cancel: set[str] = set()
+        self._running: tuple[str, Work] | None = None
+        self._running_lock = threading.Lock()
         self._plan_bodies: dict[str, bytes] = {}
         self._job_thread = threading.Thread(
             target=self._job_loop, name="pickstop-jobs", daemon=True
         )
-        self._job_thread.start()
+        if job_runner:
+            self._job_thread.start()
 
     def close(self) -> None:
-        self._jobs.put(None)
-        self._job_thread.join(timeout=10)
+        if self.job_runner:
+            self._jobs.put(None)
+            self._job_thread.join(timeout=10)
         self.pool.shutdown(wait=False, cancel_futures=True)
         for slot in self._slots.values():
             slot.planner.regions.close()
@@ -92,10 +126,15 @@ class Service:
             raise InputError(
                 f"unknown robot {name!r}; known: {', '.join(known)}", field="robot.preset"
             )
-        return parse_config(json.loads(rows[0]["config"]), f"robot {name}"), self.robot_dir
+        config = parse_config(json.loads(rows[0]["config"]), f"robot {name}")
+        self.confine(config)  # at every open: a file swapped for a symlink since is refused
+        return config, self.robot_dir
 
     def register_robot(self, data: dict[str, Any]) -> RobotModel:
         """Validate a robot config whose files lie in the allowed folders, and keep it."""
+        strict = type_errors(RobotConfig, data) if isinstance(data, dict) else []
+        if strict:
+            raise RobotConfigError("; ".join(f"{f}: {m}" for f, m in strict), field=strict[0][0])
         config = parse_config(data, "robot")
         if config.name in preset_names() or self.store.rows(
             "SELECT 1 FROM robots WHERE name = ?", [config.name]
@@ -109,35 +148,38 @@ class Service:
     def confine(self, config: RobotConfig) -> None:
         """Refuse any file of the config (URDF, SRDF, meshes, package dirs) outside the allowed
         folders: relative paths start at the data folder's robots/, package:// resolves only to
-        allowed roots."""
+        allowed roots. Real paths are compared (symlinks resolved), and a file that is missing
+        gets the same answer as one outside, so the answer tells nothing about the server."""
         roots = self.allowed_roots()
 
         def inside(p: Path) -> bool:
             rp = p.resolve()
             return any(rp.is_relative_to(r) for r in roots)
 
+        def refuse(what: str, ref: str, field: str) -> RobotConfigError:
+            return RobotConfigError(
+                f"{what} {ref!r} lies outside the allowed folders or is not a file there",
+                field=field,
+            )
+
         pkg = []
         for i, d in enumerate(config.package_dirs):
             p = (self.robot_dir / d).resolve()
             if not inside(p):
-                raise RobotConfigError(
-                    f"package_dirs[{i}] {d!r} lies outside the allowed folders",
-                    field=f"package_dirs.{i}",
-                )
+                raise refuse(f"package_dirs[{i}]", d, f"package_dirs.{i}")
             pkg.append(str(p))
         pkg.append(str(example_robot_data_share()))
         for what, ref in (("urdf", config.urdf), ("srdf", config.srdf)):
             if ref is None:
                 continue
             if not ref.startswith("package://") and not inside(self.robot_dir / ref):
-                raise RobotConfigError(
-                    f"{what} {ref!r} lies outside the allowed folders", field=what
-                )
-            path = resolve_path(ref, self.robot_dir, pkg, what)
+                raise refuse(what, ref, what)
+            try:
+                path = resolve_path(ref, self.robot_dir, pkg, what)
+            except RobotConfigError:
+                raise refuse(what, ref, what) from None
             if not inside(path):
-                raise RobotConfigError(
-                    f"{what} {ref!r} lies outside the allowed folders", field=what
-                )
+                raise refuse(what, ref, what)
             if what == "urdf":
                 for mesh in _mesh_refs(path, pkg)[1]:
                     if not inside(mesh):
@@ -155,42 +197,131 @@ class Service:
         return out
 
     # -- scenes and planners -----------------------------------------------------------------
-    def parse(self, doc: Any) -> Scene:
-        """A scene from a request: mesh files only from the data folder's meshes/."""
-        from pickstop.scene.model import resolve_mesh_paths
+    def parse(self, doc: Any, loc: str = "") -> Scene:
+        """A scene from a request, checked in order of cost: the size limits on the raw
+        document, the mesh files (only from the data folder's meshes/, their triangles
+        counted), the scene model and its geometry, then the robot (a preset or registered).
+        ``loc`` prefixes the fields named in errors (``scenes.2.scene.``)."""
+        from pickstop.scene.model import SceneError, resolve_mesh_paths
 
+        problems = lim.scene_problems(doc, self.limits, loc)
+        if problems:
+            raise SceneError(problems)
+        # The model's own checks, strict as JSON, before anything walks the document.
+        strict = type_errors(Scene, doc, loc) if isinstance(doc, dict) else []
+        if strict:
+            raise SceneError(strict)
         meshes = self.data_dir / "meshes"
-        scene = parse_scene(resolve_mesh_paths(doc, meshes, [meshes]), "scene")
-        s = self.settings
-        problems = []
+        try:
+            resolved = resolve_mesh_paths(doc, meshes, [meshes])
+        except SceneError as e:
+            raise SceneError([(loc + f, m) for f, m in e.problems]) from None
+        triangles = 0
+        for where, geom in lim.mesh_geometries(resolved):
+            path = geom.get("path")
+            if isinstance(path, str) and Path(path).is_file():  # else the model names it
+                triangles += lim.mesh_triangles(Path(path))
+            if triangles > self.limits.max_mesh_triangles:
+                raise SceneError([(f"{loc}{where}.path", f"the scene's meshes hold {triangles} "
+                                   f"triangles up to this one, over the limit of "
+                                   f"{self.limits.max_mesh_triangles}")])  # fmt: skip
+        try:
+            scene = parse_scene(resolved, "scene")
+        except SceneError as e:
+            raise SceneError([(loc + f, m) for f, m in e.problems]) from None
         if scene.robot.config is not None:
-            problems.append(
-                (
-                    "robot.config",
-                    "file paths are not accepted over the API; "
-                    "register the robot (POST /api/v1/robots) and name it in robot.preset",
-                )
-            )
-        from pickstop.regions.base_region import CellGrid
+            raise SceneError([(f"{loc}robot.config", "file paths are not accepted over the API; "
+                               "register the robot (POST /api/v1/robots) and name it in "
+                               "robot.preset")])  # fmt: skip
+        try:
+            self.robot_config(scene.robot.ref)  # an unknown robot is refused now, not later
+        except RobotConfigError as e:
+            raise SceneError([(f"{loc}robot.preset", e.message)]) from None
+        except InputError as e:
+            raise SceneError([(f"{loc}{e.field or 'robot.preset'}", e.message)]) from None
+        return scene
 
-        g = CellGrid.of(scene)
-        if g.nx * g.ny > s.max_grid_cells:
-            problems.append(
-                (
-                    "base_grid",
-                    f"{g.nx} x {g.ny} = {g.nx * g.ny} cells exceeds the "
-                    f"limit of {s.max_grid_cells}; coarsen the resolution or the extent",
-                )
+    def check_options(self, options: PlanOptions, loc: str = "options.") -> None:
+        if options.samples > self.limits.max_mc_samples:
+            raise InputError(
+                f"{loc}samples: {options.samples} Monte Carlo samples per stop exceed the limit "
+                f"of {self.limits.max_mc_samples}",
+                field=f"{loc}samples",
             )
-        if len(scene.trays) > s.max_trays:
-            problems.append(
-                ("trays", f"{len(scene.trays)} trays exceed the limit of {s.max_trays}")
-            )
+
+    def scene_doc(self, scene_id: str | None, doc: Any, loc: str = "") -> tuple[Any, int | None]:
+        """The document of a stored scene (and its revision), or the inline ``doc``."""
+        if scene_id is None:
+            return doc, None
+        row = self.store.scene(scene_id)
+        if row is None:
+            raise InputError(f"scene {scene_id} does not exist", field=f"{loc}scene_id")
+        return json.loads(row["doc"]), row["revision"]
+
+    def stored_scene(self, scene_id: str) -> Scene:
+        row = self.store.scene(scene_id)
+        if row is None:
+            raise Problem(404, "Not found", f"no scene {scene_id!r}", field="scene_id")
+        return self.parse(json.loads(row["doc"]))
+
+    def prepare(self, item: Any, loc: str = "") -> tuple[Any, int | None, Scene]:
+        """A plan request's scene (stored or inline) checked as a synchronous plan checks
+        it: (document, revision or None, scene)."""
+        doc, revision = self.scene_doc(item.scene_id, item.scene, loc)
+        scene = self.parse(doc, f"{loc}scene." if item.scene is not None else loc)
+        options = getattr(item, "options", None)
+        if options is not None:
+            self.check_options(options)
+        return doc, revision, scene
+
+    # -- submissions: every check a job would meet, made before it is queued -----------------
+    def submit_plan_job(self, body: Any) -> dict[str, Any]:
+        self.prepare(body)
+        item = {"scene_id": body.scene_id, "scene": body.scene}
+        return self.submit("batch", {"scenes": [item], "options": body.options.model_dump(),
+                                     "database": body.database})  # fmt: skip
+
+    def precheck(self, doc: Any) -> None:
+        """The size limits of a plan or batch request's raw inline scenes, before the request
+        model copies and validates them."""
+        if not isinstance(doc, dict):
+            return
+        problems = lim.scene_problems(doc.get("scene"), self.limits, "scene.")
+        scenes = doc.get("scenes")
+        for i, item in enumerate(scenes if isinstance(scenes, list) else []):
+            if isinstance(item, dict):
+                problems += lim.scene_problems(item.get("scene"), self.limits, f"scenes.{i}.scene.")
         if problems:
             from pickstop.scene.model import SceneError
 
             raise SceneError(problems)
-        return scene
+
+    def check_batch_size(self, doc: Any) -> None:
+        scenes = doc.get("scenes") if isinstance(doc, dict) else None
+        if isinstance(scenes, list) and len(scenes) > self.limits.max_batch:
+            raise Problem(413, "Request too large", f"{len(scenes)} scenes exceed the batch "
+                          f"limit of {self.limits.max_batch}", kind="too-large",
+                          field="scenes")  # fmt: skip
+
+    def submit_batch(self, body: Any) -> dict[str, Any]:
+        self.check_options(body.options)
+        for i, item in enumerate(body.scenes):  # a bad scene is a 422 now, not a failed job
+            self.prepare(item, f"scenes.{i}.")
+        return self.submit("batch", body.model_dump())
+
+    def submit_build(self, body: Any) -> dict[str, Any]:
+        from pickstop.reach.build import BuildParams
+
+        if body.samples > self.settings.max_samples:
+            raise InputError(f"samples {body.samples} exceeds the limit of "
+                             f"{self.settings.max_samples}", field="samples")  # fmt: skip
+        try:
+            self.robot_config(body.robot)  # unknown robot: 422 now, not a failed job later
+        except InputError as e:
+            raise InputError(e.message, field="robot") from None
+        params = body.model_dump()
+        BuildParams(**{k: v for k, v in params.items() if k != "robot"}).validate()
+        return self.submit("build", params)
 
     def slot(self, scene: Scene, db_id: str | None = None) -> _Slot:
         from pickstop.regions.loader import robot_for
@@ -201,7 +332,7 @@ class Service:
         with self._slots_lock:
             slot = self._slots.get(key)
             if slot is None:
-                db = open_database(self.data_dir, robot, db_id)
+                db = _INHERITED.get(key) or open_database(self.data_dir, robot, db_id)
                 rp = RegionPlanner(robot, db, cache_dir=cache_dir(self.data_dir))
                 slot = self._slots[key] = _Slot(StopPlanner(rp))
             return slot
@@ -217,9 +348,10 @@ class Service:
                 r["robot_hash"] == robot.robot_hash and r["state"] == "complete"
                 for r in list_databases(self.data_dir)
             ):
-                db = open_database(self.data_dir, robot)
+                key = (robot.robot_hash, "")
+                db = _INHERITED.get(key) or open_database(self.data_dir, robot)
                 rp = RegionPlanner(robot, db, cache_dir=cache_dir(self.data_dir))
-                self._slots[(robot.robot_hash, "")] = _Slot(StopPlanner(rp))
+                self._slots[key] = _Slot(StopPlanner(rp))
         except PickStopError as e:
             log.warning("default planner not loaded: %s", e.message)
 
@@ -234,13 +366,13 @@ class Service:
         """A stored plan's body if it is in memory already (no database access)."""
         return self._plan_bodies.get(plan_id)
 
-    def plan_body(self, plan_id: str, row: dict[str, Any] | None = None) -> bytes | None:
-        """A stored plan record as JSON bytes; plans are immutable, so they are cached.
-        ``row``: the plan's row if the caller has read it already."""
+    def plan_body(self, plan_id: str, with_scene: bool = False) -> bytes | None:
+        """A stored plan record as JSON bytes (``with_scene``: plus the exact scene it was
+        planned from); plans are immutable, so their bodies are cached."""
         hit = self._plan_bodies.get(plan_id)
-        if hit is not None:
+        if hit is not None and not with_scene:
             return hit
-        row = row or self.store.plan(plan_id)
+        row = self.store.plan(plan_id)
         if row is None:
             return None
         body = (
@@ -249,8 +381,11 @@ class Service:
             f'"options":{row["options"]},"plan":{row["doc"]}}}'
         ).encode()
         if len(self._plan_bodies) >= 512:
-            self._plan_bodies.pop(next(iter(self._plan_bodies)))
+            with suppress(StopIteration, KeyError, RuntimeError):  # another thread's turn
+                self._plan_bodies.pop(next(iter(self._plan_bodies)))
         self._plan_bodies[plan_id] = body
+        if with_scene:
+            return body[:-1] + b',"scene":' + row["scene_doc"].encode() + b"}"
         return body
 
     def plan(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
@@ -313,6 +448,7 @@ class Service:
         return job
 
     def cancel(self, job_id: str) -> dict[str, Any] | None:
+        """Cancel a job: a queued one never starts; a running one is stopped where it is."""
         job = self.store.job(job_id)
         if job is None:
             return None
@@ -320,33 +456,73 @@ class Service:
             self.store.set_job(job_id, state="cancelled", error="cancelled before it started")
         elif job["state"] == "running":
             self._cancel.add(job_id)
+            with self._running_lock:
+                here = self._running is not None and self._running[0] == job_id
+                if here:
+                    self._running[1].stop()  # type: ignore[index]
+            if not here:  # another worker process runs it: tell it through the record
+                self.store.set_job(job_id, error=CANCEL_REQUESTED)
+            for _ in range(100):  # the record says so once the work has unwound
+                job = self.store.job(job_id)
+                if job is None or job["state"] != "running":
+                    break
+                threading.Event().wait(0.05)
         return self.store.job(job_id)
 
     def _job_loop(self) -> None:
         while True:
-            job_id = self._jobs.get()
+            try:
+                job_id = self._jobs.get(timeout=1.0)
+            except queue.Empty:  # jobs other worker processes queued
+                job_id = self.store.next_queued_job()
+                if job_id is None:
+                    continue
             if job_id is None:
                 return
             job = self.store.job(job_id)
             if job is None or job["state"] != "queued":
                 continue
             self.store.set_job(job_id, state="running")
+            work = Work()
+            with self._running_lock:
+                self._running = (job_id, work)
+            timer = threading.Timer(self.settings.job_deadline, work.stop)
+            timer.daemon = True
+            timer.start()
+            finished = threading.Event()
+            threading.Thread(target=self._watch, args=(job_id, work, finished), daemon=True,
+                             name="pickstop-job-watch").start()  # fmt: skip
             try:
                 params = json.loads(job["params"])
-                if job["kind"] == "build":
-                    result = self._run_build(job_id, params)
+                run = self._run_build if job["kind"] == "build" else self._run_batch
+                result = work.run(run, job_id, params)
+                self.store.set_job(job_id, state="done", progress=1.0, result=result, error=None)
+            except (JobCancelled, Cancelled):
+                if job_id in self._cancel:
+                    self.store.set_job(job_id, state="cancelled", error="cancelled while running")
                 else:
-                    result = self._run_batch(job_id, params)
-                self.store.set_job(job_id, state="done", progress=1.0, result=result)
-            except JobCancelled:
-                self.store.set_job(job_id, state="cancelled", error="cancelled while running")
+                    self.store.set_job(job_id, state="failed", error="the job passed its "
+                                       f"deadline of {self.settings.job_deadline:g} s")  # fmt: skip
             except PickStopError as e:
                 self.store.set_job(job_id, state="failed", error=e.message)
             except Exception as e:  # a job must never stay 'running'
                 log.exception("job %s failed", job_id)
                 self.store.set_job(job_id, state="failed", error=f"{type(e).__name__}: {e}")
             finally:
+                finished.set()
+                timer.cancel()
+                with self._running_lock:
+                    self._running = None
                 self._cancel.discard(job_id)
+
+    def _watch(self, job_id: str, work: Work, finished: threading.Event) -> None:
+        """Stop the running job when a cancel reached another worker process."""
+        while not finished.wait(0.5):
+            row = self.store.job(job_id)
+            if row is not None and row["error"] == CANCEL_REQUESTED:
+                self._cancel.add(job_id)
+                work.stop()
+                return
 
     def _check_cancel(self, job_id: str) -> None:
         if job_id in self._cancel:
@@ -414,6 +590,9 @@ class Service:
         rows = cat.query("SELECT id FROM reach_databases WHERE id = ?", [db_id])
         if not rows:
             return False
+        for key, db in list(_INHERITED.items()):
+            if db.id == db_id:
+                del _INHERITED[key]
         with self._slots_lock:
             for key, slot in list(self._slots.items()):
                 if slot.planner.regions.db.id == db_id:

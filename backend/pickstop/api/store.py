@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import secrets
 import threading
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
@@ -94,14 +94,15 @@ class ServiceStore:
         )
 
     def update_scene(
-        self, scene_id: str, doc: dict[str, Any], name: str, if_match: str
+        self, scene_id: str, doc: dict[str, Any], name: str, if_match: Collection[str] | None
     ) -> dict[str, Any] | None:
-        """Replace the document if its ETag is still ``if_match``; None if the scene is gone."""
+        """Replace the document if its ETag is still one of ``if_match`` (None: any); None if
+        the scene is gone."""
         with self.transaction() as c:
             cur = c.execute("SELECT etag, revision FROM scenes WHERE id = ?", [scene_id]).fetchone()
             if cur is None:
                 return None
-            if cur[0] != if_match:
+            if if_match is not None and cur[0] not in if_match:
                 raise Conflict(cur[0])
             etag, rev, t = _etag(), cur[1] + 1, now()
             c.execute(
@@ -111,12 +112,13 @@ class ServiceStore:
             )
         return self.scene(scene_id)
 
-    def delete_scene(self, scene_id: str, if_match: str | None) -> bool:
+    def delete_scene(self, scene_id: str, if_match: Collection[str] | None) -> bool:
+        """Delete the scene if its ETag is one of ``if_match`` (None: any); False if gone."""
         with self.transaction() as c:
             cur = c.execute("SELECT etag FROM scenes WHERE id = ?", [scene_id]).fetchone()
             if cur is None:
                 return False
-            if if_match is not None and cur[0] != if_match:
+            if if_match is not None and cur[0] not in if_match:
                 raise Conflict(cur[0])
             c.execute("DELETE FROM scenes WHERE id = ?", [scene_id])
         return True
@@ -192,6 +194,14 @@ class ServiceStore:
         return self.rows(
             "SELECT * FROM jobs ORDER BY created, id LIMIT ? OFFSET ?", [limit, offset]
         )
+
+    def next_queued_job(self) -> str | None:
+        """The oldest queued build or batch job, if any (dispatch jobs run on their own)."""
+        rows = self.rows(
+            "SELECT id FROM jobs WHERE state = 'queued' AND kind IN ('build', 'batch') "
+            "ORDER BY created, id LIMIT 1"
+        )
+        return str(rows[0]["id"]) if rows else None
 
     def set_job(self, job_id: str, **fields: Any) -> None:
         fields["updated"] = now()

@@ -40,7 +40,9 @@ class PlanOptions(BaseModel):
     samples: Annotated[int, Field(ge=0, le=100_000)] = Field(
         default=1000, description="Monte Carlo samples per stop (0: no success estimate)"
     )
-    seed: int = Field(default=0, description="seed of the Monte Carlo")
+    seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = Field(
+        default=0, description="seed of the Monte Carlo"
+    )
     time_limit: Annotated[float, Field(gt=0, le=600)] = Field(
         default=10.0, description="time limit of each stop selection solve [s]"
     )

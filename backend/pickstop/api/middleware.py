@@ -1,0 +1,93 @@
+"""ASGI middleware: the body size limit and the stored-plan fast path.
+
+Both run before routing, so they see every request, chunked or not, and never compute.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+from pickstop.api.problems import Problem, problem_response
+from pickstop.settings import Settings
+
+API = "/api/v1"
+
+
+class BodyLimit:
+    """Refuse request bodies over ``limit`` bytes with 413, declared or streamed."""
+
+    def __init__(self, app: ASGIApp, limit: int) -> None:
+        self.app, self.limit = app, limit
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        too_big = Problem(
+            413,
+            "Request too large",
+            f"the request body exceeds {self.limit} bytes",
+            kind="too-large",
+            field="body",
+        )
+        for k, v in scope.get("headers", []):
+            if k == b"content-length" and v.isdigit() and int(v) > self.limit:
+                await problem_response(too_big, scope.get("path"))(scope, receive, send)
+                return
+        seen = 0
+
+        async def limited() -> Any:
+            nonlocal seen
+            msg = await receive()
+            if msg["type"] == "http.request":
+                seen += len(msg.get("body", b""))
+                if seen > self.limit:
+                    raise _TooLarge(
+                        413, too_big.title, too_big.detail, kind="too-large", field="body"
+                    )
+            return msg
+
+        try:
+            await self.app(scope, limited, send)
+        except _TooLarge:
+            await problem_response(too_big, scope.get("path"))(scope, receive, send)
+
+
+class _TooLarge(Problem):
+    """Raised from ``receive`` once a streamed body passes the limit: a route reading the
+    body answers 413 through the problem handler; anything else, this middleware does."""
+
+
+class StoredPlanFastPath:
+    """``GET /api/v1/plans/{id}`` for a plan already in the service's body cache, answered
+    before routing: stored plans are immutable and are the reads an MES makes most. Anything
+    else (a query string, a plan not cached yet, reads that need a key) takes the normal way,
+    which also fills the cache."""
+
+    PREFIX = f"{API}/plans/"
+
+    def __init__(self, app: ASGIApp, settings: Settings) -> None:
+        self.app, self.enabled = app, not settings.read_requires_key
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if (
+            self.enabled
+            and scope["type"] == "http"
+            and scope["method"] == "GET"
+            and not scope.get("query_string")
+            and scope["path"].startswith(self.PREFIX)
+        ):
+            service = getattr(scope["app"].state, "service", None)
+            plan_id = scope["path"][len(self.PREFIX) :]
+            body = service.cached_plan_body(plan_id) if service is not None else None
+            if body is not None:
+                await send({"type": "http.response.start", "status": 200, "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", str(len(body)).encode()),
+                    (b"cache-control", b"public, max-age=31536000, immutable"),
+                ]})  # fmt: skip
+                await send({"type": "http.response.body", "body": body})
+                return
+        await self.app(scope, receive, send)

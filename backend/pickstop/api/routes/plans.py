@@ -1,0 +1,85 @@
+"""``/plans``: plan a stored or inline scene (synchronously, as a job, or as a preview), and
+read stored plans (immutable)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request, Response
+from starlette.concurrency import run_in_threadpool
+
+from pickstop.api.body import validate
+from pickstop.api.deps import JsonBody, ReadKey, ServiceDep, WriteKey
+from pickstop.api.openapi import json_request
+from pickstop.api.problems import Problem
+from pickstop.api.schemas import API_PREFIX, Job, PlanRecord, PlanRequest, PlanSummary
+from pickstop.api.store import now
+from pickstop.api.work import compute
+
+router = APIRouter(tags=["plans"])
+
+IMMUTABLE = {"Cache-Control": "public, max-age=31536000, immutable"}
+
+
+@router.post(
+    "/plans",
+    dependencies=[WriteKey],
+    status_code=201,
+    openapi_extra=json_request("PlanRequest", "what to plan, and how"),
+    responses={
+        200: {"model": PlanRecord, "description": "a preview (store: false)"},
+        202: {"model": Job, "description": "queued as a job (mode: job)"},
+    },
+)
+async def create_plan(
+    request: Request, service: ServiceDep, doc: JsonBody, response: Response
+) -> Any:
+    await run_in_threadpool(service.precheck, doc)
+    body = await run_in_threadpool(validate, PlanRequest, doc)
+    if body.mode == "job":
+        job = await run_in_threadpool(service.submit_plan_job, body)
+        response.status_code = 202
+        response.headers["Location"] = f"{API_PREFIX}/jobs/{job['id']}"
+        return Job.of(job)
+    scene_doc, revision, scene = await run_in_threadpool(service.prepare, body)
+    plan = await compute(service.pool, service.plan, scene, body.options, body.database,
+                         deadline=service.settings.request_deadline, request=request)  # fmt: skip
+    options = body.options.model_dump()
+    if not body.store:
+        response.status_code = 200
+        return PlanRecord(id=None, scene_id=body.scene_id, scene_revision=revision,
+                          created=now(), options=options, plan=plan)  # fmt: skip
+    rec = await run_in_threadpool(service.store.add_plan, body.scene_id, revision, scene_doc,
+                                  options, plan.model_dump(mode="json"))  # fmt: skip
+    response.headers["Location"] = f"{API_PREFIX}/plans/{rec['id']}"
+    return PlanRecord(id=rec["id"], scene_id=body.scene_id, scene_revision=revision,
+                      created=rec["created"], options=options, plan=plan)  # fmt: skip
+
+
+@router.get("/plans", dependencies=[ReadKey])
+def plans(
+    service: ServiceDep,
+    scene_id: str | None = None,
+    limit: Annotated[int, Query(ge=1, le=500)] = 100,
+    offset: Annotated[int, Query(ge=0, le=10**9, description="records to skip")] = 0,
+) -> list[PlanSummary]:
+    return [PlanSummary.of(x) for x in service.store.plans(scene_id, limit, offset)]
+
+
+@router.get(
+    "/plans/{plan_id}",
+    dependencies=[ReadKey],
+    response_model=PlanRecord,
+    responses={200: {"content": {"application/json": {}}}},
+)
+def get_plan(service: ServiceDep, plan_id: str, include_scene: bool = False) -> Response:
+    body = service.plan_body(plan_id, with_scene=include_scene)
+    if body is None:
+        raise Problem(404, "Not found", f"no plan {plan_id!r}", field="plan_id")
+    return Response(body, media_type="application/json", headers=IMMUTABLE)
+
+
+# Fleet: export (VDA 5050, Nav2) and dispatch over MQTT of a stored plan.
+from pickstop.api.fleet import add_fleet_routes  # noqa: E402
+
+add_fleet_routes(router, [WriteKey], [ReadKey])

@@ -1,0 +1,261 @@
+"""Request and response bodies of the REST API (pydantic): the OpenAPI document shows these.
+
+Scene and robot documents stay plain mappings in the request models (they are validated by
+:func:`pickstop.scene.model.parse_scene` and :func:`pickstop.robot.config.parse_config`, after
+the size limits), but the OpenAPI document types them by the scene and robot schemas.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, model_validator
+
+from pickstop.api.limits import Limits
+from pickstop.sequence.plan_model import Plan, PlanOptions
+
+API_PREFIX = "/api/v1"
+# A scene document in a schema: the OpenAPI document turns this marker into a $ref to the
+# Scene component (a $ref here would send pydantic looking for a definition of its own).
+SCENE = {"x-component": "Scene"}
+SceneDoc = Annotated[dict[str, Any], WithJsonSchema(SCENE)]
+OptionalSceneDoc = Annotated[
+    dict[str, Any] | None, WithJsonSchema({"anyOf": [SCENE, {"type": "null"}]})
+]
+
+EXAMPLE_SCENE = {
+    "name": "two trays",
+    "floor": {"min": [-1, -1], "max": [4, 3]},
+    "obstacles": [
+        {
+            "id": "table",
+            "geometry": {"shape": "box", "size": [1.6, 0.6, 0.72]},
+            "pose": {"x": 1.4, "y": 1.6},
+        }
+    ],
+    "trays": [
+        {
+            "id": "tray_1",
+            "pose": {"x": 0.95, "y": 1.5, "z": 0.725},
+            "inner_size": [0.3, 0.2],
+            "parts": [
+                {"id": "bolt", "geometry": {"shape": "cylinder", "radius": 0.01, "height": 0.05}}
+            ],
+        }
+    ],
+    "base_yaw": {"fixed": 1.5707963},
+    "start": {"x": 0, "y": 0},
+    "goal": {"x": 3, "y": 0},
+}
+
+
+# -- problems -------------------------------------------------------------------------------------
+class FieldError(BaseModel):
+    field: str
+    message: str
+
+
+class ProblemDetails(BaseModel):
+    """RFC 9457 problem details; ``field`` is the first offending field (dotted), or ``body``."""
+
+    type: str
+    title: str
+    status: int
+    detail: str
+    instance: str | None = None
+    field: str | None = None
+    errors: list[FieldError] | None = None
+
+
+# -- service --------------------------------------------------------------------------------------
+class LoadedPlanner(BaseModel):
+    robot: str
+    database: str
+
+
+class Health(BaseModel):
+    status: Literal["ok"]
+    version: str
+    process: int = Field(description="id of the API process that answered")
+    loaded: list[LoadedPlanner]
+    interrupted_jobs_at_start: int
+    limits: Limits
+
+
+# -- robots ---------------------------------------------------------------------------------------
+class RobotInfo(BaseModel):
+    name: str
+    kind: Literal["preset", "registered"]
+    created: str | None = None
+
+
+class RegisteredRobot(BaseModel):
+    name: str
+    kind: Literal["registered"] = "registered"
+    dof: int
+    robot_hash: str
+
+
+# -- databases ------------------------------------------------------------------------------------
+class DatabaseInfo(BaseModel):
+    id: str
+    robot: str | None = None
+    robot_hash: str | None = None
+    state: str | None = None
+    samples: int | None = None
+    stored: int | None = None
+    resolution: float | None = None
+    orientation: int | None = None
+    seed: int | None = None
+    chunk_size: int | None = None
+    thinning: float | None = None
+    code_version: str | None = None
+    created: str | None = None
+    completed: str | None = None
+    build_seconds: float | None = None
+    rejected_self_collision: int | None = None
+    rejected_thinning: int | None = None
+    shards: int | None = None
+    bytes: int | None = None
+
+    @classmethod
+    def of(cls, row: dict[str, Any]) -> DatabaseInfo:
+        out = {k: row.get(k) for k in cls.model_fields if k not in ("shards", "bytes")}
+        shards = row.get("shards")
+        if shards is not None:
+            out["shards"], out["bytes"] = len(shards), sum(s["bytes"] for s in shards)
+        return cls.model_validate(out)
+
+
+class BuildRequest(BaseModel):
+    """A reachability database build; every value is checked before the job is queued."""
+
+    model_config = ConfigDict(extra="forbid")
+    robot: str = Field(default="tiago", description="a preset or a registered robot")
+    samples: int = Field(default=2_000_000, ge=1000, description="joint-space samples")
+    resolution: float = Field(
+        default=0.05, ge=0.005, le=0.5, allow_inf_nan=False, description="voxel edge [m]"
+    )
+    orientation: int = Field(default=6, ge=1, le=32, description="SO(3) grid divisions")
+    seed: int = Field(default=0, ge=0, le=2**63 - 1)
+    chunk_size: int = Field(default=250_000, ge=1000, le=5_000_000)
+    thinning: float = Field(
+        default=0.0, ge=0, lt=10, allow_inf_nan=False, description="thinning distance [rad]"
+    )
+
+
+# -- scenes ---------------------------------------------------------------------------------------
+class SceneRecord(BaseModel):
+    id: str
+    name: str
+    etag: str
+    revision: int
+    created: str
+    updated: str
+    scene: SceneDoc | None = None
+
+    @classmethod
+    def of(cls, row: dict[str, Any], with_doc: bool) -> SceneRecord:
+        return cls(
+            **{k: row[k] for k in cls.model_fields if k in row and k != "scene"},
+            scene=json.loads(row["doc"]) if with_doc else None,
+        )
+
+
+class Feature(BaseModel):
+    type: Literal["Feature"] = "Feature"
+    geometry: dict[str, Any] | None
+    properties: dict[str, Any]
+
+
+class FeatureCollection(BaseModel):
+    type: Literal["FeatureCollection"] = "FeatureCollection"
+    features: list[Feature]
+
+
+class Regions(BaseModel):
+    """A scene's base regions and their intersections (candidate stops) as GeoJSON."""
+
+    database: str
+    sigma: float
+    regions: FeatureCollection
+    intersections: FeatureCollection
+
+
+# -- plans ----------------------------------------------------------------------------------------
+class BatchItem(BaseModel):
+    """A stored scene by id, or an inline scene document: exactly one of them."""
+
+    model_config = ConfigDict(extra="forbid")
+    scene_id: str | None = Field(default=None, description="a stored scene")
+    scene: OptionalSceneDoc = Field(default=None, description="or an inline scene document")
+
+    @model_validator(mode="after")
+    def _one(self) -> BatchItem:
+        if (self.scene_id is None) == (self.scene is None):
+            raise ValueError("give exactly one of scene_id and scene")
+        return self
+
+
+class PlanRequest(BatchItem):
+    options: PlanOptions = PlanOptions()
+    database: str | None = Field(default=None, description="reachability database id")
+    mode: Literal["sync", "job"] = Field(default="sync", description="'job': run as a batch job")
+    store: bool = Field(
+        default=True, description="keep the plan as a record (false: a preview, not stored)"
+    )
+
+
+class PlanRecord(BaseModel):
+    id: str | None  # None for a preview that was not stored
+    scene_id: str | None
+    scene_revision: int | None
+    created: str
+    options: dict[str, Any]
+    plan: Plan | None = None
+    scene: SceneDoc | None = None
+
+
+class PlanSummary(BaseModel):
+    id: str
+    scene_id: str | None
+    scene_revision: int | None
+    options: dict[str, Any]
+    created: str
+    stops: int | None
+    time: float | None
+
+    @classmethod
+    def of(cls, row: dict[str, Any]) -> PlanSummary:
+        return cls(**{**row, "options": json.loads(row["options"])})
+
+
+# -- jobs -----------------------------------------------------------------------------------------
+class BatchRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    scenes: list[BatchItem] = Field(min_length=1)
+    options: PlanOptions = PlanOptions()
+    database: str | None = None
+
+
+class Job(BaseModel):
+    id: str
+    kind: Literal["build", "batch", "dispatch"]
+    state: Literal["queued", "running", "done", "failed", "cancelled", "interrupted"]
+    progress: float
+    params: dict[str, Any]
+    result: dict[str, Any] | None
+    error: str | None
+    created: str
+    updated: str
+
+    @classmethod
+    def of(cls, row: dict[str, Any]) -> Job:
+        return cls(
+            **{
+                **row,
+                "params": json.loads(row["params"]),
+                "result": json.loads(row["result"]) if row["result"] else None,
+            }
+        )

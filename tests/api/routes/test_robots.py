@@ -1,0 +1,86 @@
+"""/robots: confinement at every open (symlinks included), answers that reveal no server."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from tests.utils import TIAGO_URDF
+
+from ..conftest import AUTH
+from ..factories import paper, problem, titled_problem
+
+ARM = ["torso_lift_joint"] + [f"arm_{i}_joint" for i in range(1, 8)]
+
+
+def _config(name: str, urdf: str) -> dict:
+    return {"name": name, "urdf": urdf, "arm_joints": ARM, "tool_frame": "hand_grasping_frame",
+            "footprint": {"radius": 0.275}}  # fmt: skip
+
+
+def test_a_urdf_swapped_for_a_symlink_outside_is_refused_at_open(client, api_settings, tmp_path):
+    robots = api_settings.data_dir / "robots"
+    shutil.copy(TIAGO_URDF, robots / "swapbot.urdf")
+    r = client.post("/api/v1/robots", json=_config("swapbot", "swapbot.urdf"), headers=AUTH)
+    assert r.status_code == 201, r.text
+    outside = tmp_path / "outside.urdf"
+    shutil.copy(TIAGO_URDF, outside)
+    (robots / "swapbot.urdf").unlink()
+    (robots / "swapbot.urdf").symlink_to(outside)
+    body = problem(client.post("/api/v1/databases", json={"robot": "swapbot", "samples": 1000},
+                               headers=AUTH), 422, "robot")  # fmt: skip
+    assert "outside the allowed folders" in body["detail"]
+    doc = paper()
+    doc["robot"] = {"preset": "swapbot"}
+    body = problem(client.post("/api/v1/scenes", json=doc, headers=AUTH), 422, "robot.preset")
+    assert "outside the allowed folders" in body["detail"]
+    assert str(tmp_path) not in body["detail"] and str(api_settings.data_dir) not in body["detail"]
+
+
+def test_outside_answers_the_same_whether_or_not_the_file_exists(client):
+    details = []
+    for urdf in ("/etc/passwd", "/etc/no_such_file_here"):
+        body = problem(client.post("/api/v1/robots", json=_config("probe", urdf), headers=AUTH),
+                       422, "urdf")  # fmt: skip
+        details.append(body["detail"].replace(urdf, "<urdf>"))
+    assert details[0] == details[1]
+    body = problem(client.post("/api/v1/robots", json=_config("probe", "missing.urdf"),
+                               headers=AUTH), 422, "urdf")  # fmt: skip
+    assert body["detail"].replace("missing.urdf", "<urdf>") == details[0]
+
+
+def test_problem_details_name_no_server_folder(client, api_settings):
+    bad = _config("probe2", "package://example-robot-data/robots/nothing.urdf")
+    body = problem(client.post("/api/v1/robots", json=bad, headers=AUTH), 422)
+    assert "/" + str(api_settings.data_dir).strip("/") not in body["detail"]
+    assert "site-packages" not in body["detail"]
+
+
+@pytest.mark.parametrize(
+    ("config", "field"),
+    [
+        ({"urdf": "/etc/passwd"}, "urdf"),
+        ({"urdf": "../../../etc/robot.urdf"}, "urdf"),
+        ({"urdf": "robot.urdf", "package_dirs": ["../../.."]}, "package_dirs.0"),
+    ],
+)
+def test_robot_paths_are_confined(client, config, field):
+    base = {"name": "evil", "arm_joints": ["j1"], "tool_frame": "tool",
+            "footprint": {"radius": 0.3}}  # fmt: skip
+    body = titled_problem(client.post("/api/v1/robots", json={**base, **config}, headers=AUTH), 422)
+    assert "outside the allowed folders" in body["detail"] and body["field"] == field
+    assert "evil" not in [r["name"] for r in client.get("/api/v1/robots").json()]
+
+
+def test_register_a_robot_from_the_bundled_data(client):
+    pr2 = {"name": "tiago_copy", "urdf": "package://example-robot-data/robots/tiago_description/"
+           "robots/tiago.urdf", "arm_joints": ["torso_lift_joint", "arm_1_joint", "arm_2_joint",
+           "arm_3_joint", "arm_4_joint", "arm_5_joint", "arm_6_joint", "arm_7_joint"],
+           "tool_frame": "hand_grasping_frame", "footprint": {"radius": 0.275}}  # fmt: skip
+    r = client.post("/api/v1/robots", json=pr2, headers=AUTH)
+    assert r.status_code == 201, r.text
+    assert r.json()["dof"] == 8
+    names = [x["name"] for x in client.get("/api/v1/robots").json()]
+    assert "tiago" in names and "tiago_copy" in names
+    titled_problem(client.post("/api/v1/robots", json=pr2, headers=AUTH), 422)  # exists already
