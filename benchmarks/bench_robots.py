@@ -69,7 +69,9 @@ def paper(ref: str, robot, row: dict, folder: Path) -> None:
     doc = json.loads((ROOT / "examples/scenes/paper_experiment.json").read_text())
     doc["robot"] = {"preset": ref} if ref == "tiago" else {"config": str(Path(ref).resolve())}
     scene = parse_scene(doc)
-    planner = RegionPlanner(robot, open_database(folder, robot, row["id"]), cache_dir(folder))
+    planner = RegionPlanner(
+        robot, open_database(folder, robot, row["id"]), cache_dir=cache_dir(folder)
+    )
     t0 = time.perf_counter()
     areas = []
     for tray_id in scene.task_trays:
