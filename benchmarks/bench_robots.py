@@ -1,4 +1,6 @@
-"""Per robot: `robot check` time, first and cached database build, screen false rejection.
+"""Per robot: `robot check` time, first and cached database build, screen false rejection,
+stored fraction, and the regions and plan of the paper-like scene with that robot (stops,
+predicted success); every shipped robot by default.
 
     python benchmarks/bench_robots.py [--samples 2000000] [--robots tiago examples/robots/pr2.yaml]
 
@@ -9,6 +11,7 @@ e-stop and a wrist camera) and reports the time to a finished small build.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import tempfile
@@ -17,6 +20,11 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+ROBOTS = [
+    "tiago",
+    *(f"examples/robots/{n}.yaml" for n in ("pr2", "ur5_amr", "tiago_dual", "tiago_pro")),
+]
 
 
 def bench(ref: str, samples: int, folder: Path) -> None:
@@ -45,6 +53,44 @@ def bench(ref: str, samples: int, folder: Path) -> None:
         f"{cached:.2f} s | screen false rejection {100 * row['screen_false_rejection']:.1f}% "
         f"(flags {100 * row['screen_flagged']:.1f}%) | stored {row['stored'] / samples:.1%}"
     )
+    paper(ref, robot, row, folder)
+
+
+def paper(ref: str, robot, row: dict, folder: Path) -> None:
+    """Regions and plan of the paper-like scene with ``robot`` (its database of ``row``)."""
+    from pickstop.reach.database import open_database
+    from pickstop.regions.base_region import RegionPlanner
+    from pickstop.scene.model import parse_scene
+    from pickstop.sequence.cover import InfeasiblePlanError
+    from pickstop.sequence.plan import StopPlanner
+    from pickstop.sequence.plan_model import PlanOptions
+    from pickstop.settings import cache_dir
+
+    doc = json.loads((ROOT / "examples/scenes/paper_experiment.json").read_text())
+    doc["robot"] = {"preset": ref} if ref == "tiago" else {"config": str(Path(ref).resolve())}
+    scene = parse_scene(doc)
+    planner = RegionPlanner(
+        robot, open_database(folder, robot, row["id"]), cache_dir=cache_dir(folder)
+    )
+    t0 = time.perf_counter()
+    areas = []
+    for tray_id in scene.task_trays:
+        region = planner.tray_region(scene, tray_id)
+        areas.append(
+            f"{tray_id} {region.area * 1e4:.0f} cm2"
+            + (f" ({region.reason})" if region.reason else "")
+        )
+    t_regions = time.perf_counter() - t0
+    try:
+        plan = StopPlanner(planner).plan(scene, PlanOptions(samples=1000))
+        stops = ", ".join(f"{'+'.join(s.trays)} ok={s.success.rate:.1%}" for s in plan.stops)
+        result = (
+            f"plan {plan.totals.stops} stops (naive {len(plan.naive.stops)}), "
+            f"{plan.totals.time.total:.1f} s, success {plan.totals.success:.1%}: {stops}"
+        )
+    except InfeasiblePlanError as e:
+        result = f"plan infeasible: {e.message}"
+    print(f"{'':10s} paper scene: regions {t_regions:.1f} s: {'; '.join(areas)} | {result}")
 
 
 def dense(folder: Path) -> None:
@@ -69,11 +115,15 @@ def dense(folder: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--samples", type=int, default=2_000_000)
-    ap.add_argument("--robots", nargs="*", default=["tiago", "examples/robots/pr2.yaml"])
+    ap.add_argument("--robots", nargs="*", default=ROBOTS)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for ref in args.robots:
-            bench(ref, args.samples, Path(tmp) / Path(ref).stem)
+            bench(
+                str(ROOT / ref) if ref.endswith(".yaml") else ref,
+                args.samples,
+                Path(tmp) / Path(ref).stem,
+            )
         dense(Path(tmp) / "dense")
 
 
