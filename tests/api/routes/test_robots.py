@@ -84,3 +84,39 @@ def test_register_a_robot_from_the_bundled_data(client):
     names = [x["name"] for x in client.get("/api/v1/robots").json()]
     assert "tiago" in names and "tiago_copy" in names
     titled_problem(client.post("/api/v1/robots", json=pr2, headers=AUTH), 422)  # exists already
+
+
+YAML_CONFIG = """\
+# a robot config as people write them
+name: tiago_yaml
+urdf: package://example-robot-data/robots/tiago_description/robots/tiago.urdf
+arm_joints: [torso_lift_joint, arm_1_joint, arm_2_joint, arm_3_joint, arm_4_joint,
+             arm_5_joint, arm_6_joint, arm_7_joint]
+tool_frame: hand_grasping_frame
+footprint: {radius: 0.275}
+"""
+
+
+def test_register_a_robot_as_yaml(client):
+    headers = {**AUTH, "Content-Type": "application/yaml"}
+    r = client.post("/api/v1/robots", content=YAML_CONFIG, headers=headers)
+    assert r.status_code == 201, r.text
+    assert r.json()["name"] == "tiago_yaml" and r.json()["dof"] == 8
+    # A wrong frame names the field and lists the frames that exist.
+    bad = YAML_CONFIG.replace("tiago_yaml", "tiago_bad").replace(
+        "hand_grasping_frame", "gripper_tcp"
+    )
+    body = titled_problem(client.post("/api/v1/robots", content=bad, headers=headers), 422)
+    assert body["field"] == "tool_frame" and "arm_tool_link" in body["detail"]
+    # Broken YAML says where; aliases (a few bytes standing for gigabytes) are refused.
+    broken = titled_problem(
+        client.post("/api/v1/robots", content="name: [unclosed", headers=headers), 422
+    )
+    assert broken["field"] == "body" and "line" in broken["detail"]
+    bomb = "a: &a [x, x]\nb: &b [*a, *a]\nc: [*b, *b]\n"
+    aliased = titled_problem(client.post("/api/v1/robots", content=bomb, headers=headers), 422)
+    assert "aliases" in aliased["detail"]
+    other = client.post(
+        "/api/v1/robots", content="x", headers={**AUTH, "Content-Type": "text/plain"}
+    )
+    assert other.status_code == 415 and "application/yaml" in other.json()["detail"]
