@@ -134,12 +134,12 @@ def _tool(robot: RobotModel) -> dict[str, Any]:
         "frame": robot.config.tool_frame,
         "carried_by": robot.joints[-1].name,
         "position_in_joint": np.asarray(M.translation).round(6).tolist(),
-        "approach_axis": list(robot.config.approach_axis),
+        "approach_axis": list(robot.config.hand.approach_axis),
     }
 
 
 def _hand(robot: RobotModel, links: Any) -> dict[str, Any]:
-    pats = robot.config.hand_links
+    pats = robot.config.hand.links
     matched = sorted(lk.name for lk in links if any(fnmatch.fnmatch(lk.name, p) for p in pats))
     unmatched = [p for p in pats if not any(fnmatch.fnmatch(n, p) for n in matched)]
     return {"patterns": pats, "links": matched, "patterns_matching_nothing": unmatched}

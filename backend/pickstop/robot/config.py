@@ -173,27 +173,12 @@ class RobotConfig(BaseModel):
     footprint: Footprint = Field(default_factory=Footprint)
     hand: Hand = Hand()
 
-    @model_validator(mode="before")
-    @classmethod
-    def _old_hand_fields(cls, data: Any) -> Any:
-        """Configs written before the ``hand`` block: ``hand_links`` and ``approach_axis``."""
-        if isinstance(data, dict) and ("hand_links" in data or "approach_axis" in data):
-            data = dict(data)
-            hand = dict(data.get("hand") or {})
-            if "hand_links" in data:
-                hand.setdefault("links", data.pop("hand_links"))
-            if "approach_axis" in data:
-                hand.setdefault("approach_axis", data.pop("approach_axis"))
-            data["hand"] = hand
-        return data
-
-    @property
-    def hand_links(self) -> list[str]:
-        return self.hand.links
-
-    @property
-    def approach_axis(self) -> Vec3:
-        return self.hand.approach_axis
+    hand_links: list[str] | None = Field(
+        default=None, description="older configs: the hand's links (now hand.links)"
+    )
+    approach_axis: Vec3 | None = Field(
+        default=None, description="older configs: the approach axis (now hand.approach_axis)"
+    )
 
     @field_validator("arm_joints")
     @classmethod
@@ -211,6 +196,15 @@ class RobotConfig(BaseModel):
         lo, hi = self.continuous_limits
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise ValueError("continuous_limits must be finite with lower < upper")
+        if self.hand_links is not None or self.approach_axis is not None:
+            # Configs written before the hand block: their fields move into it.
+            update: dict[str, Any] = {}
+            if self.hand_links is not None and not self.hand.links:
+                update["links"] = self.hand_links
+            if self.approach_axis is not None:
+                update["approach_axis"] = self.approach_axis
+            hand = Hand.model_validate({**self.hand.model_dump(), **update})
+            object.__setattr__(self, "hand", hand)
         clash = sorted(set(self.arm_joints) & set(self.hand.pregrasp))
         if clash:
             raise ValueError(f"joints both in arm_joints and hand.pregrasp: {', '.join(clash)}")

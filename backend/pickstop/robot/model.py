@@ -189,7 +189,9 @@ def _hash(config: RobotConfig, files: list[Path]) -> str:
     change what the arm reaches nor its self-collision; the hand's pre-grasp joints and the
     ignored links do (and enter the hash only when given, so older databases stay valid).
     """
-    doc = config.model_dump(mode="json", exclude={"footprint", "hand"})
+    doc = config.model_dump(
+        mode="json", exclude={"footprint", "hand", "hand_links", "approach_axis"}
+    )
     if config.hand.pregrasp:
         doc["pregrasp"] = config.hand.pregrasp
     if config.hand.ignore_links:
