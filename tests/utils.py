@@ -32,3 +32,34 @@ arm_joints: [torso_lift_joint, arm_1_joint, arm_2_joint, arm_3_joint, arm_4_join
 tool_frame: hand_grasping_frame
 footprint: {{radius: 0.275}}
 """
+
+
+def assert_stop_verified(planner, scene, stop) -> None:
+    """Each witness of ``stop`` reaches its grasp from the stop within 1 mm and 0.5 deg and is
+    collision-free for coal: every collision link of the robot (the hand's included, the
+    grasped part no obstacle for it) against the scene, and the robot against itself."""
+    import math
+
+    from pickstop.regions.base_region import tray_world
+    from pickstop.robot.kinematics import fk
+
+    c, s_ = math.cos(stop.yaw), math.sin(stop.yaw)
+    T_world_base = np.eye(4)
+    T_world_base[:2, :2] = [[c, -s_], [s_, c]]
+    T_world_base[:2, 3] = stop.x, stop.y
+    for w in stop.witnesses:
+        tray = scene.tray(w.tray_id)
+        k = [p.id for p in tray.parts].index(w.part_id)
+        target = planner.grasps(scene, tray)[k].Ts_world_tool[w.grasp_index]
+        R, p = fk(planner.solver.chain, np.array([w.theta]))
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R[0], p[0]
+        got = T_world_base @ T
+        assert np.linalg.norm(got[:3, 3] - target[:3, 3]) < 1e-3
+        cos = (np.trace(got[:3, :3].T @ target[:3, :3]) - 1) / 2
+        assert math.degrees(math.acos(min(1.0, cos))) < 0.5
+        _, solids, _, _ = tray_world(planner, scene, tray, stop.yaw)
+        theta = np.array(w.theta)
+        assert not planner.exact_arm.colliding(theta, stop.x, stop.y, stop.yaw, solids, w.part_id)
+        assert not planner.exact_self.colliding(theta[None])[0]
+        assert w.hand == planner.hand.joints

@@ -4,7 +4,6 @@ TIAGo Pro build small databases and reach trays of the paper-like scene from ver
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +12,7 @@ import pytest
 import shapely
 
 from pickstop.robot.model import load
+from tests.utils import assert_stop_verified
 
 ROOT = Path(__file__).parents[2]
 ROBOTS = ROOT / "examples" / "robots"
@@ -213,8 +213,6 @@ def test_paper_scene_plan_witnesses_pass_exact_checks_with_the_hand(planned):
     """Every witness of the plan: FK on its grasp, no coal contact of any collision link (hand
     links included) with the scene or the robot itself."""
     from pickstop.regions.arm import arm_links, is_hand_link
-    from pickstop.regions.base_region import tray_world
-    from pickstop.robot.kinematics import fk
     from pickstop.sequence.cover import InfeasiblePlanError
     from pickstop.sequence.plan import StopPlanner
     from pickstop.sequence.plan_model import PlanOptions
@@ -229,27 +227,7 @@ def test_paper_scene_plan_witnesses_pass_exact_checks_with_the_hand(planned):
         pytest.fail(f"{name}: {e.message}")
     assert sorted(t for s in plan.stops for t in s.trays) == sorted(scene.task_trays)
     for stop in plan.stops:
-        c, s_ = math.cos(stop.yaw), math.sin(stop.yaw)
-        T_world_base = np.eye(4)
-        T_world_base[:2, :2] = [[c, -s_], [s_, c]]
-        T_world_base[:2, 3] = stop.x, stop.y
-        for w in stop.witnesses:
-            tray = scene.tray(w.tray_id)
-            k = [p.id for p in tray.parts].index(w.part_id)
-            target = planner.grasps(scene, tray)[k].Ts_world_tool[w.grasp_index]
-            R, p = fk(planner.solver.chain, np.array([w.theta]))
-            T = np.eye(4)
-            T[:3, :3], T[:3, 3] = R[0], p[0]
-            got = T_world_base @ T
-            assert np.linalg.norm(got[:3, 3] - target[:3, 3]) < 1e-3
-            cos = (np.trace(got[:3, :3].T @ target[:3, :3]) - 1) / 2
-            assert math.degrees(math.acos(min(1.0, cos))) < 0.5
-            _, solids, _, _ = tray_world(planner, scene, tray, stop.yaw)
-            theta = np.array(w.theta)
-            arm = planner.exact_arm
-            assert not arm.colliding(theta, stop.x, stop.y, stop.yaw, solids, w.part_id)
-            assert not planner.exact_self.colliding(theta[None])[0]
-            assert w.hand == planner.hand.joints
+        assert_stop_verified(planner, scene, stop)
 
 
 def test_tiago_dual_hey5_cannot_grasp_the_paper_scene_parts(robots):

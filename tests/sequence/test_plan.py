@@ -7,16 +7,14 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 import shapely
 
-from pickstop.regions.base_region import tray_world
-from pickstop.robot.kinematics import fk
 from pickstop.scene.model import parse_scene
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import Plan, PlanOptions
+from tests.utils import assert_stop_verified
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 
@@ -37,29 +35,6 @@ def paper_plan(stop_planner):
     return scene, stop_planner.plan(scene, PlanOptions(samples=300))
 
 
-def _exactly_verified(planner, scene, stop):
-    """Each witness reaches its grasp from the stop within 1 mm and 0.5 deg, collision-free
-    (coal, against the scene and itself)."""
-    c, s_ = math.cos(stop.yaw), math.sin(stop.yaw)
-    T_world_base = np.eye(4)
-    T_world_base[:2, :2] = [[c, -s_], [s_, c]]
-    T_world_base[:2, 3] = stop.x, stop.y
-    for w in stop.witnesses:
-        tray = scene.tray(w.tray_id)
-        k = [p.id for p in tray.parts].index(w.part_id)
-        target = planner.grasps(scene, tray)[k].Ts_world_tool[w.grasp_index]
-        R, p = fk(planner.solver.chain, np.array([w.theta]))
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = R[0], p[0]
-        got = T_world_base @ T
-        assert np.linalg.norm(got[:3, 3] - target[:3, 3]) < 1e-3
-        cos = (np.trace(got[:3, :3].T @ target[:3, :3]) - 1) / 2
-        assert math.degrees(math.acos(min(1.0, cos))) < 0.5
-        _, solids, _, _ = tray_world(planner, scene, tray, stop.yaw)
-        assert not planner.exact_arm.colliding(np.array(w.theta), stop.x, stop.y, stop.yaw, solids)
-        assert not planner.exact_self.colliding(np.array([w.theta]))[0]
-
-
 def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planner):
     scene, plan = paper_plan
     served = [t for s in plan.stops for t in s.trays]
@@ -71,7 +46,7 @@ def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planne
         # Every witness is a real IK solution: exact FK reaches one of the part's grasps.
         parts = {(w.tray_id, w.part_id) for w in s.witnesses}
         assert parts == {(t, p.id) for t in s.trays for p in scene.tray(t).parts}
-        _exactly_verified(planner, scene, s)
+        assert_stop_verified(planner, scene, s)
         # Each witness carries the hand's joint values, so it can be replayed.
         assert all(
             w.hand == planner.hand.joints and "hand_thumb_joint" in w.hand for w in s.witnesses
