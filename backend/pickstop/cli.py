@@ -13,29 +13,10 @@ from typing import Any
 
 import numpy as np
 
+from pickstop.argtypes import finite_float, positive_int
 from pickstop.errors import InputError, PickStopError
 
 DEFAULT_SAMPLES = 2_000_000
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(float(text)) if "e" in text.lower() else int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {v}")
-    return v
-
-
-def _finite_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not np.isfinite(v):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
-    return v
 
 
 def _emit(obj: Any) -> None:
@@ -575,9 +556,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     demo = sub.add_parser("demo", help="the embedded default: bundled TIAGo and example scene")
-    demo.add_argument("--samples", type=_positive_int, default=DEFAULT_SAMPLES)
-    demo.add_argument("--port", type=_positive_int, help="API port (default 8000, or a free one)")
-    demo.add_argument("--ui-port", type=_positive_int, default=8080, help="3D planner port")
+    demo.add_argument("--samples", type=positive_int, default=DEFAULT_SAMPLES)
+    demo.add_argument("--port", type=positive_int, help="API port (default 8000, or a free one)")
+    demo.add_argument("--ui-port", type=positive_int, default=8080, help="3D planner port")
     demo.set_defaults(func=cmd_demo)
 
     rg = sub.add_parser("regions", help="base regions of a scene's trays, as GeoJSON")
@@ -590,30 +571,30 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plan", help="plan stops and route for a scene (or a folder of scenes)")
     pl.add_argument("scene", help="scene JSON file, or a folder: plan every *.json in it")
     pl.add_argument(
-        "--sigma", type=_finite_float, help="base positioning error [m] (default: the scene's)"
+        "--sigma", type=finite_float, help="base positioning error [m] (default: the scene's)"
     )
     pl.add_argument("--rule", choices=["sigma", "success"], help="candidate rule (default: sigma)")
-    pl.add_argument("--target", type=_finite_float, help="success rate per stop for --rule success")
+    pl.add_argument("--target", type=finite_float, help="success rate per stop for --rule success")
     pl.add_argument("--objective", choices=["stops", "time"], help="default: stops, then route")
     pl.add_argument(
         "--samples", type=int, help="Monte Carlo samples per stop (default 1000; 0: none)"
     )
     pl.add_argument("--seed", type=int, help="Monte Carlo seed")
-    pl.add_argument("--time-limit", type=_finite_float, help="stop selection time limit [s]")
+    pl.add_argument("--time-limit", type=finite_float, help="stop selection time limit [s]")
     pl.add_argument("--out", help="write the plan here (a folder when planning a folder)")
     pl.add_argument("--json", action="store_true", help="folder: the summary as JSON, not a table")
     pl.add_argument("--db", help="reachability database id (default: the largest for the robot)")
-    pl.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1)
+    pl.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1)
     pl.add_argument("--dask", help="folder: one Dask task per scene ('local' or tcp://host:8786)")
     pl.set_defaults(func=cmd_plan)
 
     sv = sub.add_parser("serve", help="run the REST API (uvicorn)")
     sv.add_argument("--host", help="listen address (default: $PICKSTOP_HOST or 127.0.0.1)")
-    sv.add_argument("--port", type=_positive_int, help="port (default: $PICKSTOP_PORT or 8000)")
+    sv.add_argument("--port", type=positive_int, help="port (default: $PICKSTOP_PORT or 8000)")
     sv.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
-    sv.add_argument("--ui-port", type=_positive_int, help="3D planner port (default 8080)")
+    sv.add_argument("--ui-port", type=positive_int, help="3D planner port (default 8080)")
     sv.add_argument("--no-ui", action="store_true", help="the API alone")
-    sv.add_argument("--workers", type=_positive_int,
+    sv.add_argument("--workers", type=positive_int,
                     help="API processes on the port (default: $PICKSTOP_WORKERS or 1)")  # fmt: skip
     sv.add_argument("--scene", help="scene the planner opens (default: the first stored one)")
     sv.add_argument("--scene-file", help="or a scene file, stored first")
@@ -625,7 +606,7 @@ def build_parser() -> argparse.ArgumentParser:
     ui.add_argument("--scene-file", help="or a scene file: stored through the API first")
     ui.add_argument("--key", help="API key for saving (default: $PICKSTOP_UI_KEY)")
     ui.add_argument("--host", default="127.0.0.1")
-    ui.add_argument("--port", type=_positive_int, default=8080)
+    ui.add_argument("--port", type=positive_int, default=8080)
     ui.set_defaults(func=cmd_ui)
 
     ak = sub.add_parser("api-key", help="make a new API key and print its hash for the settings")
@@ -646,18 +627,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     b = reach.add_parser("build", help="build (or resume) a reachability database")
     b.add_argument("--robot", default="tiago", help="preset name or robot config file")
-    b.add_argument("--samples", type=_positive_int, default=DEFAULT_SAMPLES)
-    b.add_argument("--resolution", type=_finite_float, default=0.05, help="position voxel [m]")
-    b.add_argument("--orientation", type=_positive_int, default=6, help="SO(3) cells per face edge")
+    b.add_argument("--samples", type=positive_int, default=DEFAULT_SAMPLES)
+    b.add_argument("--resolution", type=finite_float, default=0.05, help="position voxel [m]")
+    b.add_argument("--orientation", type=positive_int, default=6, help="SO(3) cells per face edge")
     b.add_argument("--seed", type=int, default=0)
-    b.add_argument("--chunk-size", type=_positive_int, default=250_000)
+    b.add_argument("--chunk-size", type=positive_int, default=250_000)
     b.add_argument(
         "--thinning",
-        type=_finite_float,
+        type=finite_float,
         default=0.0,
         help="manipulability reference w_ref: keep prob. min(1, w/w_ref); 0 = off",
     )
-    b.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1)
+    b.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1)
     b.add_argument("--quiet", action="store_true", help="no progress bar")
     b.add_argument("--dask", help="run chunks on Dask: 'local' or a scheduler tcp://host:8786")
     b.set_defaults(func=cmd_reach_build)
@@ -674,15 +655,15 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument(
         "--pose",
         nargs=7,
-        type=_finite_float,
+        type=finite_float,
         required=True,
         metavar=("X", "Y", "Z", "QW", "QX", "QY", "QZ"),
         help="T_base_tool: position [m] and unit quaternion wxyz",
     )
     q.add_argument("--neighbours", action="store_true", help="include adjacent voxels")
-    q.add_argument("--limit", type=_positive_int, default=10, help="candidates to print")
+    q.add_argument("--limit", type=positive_int, default=10, help="candidates to print")
     q.add_argument("--refine", action="store_true", help="refine to an exact IK solution")
-    q.add_argument("--refine-seeds", type=_positive_int, default=20)
+    q.add_argument("--refine-seeds", type=positive_int, default=20)
     q.set_defaults(func=cmd_reach_query)
 
     from pickstop.fleet.cli import add_commands as add_fleet_commands

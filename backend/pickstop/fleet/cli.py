@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -15,6 +14,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from pickstop.argtypes import finite_float
 from pickstop.errors import InputError
 from pickstop.fleet import mqtt
 from pickstop.fleet import order as orders
@@ -212,16 +212,6 @@ def cmd_execute_sim(args: argparse.Namespace) -> int:
     return 0
 
 
-def _finite(text: str) -> float:
-    try:
-        x = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(x):
-        raise argparse.ArgumentTypeError(f"{text!r} is not finite")
-    return x
-
-
 def _vehicle_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--manufacturer", default="pickstop", help="VDA 5050 manufacturer")
     p.add_argument("--serial", default="sim-1", help="VDA 5050 serialNumber")
@@ -234,7 +224,7 @@ def _order_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", help="the plan's scene file: start and goal yaw, checked by hash")
     p.add_argument("--order-id", help="default: derived from the plan")
     p.add_argument("--release-stops", type=int, help="release this many stops (default: all)")
-    p.add_argument("--yaw-tolerance", type=_finite, help="allowedDeviationTheta [rad]")
+    p.add_argument("--yaw-tolerance", type=finite_float, help="allowedDeviationTheta [rad]")
     p.add_argument(
         "--verify-yaw",
         action="store_true",
@@ -257,8 +247,10 @@ def add_commands(sub: Any) -> None:
     dp = sub.add_parser("dispatch", help="send a plan's order to a vehicle over MQTT, follow it")
     dp.add_argument("plan")
     dp.add_argument("--broker", required=True, help="mqtt://HOST:PORT")
-    dp.add_argument("--timeout", type=_finite, default=600.0, help="[s] until the order is done")
-    dp.add_argument("--wait", type=_finite, default=10.0, help="[s] for the vehicle to appear")
+    dp.add_argument(
+        "--timeout", type=finite_float, default=600.0, help="[s] until the order is done"
+    )
+    dp.add_argument("--wait", type=finite_float, default=10.0, help="[s] for the vehicle to appear")
     dp.add_argument("--quiet", action="store_true")
     _vehicle_args(dp)
     _order_args(dp)
@@ -267,9 +259,11 @@ def add_commands(sub: Any) -> None:
     sv = sub.add_parser("sim-vehicle", help="a simulated VDA 5050 vehicle for a scene")
     sv.add_argument("--broker", required=True, help="mqtt://HOST:PORT")
     sv.add_argument("--scene", required=True, help="scene JSON file")
-    sv.add_argument("--sigma", type=_finite, help="positioning error [m] (default: the scene's)")
-    sv.add_argument("--rate", type=_finite, default=1.0, help="state messages per second")
-    sv.add_argument("--time-scale", type=_finite, default=1.0, help="sim s per s; 0: at once")
+    sv.add_argument(
+        "--sigma", type=finite_float, help="positioning error [m] (default: the scene's)"
+    )
+    sv.add_argument("--rate", type=finite_float, default=1.0, help="state messages per second")
+    sv.add_argument("--time-scale", type=finite_float, default=1.0, help="sim s per s; 0: at once")
     sv.add_argument("--seed", type=int, default=0)
     sv.add_argument("--db", help="reachability database id")
     _vehicle_args(sv)
