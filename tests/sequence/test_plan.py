@@ -55,6 +55,8 @@ def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planne
         assert s.success is not None and s.success.samples == 300
         lo, hi = s.success.interval
         assert lo <= s.success.rate <= hi
+    # The bundled TIAGo still checks boxes in place of its hand, and the plan says so.
+    assert any("hand.boxes" in n for n in plan.notes)
 
 
 def test_route_joins_start_stops_goal_and_times_add_up(paper_plan):

@@ -55,6 +55,16 @@ SHAPE_SAMPLES = 4000  # samples of the region-shape success estimate ('success' 
 DUPLICATE = 1e-3  # [m] candidates of the same trays this close are one
 
 
+def hand_notes(robot: Any) -> list[str]:
+    """What a plan's "verified" leaves out of the robot's own geometry, if anything."""
+    if robot.config.hand.geometry == "boxes":
+        return [
+            f"robot {robot.name}: the hand is checked as the boxes of its config's hand.boxes "
+            "standing in for the hand links, not the links' own collision geometry"
+        ]
+    return []
+
+
 def _digest(obj: Any) -> str:
     return hashlib.sha256(repr(obj).encode()).hexdigest()[:20]
 
@@ -592,7 +602,7 @@ class _Planning:
             robot=robot.name,
             robot_hash=robot.robot_hash,
             joints=[j.name for j in robot.joints],
-            notes=gripper_notes(scene),
+            notes=gripper_notes(scene) + hand_notes(robot),
             trays=list(self.required),
             parameters=pm.Parameters(
                 sigma=self.sigma,
