@@ -185,14 +185,15 @@ def hand_joints(robot: RobotModel) -> dict[str, float]:
     return dict(sorted(out.items()))
 
 
-_SHAPES: dict[int, HandShape] = {}
-
-
 def hand_shape(robot: RobotModel) -> HandShape:
     """The robot's open hand in the TCP frame (made once per loaded robot)."""
-    hit = _SHAPES.get(id(robot))
-    if hit is not None and hit.joints == hand_joints(robot):
-        return hit
+    if isinstance(robot.hand_cache, HandShape):
+        return robot.hand_cache
+    robot.hand_cache = _make_shape(robot)
+    return robot.hand_cache
+
+
+def _make_shape(robot: RobotModel) -> HandShape:
     from pickstop.robot.link_geometry import collision_links
 
     cfg = robot.config.hand
@@ -206,14 +207,12 @@ def hand_shape(robot: RobotModel) -> HandShape:
             b.tip_offset,
             b.palm_depth,
         )
-        shape = replace(
+        return replace(
             shape,
             T_tcp_tool=np.linalg.inv(tool_offset_matrix(cfg)),
             joints=hand_joints(robot),
             key=shape.key + repr(cfg.tool_offset),
         )
-        _SHAPES[id(robot)] = shape
-        return shape
     last = robot.dof
     names = set(hand_link_names(robot))
     for k, p in enumerate(cfg.links):
@@ -242,7 +241,7 @@ def hand_shape(robot: RobotModel) -> HandShape:
             T = np.eye(4)
             T[:3, :3], T[:3, 3] = obj.placement.rotation, obj.placement.translation
             geoms.append((str(obj.name), obj.geometry, T_tcp_joint @ T))
-    shape = _shape(
+    return _shape(
         tuple(geoms),
         np.asarray(cfg.approach_axis, float),
         np.asarray(cfg.closing_axis, float),
@@ -250,5 +249,3 @@ def hand_shape(robot: RobotModel) -> HandShape:
         np.linalg.inv(T_tool_tcp),
         hand_joints(robot),
     )
-    _SHAPES[id(robot)] = shape
-    return shape

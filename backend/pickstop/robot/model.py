@@ -12,7 +12,7 @@ import json
 import math
 import warnings
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -70,6 +70,7 @@ class RobotModel:
     robot_hash: str
     footprint: Any = None  # config.Footprint with a radius or polygon (derived if not given)
     source: str = ""  # what to pass as ``--robot`` to load it again: a preset or a config path
+    hand_cache: Any = field(default=None, repr=False)  # robot.hand.hand_shape, made once
 
     @property
     def name(self) -> str:
