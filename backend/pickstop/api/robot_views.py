@@ -18,11 +18,10 @@ from pickstop.robot.model import load_robot
 def assets_of(service: Any, name: str) -> RobotAssets:
     """The drawing assets of a preset or registered robot (made once per robot)."""
     config, root = service.robot_config(name)
-    cache = service.__dict__.setdefault("_robot_assets", {})
     key = (name, config.model_dump_json())
-    if key not in cache:
-        cache[key] = robot_assets(load_robot(config, root))
-    return cache[key]
+    if key not in service.robot_assets:
+        service.robot_assets[key] = robot_assets(load_robot(config, root))
+    return service.robot_assets[key]
 
 
 def model_of(service: Any, name: str) -> dict[str, Any]:
@@ -57,8 +56,7 @@ def check_of(service: Any, name: str) -> dict[str, Any]:
 
     config, root = service.robot_config(name)
     # A check takes seconds (disabled pairs, the screen and its quality): once per config.
-    cache = service.__dict__.setdefault("_robot_checks", {})
     key = (name, config.model_dump_json())
-    if key not in cache:
-        cache[key] = check_config(config, root, name, cache_dir(service.data_dir))
-    return dict(cache[key])
+    if key not in service.robot_checks:
+        service.robot_checks[key] = check_config(config, root, name, cache_dir(service.data_dir))
+    return dict(service.robot_checks[key])

@@ -95,6 +95,9 @@ class Service:
         self._slots_lock = threading.Lock()
         self._jobs: queue.Queue[str | None] = queue.Queue()
         self._cancel: set[str] = set()
+        # Per robot config (name, config JSON): drawing assets and check reports, made once.
+        self.robot_assets: dict[tuple[str, str], Any] = {}
+        self.robot_checks: dict[tuple[str, str], dict[str, Any]] = {}
         self._running: tuple[str, Work] | None = None
         self._running_lock = threading.Lock()
         self._plan_bodies: dict[str, bytes] = {}

@@ -56,20 +56,22 @@ def tightened_screen(robot: RobotModel, disabled: Any) -> tuple[Any, dict[str, f
     than :data:`FALSE_REJECTION_BOUND` of valid configurations, the links nearest to contact
     in the falsely rejected ones get spheres half as far out and every distance grid a finer
     step (at most three rounds)."""
-    from pickstop.robot.exact import responsible_links
-    from pickstop.robot.selfcollision import SphereModel, false_rejection_rate
+    from pickstop.robot.exact import responsible_links, screen_trial
+    from pickstop.robot.selfcollision import SphereModel
 
     excess: dict[str, float] = {}
     rounds, step = 0, 0.01
     while True:
         model = SphereModel.from_robot(robot, disabled, step=step, link_excess=excess)
-        quality = false_rejection_rate(robot, disabled, model, n=QUALITY_SAMPLES, seed=7)
+        # One trial per round: its figures, and (if they fall short) the links to refine.
+        trial = screen_trial(robot, disabled, model, QUALITY_SAMPLES, seed=7)
+        quality = trial.figures()
         quality["rounds"] = float(rounds)
         if quality["false_rejection"] <= FALSE_REJECTION_BOUND or rounds == 3:
             return model, quality
         rounds += 1
         step *= 0.8  # and finer distance grids (their Lipschitz slack)
-        for link in responsible_links(robot, disabled, model, n=QUALITY_SAMPLES, seed=7):
+        for link in responsible_links(robot, disabled, trial):
             excess[link] = excess.get(link, model.excess) / 2
 
 

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -96,6 +97,40 @@ class ExactSelfCollision:
         return sorted(hit)
 
 
+@dataclass(frozen=True)
+class ScreenTrial:
+    """The screen and the exact check on the same random configurations."""
+
+    thetas: np.ndarray  # (n, dof) [rad or m]
+    flagged: np.ndarray  # (n,) the screen says possibly colliding
+    colliding: np.ndarray  # (n,) coal says colliding
+
+    def figures(self) -> dict[str, float]:
+        """``colliding`` (exact fraction), ``flagged`` (screen fraction), ``false_rejection``
+        (flagged among exactly free configurations), ``false_acceptances`` (count; must be 0)."""
+        free = ~self.colliding
+        return {
+            "n": float(len(self.thetas)),
+            "colliding": float(self.colliding.mean()),
+            "flagged": float(self.flagged.mean()),
+            "false_rejection": float((self.flagged & free).sum() / max(free.sum(), 1)),
+            "false_acceptances": float((~self.flagged & self.colliding).sum()),
+        }
+
+
+def screen_trial(
+    robot: RobotModel, disabled: DisabledPairs, sphere_model: SphereModel, n: int, seed: int
+) -> ScreenTrial:
+    """:func:`screen` and :class:`ExactSelfCollision` on ``n`` uniform random configurations."""
+    th = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (n, robot.dof))
+    chain = Chain.from_robot(robot)
+    flagged = np.empty(n, dtype=bool)
+    for s in range(0, n, BLOCK):
+        _, _, frames = fk_soa(chain, np.ascontiguousarray(th[s : s + BLOCK].T), frames=True)
+        flagged[s : s + BLOCK] = screen(sphere_model, frames)
+    return ScreenTrial(th, flagged, ExactSelfCollision(robot, disabled).colliding(th))
+
+
 def false_rejection_rate(
     robot: RobotModel,
     disabled: DisabledPairs,
@@ -103,48 +138,19 @@ def false_rejection_rate(
     n: int = 5000,
     seed: int = 0,
 ) -> dict[str, float]:
-    """Compare :func:`screen` with :class:`ExactSelfCollision` on ``n`` random configurations.
-
-    Returns ``colliding`` (exact fraction), ``flagged`` (screen fraction), ``false_rejection``
-    (flagged among exactly free configurations) and ``false_acceptances`` (count; must be 0).
-    """
-    th = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (n, robot.dof))
-    chain = Chain.from_robot(robot)
-    flagged = np.empty(n, dtype=bool)
-    for s in range(0, n, BLOCK):
-        _, _, frames = fk_soa(chain, np.ascontiguousarray(th[s : s + BLOCK].T), frames=True)
-        flagged[s : s + BLOCK] = screen(sphere_model, frames)
-    exact = ExactSelfCollision(robot, disabled).colliding(th)
-    free = ~exact
-    return {
-        "n": float(n),
-        "colliding": float(exact.mean()),
-        "flagged": float(flagged.mean()),
-        "false_rejection": float((flagged & free).sum() / max(free.sum(), 1)),
-        "false_acceptances": float((~flagged & exact).sum()),
-    }
+    """Compare :func:`screen` with :class:`ExactSelfCollision` on ``n`` random configurations
+    (:meth:`ScreenTrial.figures`)."""
+    return screen_trial(robot, disabled, sphere_model, n, seed).figures()
 
 
 def responsible_links(
-    robot: RobotModel,
-    disabled: DisabledPairs,
-    sphere_model: SphereModel,
-    n: int = 5000,
-    seed: int = 0,
-    near: float = 0.03,
+    robot: RobotModel, disabled: DisabledPairs, trial: ScreenTrial, near: float = 0.03
 ) -> list[str]:
-    """Links that make the screen reject valid configurations: among the ``n`` random
-    configurations of :func:`false_rejection_rate` that the screen flags but coal finds free,
-    the links of the enabled pairs closer than ``near`` [m], most frequent first (those
-    covering half the cases, at least one)."""
-    th = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (n, robot.dof))
-    chain = Chain.from_robot(robot)
-    flagged = np.empty(n, dtype=bool)
-    for s in range(0, n, BLOCK):
-        _, _, frames = fk_soa(chain, np.ascontiguousarray(th[s : s + BLOCK].T), frames=True)
-        flagged[s : s + BLOCK] = screen(sphere_model, frames)
+    """Links that make the screen reject valid configurations: among the configurations of
+    ``trial`` that the screen flags but coal finds free, the links of the enabled pairs closer
+    than ``near`` [m], most frequent first (those covering half the cases, at least one)."""
     exact = ExactSelfCollision(robot, disabled)
-    false = th[flagged & ~exact.colliding(th)]
+    false = trial.thetas[trial.flagged & ~trial.colliding]
     by_geom = {g: lk.name for lk in collision_links(robot) for g in lk.geometry_ids}
     gm, data = exact.geom_model, exact._data
     gd = pin.GeometryData(gm)
