@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from pickstop.argtypes import finite_float, positive_int
-from pickstop.errors import InputError, PickStopError
+from pickstop.errors import CorruptShardError, InputError, PickStopError
 
 DEFAULT_SAMPLES = 2_000_000
 
@@ -166,6 +166,23 @@ def cmd_reach_info(args: argparse.Namespace) -> int:
         if not rows:
             raise PickStopError(f"no reachability database with id {args.id!r}")
     _emit([r if args.shards else _db_summary(r) for r in rows])
+    return 0
+
+
+def cmd_reach_verify(args: argparse.Namespace) -> int:
+    from pickstop.reach.database import verify_databases
+    from pickstop.settings import data_dir
+
+    reports = verify_databases(data_dir(args.data_dir), args.id)
+    _emit(reports)
+    bad = [f["path"] for r in reports for f in r["files"] if not f["ok"]]
+    if bad:
+        print(
+            f"pickstop: error: {len(bad)} file(s) failed verification ({', '.join(bad)}); "
+            "run the database's `pickstop reach build` command again to repair it",
+            file=sys.stderr,
+        )
+        return CorruptShardError.exit_code
     return 0
 
 
@@ -648,6 +665,12 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--id", help="only this database (id or prefix)")
     i.add_argument("--shards", action="store_true", help="include every shard")
     i.set_defaults(func=cmd_reach_info)
+
+    v = reach.add_parser(
+        "verify", help="check every file of the databases against its checksum (JSON report)"
+    )
+    v.add_argument("--id", help="only this database (id or prefix)")
+    v.set_defaults(func=cmd_reach_verify)
 
     q = reach.add_parser("query", help="approximate IK solutions of a tool pose, as JSON")
     q.add_argument("--robot", default="tiago")

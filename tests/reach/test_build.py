@@ -75,23 +75,32 @@ def test_resumed_build_equals_uninterrupted(tmp_path, tiago):
     assert resumed["state"] == whole["state"] == "complete"
     assert resumed["id"] == whole["id"]
     assert _shas(tmp_path / "a") == _shas(tmp_path / "b")
+    index = [
+        [f["sha256"] for f in list_databases(d)[0]["index"]]
+        for d in (tmp_path / "a", tmp_path / "b")
+    ]
+    assert index[0] == index[1] and len(index[0]) == 6
     assert resumed["stored"] == whole["stored"]
 
 
-def test_corrupted_shard_is_detected(tmp_path, tiago):
+def test_corrupted_shard_is_detected(tmp_path, tiago, capsys):
+    from pickstop.cli import main
+
     params = BuildParams(samples=20_000, chunk_size=10_000, seed=1)
     row = build(tiago, params, tmp_path, workers=1)
     shard = tmp_path / list_databases(tmp_path)[0]["shards"][1]["path"]
     raw = bytearray(shard.read_bytes())
     raw[len(raw) // 2] ^= 0xFF
     shard.write_bytes(bytes(raw))
-    with pytest.raises(CorruptShardError, match=r"chunk-000001\.parquet is corrupt"):
-        open_database(tmp_path, tiago, row["id"])
+    # Plans read the index, not the shards; `reach verify` checks both.
+    assert main(["--data-dir", str(tmp_path), "reach", "verify"]) == CorruptShardError.exit_code
+    assert "chunk-000001.parquet is corrupt" in capsys.readouterr().out
     shard.unlink()
-    with pytest.raises(CorruptShardError, match="shard missing"):
-        open_database(tmp_path, tiago, row["id"])
+    assert main(["--data-dir", str(tmp_path), "reach", "verify"]) == CorruptShardError.exit_code
+    assert "shard missing" in capsys.readouterr().out
     # Building again repairs it: the missing chunk is recomputed, identical to before.
     build(tiago, params, tmp_path, workers=1)
+    assert main(["--data-dir", str(tmp_path), "reach", "verify"]) == 0
     assert len(open_database(tmp_path, tiago, row["id"])) == row["stored"]
 
 

@@ -603,6 +603,7 @@ class Service:
                     del self._slots[key]
         with self.store.transaction() as c:
             c.execute("DELETE FROM reach_shards WHERE db_id = ?", [db_id])
+            c.execute("DELETE FROM reach_arrays WHERE db_id = ?", [db_id])
             c.execute("DELETE FROM reach_databases WHERE id = ?", [db_id])
         shutil.rmtree(self.data_dir / "reach" / db_id, ignore_errors=True)
         return True

@@ -30,6 +30,7 @@ from pickstop.reach.voxels import VoxelGrid
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa, manipulability_soa
 from pickstop.robot.model import RobotModel
 from pickstop.store.catalog import Catalog
+from pickstop.store.reach_index import INDEX_FORMAT, check_file, file_sha256, index_files
 from pickstop.store.shards import ShardData, write_shard
 
 #: Bumped whenever a change alters what a build stores for the same inputs.
@@ -292,21 +293,13 @@ def _chunks_done(catalog: Catalog, db_id: str, data_dir: Path) -> set[int]:
         "SELECT chunk, path, bytes, sha256 FROM reach_shards WHERE db_id = ?", [db_id]
     ):
         f = data_dir / r["path"]
-        if f.is_file() and f.stat().st_size == r["bytes"] and _sha256(f) == r["sha256"]:
+        if f.is_file() and f.stat().st_size == r["bytes"] and file_sha256(f) == r["sha256"]:
             done.add(r["chunk"])
         else:  # a vanished or altered shard is computed again
             catalog.db.execute(
                 "DELETE FROM reach_shards WHERE db_id = ? AND chunk = ?", [db_id, r["chunk"]]
             )
     return done
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 22), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _record(catalog: Catalog, db_id: str, res: ChunkResult) -> None:
@@ -325,6 +318,25 @@ def _record(catalog: Catalog, db_id: str, res: ChunkResult) -> None:
         },
         replace=True,
     )
+
+
+def _row(catalog: Catalog, db_id: str) -> dict[str, Any]:
+    return catalog.query("SELECT * FROM reach_databases WHERE id = ?", [db_id])[0]
+
+
+def _index_intact(catalog: Catalog, row: dict[str, Any], data_dir: Path) -> bool:
+    """Is the database's voxel index of this format, present and unaltered?"""
+    from pickstop.errors import CorruptShardError
+
+    files = index_files(catalog, row["id"])
+    if row.get("index_format") != INDEX_FORMAT or not files:
+        return False
+    try:
+        for f in files:
+            check_file(data_dir, f, full=False)
+    except CorruptShardError:
+        return False
+    return True
 
 
 ChunkRunner = Callable[[BuildKernel, list[int], Path, str], Iterable[ChunkResult]]
@@ -386,7 +398,11 @@ def build(
     row = _register(catalog, db_id, robot, params)
     t0 = time.perf_counter()
     done = _chunks_done(catalog, db_id, data_dir)
-    if row["state"] == "complete" and len(done) == params.n_chunks:
+    if (
+        row["state"] == "complete"
+        and len(done) == params.n_chunks
+        and _index_intact(catalog, row, data_dir)
+    ):
         catalog.close()
         return row
     # Building (again): a shard that went missing or was altered is recomputed (the content is
@@ -413,6 +429,10 @@ def build(
             samples_done += res.samples
             if progress:
                 progress(samples_done, params.samples)
+        if len(done) == params.n_chunks:
+            from pickstop.reach.index import index_database
+
+            index_database(data_dir, _row(catalog, db_id), kernel.chain)
     finally:
         elapsed = time.perf_counter() - t0
         # Whatever stopped it (Ctrl-C, an error, a chunk limit), an unfinished build is

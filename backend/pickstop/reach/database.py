@@ -1,15 +1,18 @@
-"""A loaded reachability database: IK by query.
+"""A reachability database opened for queries: IK by query.
 
 Rows are sorted by voxel key; ``unique_keys[i]`` owns rows ``offsets[i]:offsets[i + 1]``. The
-tool pose of every row is recomputed from its stored joints at load time, so candidates can
-be ranked by how close their pose is to a target.
+tool pose of every row was computed when the database was indexed, so candidates are ranked by
+how close their pose is to a target without any kinematics at open. The arrays are memory-mapped
+read-only (:mod:`pickstop.store.reach_index`): processes share them through the page cache and a
+query reads only the voxels it touches.
 """
 
 from __future__ import annotations
 
 import json
-import math
+import shlex
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -22,12 +25,16 @@ from pickstop.errors import (
     QueryError,
 )
 from pickstop.reach.build import builder_alive, dequantise
-from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
-from pickstop.robot.kinematics import Chain, fk
 from pickstop.robot.model import RobotModel
 from pickstop.store.catalog import Catalog
-from pickstop.store.shards import read_shard
+from pickstop.store.reach_index import (
+    INDEX_FORMAT,
+    OpenStats,
+    index_files,
+    map_index,
+    verify_files,
+)
 
 #: Length that turns a rotation error into a distance when ranking candidates [m/rad].
 RANK_LENGTH = 0.1
@@ -78,41 +85,62 @@ def check_poses(ps: Any, qs: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 class ReachDatabase:
-    """Read-only after construction: safe to share between threads."""
+    """Read-only after construction: safe to share between threads (and forked processes)."""
 
     def __init__(
-        self, info: dict[str, Any], joints: np.ndarray, manip: np.ndarray, chain: Chain
+        self,
+        info: dict[str, Any],
+        *,
+        unique_keys: np.ndarray,
+        offsets: np.ndarray,
+        joints: np.ndarray,
+        manip: np.ndarray,
+        positions: np.ndarray,
+        quats: np.ndarray,
+        reach_xy: float | None = None,
+        stats: OpenStats | None = None,
     ) -> None:
-        """joints: (N, dof) uint16 quantised; manip: (N,); rows of shards concatenated."""
+        """Rows sorted by voxel key (arrays in memory or mapped):
+
+        unique_keys: (V,) int64 ascending; offsets: (V + 1,) int64, voxel i owns rows
+        ``offsets[i]:offsets[i + 1]``; joints: (N, dof) uint16 quantised; manip: (N,);
+        positions: (N, 3) [m] and quats: (N, 4) wxyz float32, the tool pose of each row;
+        reach_xy: the largest horizontal tool reach [m] (computed from positions if None).
+        """
+        n = len(joints)
+        assert offsets.shape == (len(unique_keys) + 1,), (offsets.shape, unique_keys.shape)
+        assert manip.shape == (n,) and positions.shape == (n, 3) and quats.shape == (n, 4)
         self.info = info
         self.id: str = info["id"]
         self.voxel = VoxelGrid(info["resolution"], info["orientation"])
         self.lower = np.asarray(json.loads(info["joint_lower"]))
         self.upper = np.asarray(json.loads(info["joint_upper"]))
-        # Tool pose and voxel of every row, recomputed from the stored (quantised) joints.
-        n = len(joints)
-        positions = np.empty((n, 3), np.float32)
-        quats = np.empty((n, 4), np.float32)
-        keys = np.empty(n, np.int64)
-        step = 1 << 18
-        for s in range(0, n, step):
-            th = dequantise(joints[s : s + step], self.lower, self.upper)
-            R, p = fk(chain, th)
-            q = matrices_to_quats(R)
-            positions[s : s + step] = p
-            quats[s : s + step] = q
-            keys[s : s + step] = self.voxel.keys(p, q)
-        order = np.argsort(keys, kind="stable")  # shards are sorted runs: a cheap merge
-        self.keys = keys[order]
-        self.joints = joints[order]
-        self.manip = manip[order].astype(np.float32)
-        self.positions = positions[order]
-        self.quats = quats[order]
-        self.unique_keys, first = np.unique(self.keys, return_index=True)
-        self.offsets = np.append(first, n).astype(np.int64)
+        self.unique_keys = unique_keys
+        self.offsets = offsets
+        self.joints = joints
+        self.manip = manip
+        self.positions = positions
+        self.quats = quats
+        if reach_xy is None:
+            reach_xy = float(np.hypot(positions[:, 0], positions[:, 1]).max()) if n else 0.0
+        #: The largest horizontal distance of a stored tool position from the base [m].
+        self.reach_xy = reach_xy
+        #: What opening cost: files hashed because they changed since last verified.
+        self.stats = stats or OpenStats()
+
+    @cached_property
+    def keys(self) -> np.ndarray:
+        """Voxel key ``(N,)`` of every row, expanded on first use (N * 8 bytes in memory)."""
+        return np.repeat(np.asarray(self.unique_keys), np.diff(self.offsets))
+
+    def keys_of(self, rows: np.ndarray) -> np.ndarray:
+        """Voxel keys ``(k,)`` of database ``rows``, from the voxel index alone."""
+        return np.asarray(
+            self.unique_keys[np.searchsorted(self.offsets, rows, side="right") - 1], np.int64
+        )
 
     def __len__(self) -> int:
-        return len(self.keys)
+        return len(self.joints)
 
     @property
     def n_voxels(self) -> int:
@@ -146,7 +174,7 @@ class ReachDatabase:
             thetas=self.thetas(rows),
             pos_err=pos_err[order],
             rot_err=rot_err[order],
-            keys=self.keys[rows],
+            keys=self.keys_of(rows),
         )
 
     def query(
@@ -245,7 +273,36 @@ def list_databases(data_dir: Path, robot: str | None = None) -> list[dict[str, A
                 "ORDER BY chunk",
                 [r["id"]],
             )
+            r["index"] = cat.query(
+                "SELECT name, path, dtype, shape, sha256, bytes FROM reach_arrays "
+                "WHERE db_id = ? ORDER BY name",
+                [r["id"]],
+            )
         return rows
+    finally:
+        cat.close()
+
+
+def verify_databases(data_dir: Path, db_id: str | None = None) -> list[dict[str, Any]]:
+    """Hash every shard and index file of every database (or of ``db_id``, an id or prefix).
+
+    One report a database: ``{"id", "state", "ok", "files": [{"path", "ok", ...}]}``; a file
+    that passes is recorded as verified at its current modification time."""
+    data_dir = Path(data_dir)
+    rows = list_databases(data_dir)
+    if db_id is not None:
+        rows = [r for r in rows if r["id"].startswith(db_id)]
+        if not rows:
+            raise DatabaseNotFoundError(f"no reachability database with id {db_id!r} in {data_dir}")
+    cat = Catalog(data_dir)
+    try:
+        out = []
+        for r in rows:
+            files = verify_files(data_dir, r["id"], cat)
+            indexed = r.get("index_format") == INDEX_FORMAT
+            out.append({"id": r["id"], "state": r["state"], "indexed": indexed,
+                        "ok": all(f["ok"] for f in files), "files": files})  # fmt: skip
+        return out
     finally:
         cat.close()
 
@@ -292,14 +349,47 @@ def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -
 
 
 def open_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -> ReachDatabase:
-    """Load a complete database of ``robot``, verifying every shard's checksum."""
+    """Open a complete database of ``robot``: map its voxel index read-only.
+
+    Nothing is decoded or recomputed; only files whose size or modification time changed
+    since they were last verified are hashed (a corrupted one is refused)."""
     data_dir = Path(data_dir)
     row = find_database(data_dir, robot, db_id)
-    parts = [read_shard(data_dir / s["path"], s["sha256"], row["dof"]) for s in row["shards"]]
-    if len(parts) != math.ceil(row["samples"] / row["chunk_size"]):
+    if row.get("index_format") != INDEX_FORMAT:
         raise DatabaseError(
-            f"database {row['id']}: catalog lists {len(parts)} shards, expected more"
+            f"database {row['id']} has no voxel index of the format this PickStop reads "
+            f"(it was built by {row['code_version']}); index it from its shards with "
+            f"`{build_command(row, robot)}` (about a second per million configurations)"
         )
-    joints = np.concatenate([p.joints for p in parts])
-    manip = np.concatenate([p.manip for p in parts])
-    return ReachDatabase(row, joints, manip, Chain.from_robot(robot))
+    cat = Catalog(data_dir)
+    try:
+        files = index_files(cat, row["id"])
+    finally:
+        cat.close()
+    arrays, stats = map_index(data_dir, row["id"], files)
+    if len(arrays["manip"]) != row["stored"]:
+        raise DatabaseError(
+            f"database {row['id']}: its index holds {len(arrays['manip'])} configurations, "
+            f"the catalog records {row['stored']}; index it again with "
+            f"`{build_command(row, robot)}`"
+        )
+    return ReachDatabase(
+        row,
+        unique_keys=arrays["keys"],
+        offsets=arrays["starts"],
+        joints=arrays["joints"],
+        manip=arrays["manip"],
+        positions=arrays["positions"],
+        quats=arrays["quats"],
+        reach_xy=row["reach_xy"],
+        stats=stats,
+    )
+
+
+def build_command(row: dict[str, Any], robot: RobotModel) -> str:
+    """The ``pickstop reach build`` command that builds (or resumes, or indexes) ``row``."""
+    args = ["pickstop", "reach", "build", "--robot", robot.source or robot.name, "--samples",
+            str(row["samples"]), "--resolution", str(row["resolution"]), "--orientation",
+            str(row["orientation"]), "--seed", str(row["seed"]), "--chunk-size",
+            str(row["chunk_size"]), "--thinning", str(row["thinning"])]  # fmt: skip
+    return shlex.join(args)

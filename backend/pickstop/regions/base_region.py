@@ -125,7 +125,7 @@ class RegionPlanner:
         disabled, self.self_spheres = self_collision(self.robot, self.cache_dir)
         self.exact_self = ExactSelfCollision(self.robot, disabled)
         self.exact_arm = ExactArm(self.robot)
-        self.reach_xy = float(np.hypot(self.db.positions[:, 0], self.db.positions[:, 1]).max())
+        self.reach_xy = self.db.reach_xy
 
     # -- caching ---------------------------------------------------------------------------
     def own_key(self, scene: Scene, tray: Tray, yaw: float) -> str:

@@ -1,0 +1,192 @@
+"""Index a built database once: the tool pose of every stored row, rows merged by voxel key.
+
+The shards hold quantised joints in build order; queries need rows grouped by voxel and the
+tool pose of each row to rank candidates. Both follow from the joints by FK, so they are
+computed here, once, when a build completes (or for a database built before indices existed),
+and written as the memory-mapped index of :mod:`pickstop.store.reach_index`.
+
+Memory is bounded: each shard is posed and sorted on its own (pass 1, to temporary files),
+then the shards are merged one key range at a time (pass 2) straight into the mapped output.
+Rows of equal key keep shard order, then build order: the same order as a stable sort of all
+shards concatenated, so candidates and their ranking do not depend on how the merge was cut.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import os
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pickstop.errors import DatabaseError
+from pickstop.reach.so3 import matrices_to_quats
+from pickstop.reach.voxels import VoxelGrid
+from pickstop.robot.kinematics import Chain, fk
+from pickstop.store.catalog import Catalog
+from pickstop.store.reach_index import (
+    ARRAYS,
+    ArrayFile,
+    create_array,
+    index_relpath,
+    record_index,
+    seal_array,
+)
+from pickstop.store.shards import read_shard
+
+#: Rows merged at once in pass 2 (about 50 bytes each in memory).
+MERGE_ROWS = 1 << 21
+_STEP = 1 << 18  # rows posed at once
+
+
+def tool_poses(
+    chain: Chain, voxel: VoxelGrid, thetas_of: Any, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tool poses and voxel keys of ``n`` rows: ``positions (n, 3)``, ``quats (n, 4)`` float32,
+    ``keys (n,)`` int64. ``thetas_of(s, e)`` gives the joint values of rows ``s:e`` [rad or m].
+    """
+    positions = np.empty((n, 3), np.float32)
+    quats = np.empty((n, 4), np.float32)
+    keys = np.empty(n, np.int64)
+    for s in range(0, n, _STEP):
+        e = min(s + _STEP, n)
+        R, p = fk(chain, thetas_of(s, e))
+        q = matrices_to_quats(R)
+        positions[s:e] = p
+        quats[s:e] = q
+        keys[s:e] = voxel.keys(p, q)
+    return positions, quats, keys
+
+
+def index_database(data_dir: Path, row: dict[str, Any], chain: Chain) -> dict[str, Any]:
+    """Build the voxel index of the complete database ``row`` from its (verified) shards.
+
+    Written to a temporary folder, then moved in place and recorded in the catalog; returns
+    the figures recorded (voxels, reach_xy, seconds).
+    """
+    from pickstop.reach.build import dequantise
+
+    t0 = time.perf_counter()
+    data_dir = Path(data_dir)
+    db_id, dof = row["id"], row["dof"]
+    voxel = VoxelGrid(row["resolution"], row["orientation"])
+    lower, upper = _joint_range(row)
+    cat = Catalog(data_dir)
+    try:
+        shards = cat.query(
+            "SELECT chunk, path, sha256, rows FROM reach_shards WHERE db_id = ? ORDER BY chunk",
+            [db_id],
+        )
+    finally:
+        cat.close()
+    if len(shards) != math.ceil(row["samples"] / row["chunk_size"]):
+        raise DatabaseError(f"database {db_id}: catalog lists {len(shards)} shards, expected more")
+    final = data_dir / index_relpath(db_id)
+    work = final.with_name(f"index.tmp{os.getpid()}")
+    shutil.rmtree(work, ignore_errors=True)
+    try:
+        # Pass 1: pose each shard's rows and sort them by key, one shard at a time.
+        parts = []
+        for s in shards:
+            data = read_shard(data_dir / s["path"], s["sha256"], dof)
+            j = data.joints
+            pos, quat, keys = tool_poses(
+                chain, voxel, lambda a, b, j=j: dequantise(j[a:b], lower, upper), len(j)
+            )
+            order = np.argsort(keys, kind="stable")
+            d = work / f"chunk-{s['chunk']:06d}"
+            d.mkdir(parents=True)
+            part = {}
+            for name, arr in (("keys", keys), ("joints", j), ("manip", data.manip),
+                              ("positions", pos), ("quats", quat)):  # fmt: skip
+                np.save(d / f"{name}.npy", arr[order])
+                part[name] = np.load(d / f"{name}.npy", mmap_mode="r")
+            parts.append(part)
+        n = sum(len(p["keys"]) for p in parts)
+        bounds = _merge_bounds([p["keys"] for p in parts], n)
+
+        # Pass 2: merge key range by key range into the mapped output.
+        out_dir = work / "index"
+        rel = index_relpath(db_id)
+        out = {
+            "joints": create_array(out_dir / "joints.npy", ARRAYS["joints"], (n, dof)),
+            "manip": create_array(out_dir / "manip.npy", ARRAYS["manip"], (n,)),
+            "positions": create_array(out_dir / "positions.npy", ARRAYS["positions"], (n, 3)),
+            "quats": create_array(out_dir / "quats.npy", ARRAYS["quats"], (n, 4)),
+        }
+        voxel_keys, voxel_counts = [], []
+        reach_xy = 0.0
+        at = 0
+        for lo, hi in itertools.pairwise(bounds):
+            cuts = [
+                (int(np.searchsorted(p["keys"], lo)), int(np.searchsorted(p["keys"], hi)))
+                for p in parts
+            ]
+            keys = np.concatenate([p["keys"][a:b] for p, (a, b) in zip(parts, cuts, strict=True)])
+            m = len(keys)
+            if m == 0:
+                continue
+            order = np.argsort(keys, kind="stable")
+            for name, arr in out.items():
+                merged = np.concatenate(
+                    [p[name][a:b] for p, (a, b) in zip(parts, cuts, strict=True)]
+                )
+                arr[at : at + m] = merged[order]
+            keys = keys[order]
+            first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+            voxel_keys.append(keys[first])
+            voxel_counts.append(np.diff(np.r_[first, m]))
+            xy = out["positions"][at : at + m]
+            reach_xy = max(reach_xy, float(np.hypot(xy[:, 0], xy[:, 1]).max()))
+            at += m
+        assert at == n, (at, n)
+        all_keys = np.concatenate(voxel_keys) if voxel_keys else np.empty(0, np.int64)
+        counts = np.concatenate(voxel_counts) if voxel_counts else np.empty(0, np.int64)
+        out["keys"] = create_array(out_dir / "keys.npy", ARRAYS["keys"], all_keys.shape)
+        out["keys"][:] = all_keys
+        out["starts"] = create_array(out_dir / "starts.npy", ARRAYS["starts"], (len(counts) + 1,))
+        out["starts"][0] = 0
+        np.cumsum(counts, out=out["starts"][1:])
+        files: list[ArrayFile] = [
+            seal_array(arr, name, out_dir / f"{name}.npy", f"{rel}/{name}.npy")
+            for name, arr in out.items()
+        ]
+        del out, parts
+        # In place: a process still mapping the old index keeps reading its (unlinked) files.
+        old = final.with_name(f"index.old{os.getpid()}")
+        if final.exists():
+            final.rename(old)
+        (out_dir).rename(final)
+        shutil.rmtree(old, ignore_errors=True)
+        figures = {"voxels": len(all_keys), "reach_xy": reach_xy,
+                   "seconds": time.perf_counter() - t0}  # fmt: skip
+        cat = Catalog(data_dir)
+        try:
+            record_index(cat, db_id, files, figures)
+        finally:
+            cat.close()
+        return figures
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _joint_range(row: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    return np.asarray(json.loads(row["joint_lower"])), np.asarray(json.loads(row["joint_upper"]))
+
+
+def _merge_bounds(keys: list[np.ndarray], n: int) -> list[int]:
+    """Key boundaries ``b_0 < ... < b_P`` cutting ``n`` sorted rows into ranges of about
+    :data:`MERGE_ROWS` (a voxel never straddles two), chosen from a sample of the keys."""
+    lowest, highest = np.iinfo(np.int64).min, np.iinfo(np.int64).max
+    n_ranges = max(1, math.ceil(n / MERGE_ROWS))
+    if n_ranges == 1:
+        return [lowest, highest]
+    step = max(1, n // (64 * n_ranges))
+    sample = np.sort(np.concatenate([k[::step] for k in keys]))
+    cuts = sample[np.linspace(0, len(sample), n_ranges, endpoint=False).astype(int)[1:]]
+    return [lowest, *np.unique(cuts).tolist(), highest]
