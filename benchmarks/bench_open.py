@@ -98,7 +98,8 @@ def _rollup(pid: int) -> tuple[int, int]:
 
 
 def run_processes(cmds: list[list[str]], env: dict[str, str]) -> list[dict[str, float]]:
-    """Run ``cmds`` at once; per process: wall time and the peak RSS / PSS of its tree [MB]."""
+    """Run ``cmds`` at once; per process: wall time, CPU time (user + system, its reaped
+    children included) [s] and the peak RSS / PSS of its tree [MB]."""
     t0 = time.perf_counter()
     procs = [
         subprocess.Popen(c, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -106,12 +107,17 @@ def run_processes(cmds: list[list[str]], env: dict[str, str]) -> list[dict[str, 
     ]
     peak = [{"rss": 0, "pss": 0, "main_rss": 0, "main_pss": 0} for _ in procs]
     ends: list[float | None] = [None] * len(procs)
+    cpu = [0.0] * len(procs)
+    codes = [0] * len(procs)
     while any(e is None for e in ends):
         for i, p in enumerate(procs):
             if ends[i] is not None:
                 continue
-            if p.poll() is not None:
+            pid, status, usage = os.wait4(p.pid, os.WNOHANG)
+            if pid:
                 ends[i] = time.perf_counter() - t0
+                cpu[i] = usage.ru_utime + usage.ru_stime
+                codes[i] = os.waitstatus_to_exitcode(status)
                 continue
             tree = _tree(p.pid)
             figs = [_rollup(q) for q in tree]
@@ -123,9 +129,11 @@ def run_processes(cmds: list[list[str]], env: dict[str, str]) -> list[dict[str, 
     out = []
     for i, p in enumerate(procs):
         err = p.stderr.read().decode() if p.stderr else ""
-        if p.returncode != 0:
-            raise SystemExit(f"{cmds[i]} failed ({p.returncode}):\n{err[-2000:]}")
-        out.append({"wall_s": ends[i] or 0.0, **{k: v / 1024 for k, v in peak[i].items()}})
+        p.returncode = codes[i]
+        if codes[i] != 0:
+            raise SystemExit(f"{cmds[i]} failed ({codes[i]}):\n{err[-2000:]}")
+        out.append({"wall_s": ends[i] or 0.0, "cpu_s": cpu[i],
+                    **{k: v / 1024 for k, v in peak[i].items()}})  # fmt: skip
     return out
 
 
@@ -145,8 +153,11 @@ def main() -> None:
 
     run_processes([regions], env)  # warm the page cache
     warm = [run_processes([regions], env)[0] for _ in range(args.repeat)]
-    walls = [w["wall_s"] for w in warm]
-    print(f"regions_process_warm_s: {statistics.median(walls):.2f} (runs {walls})")
+    walls = [round(w["wall_s"], 2) for w in warm]
+    cpus = [round(w["cpu_s"], 2) for w in warm]
+    print(f"load_average: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print(f"regions_process_warm_s: {statistics.median(walls):.2f} wall (runs {walls}), "
+          f"{statistics.median(cpus):.2f} CPU user+sys with its workers (runs {cpus})")  # fmt: skip
     one = warm[-1]
     print(
         f"one_process_peak_mb: main RSS {one['main_rss']:.0f} PSS {one['main_pss']:.0f}; "
@@ -154,11 +165,13 @@ def main() -> None:
     )
     evict(args.data_dir)
     cold = run_processes([regions], env)[0]
-    print(f"regions_process_cold_db_s: {cold['wall_s']:.2f} (database files evicted)")
+    print(f"regions_process_cold_db_s: {cold['wall_s']:.2f} wall, {cold['cpu_s']:.2f} CPU "
+          "(database files evicted)")  # fmt: skip
 
     many = run_processes([regions] * args.procs, env)
     print(
-        f"{args.procs}_concurrent_wall_s: {max(m['wall_s'] for m in many):.2f}; per process "
+        f"{args.procs}_concurrent_wall_s: {max(m['wall_s'] for m in many):.2f} "
+        f"(CPU {sum(m['cpu_s'] for m in many):.1f} s in all); per process "
         f"main RSS {[round(m['main_rss']) for m in many]} MB, "
         f"main PSS {[round(m['main_pss']) for m in many]} MB; "
         f"sum of tree PSS {sum(m['pss'] for m in many):.0f} MB"

@@ -23,7 +23,7 @@ from shapely.geometry.base import BaseGeometry
 from pickstop.reach.batch_ik import BatchSolver
 from pickstop.reach.database import ReachDatabase
 from pickstop.regions import solve
-from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
+from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import blocked_by, footprint_check, footprint_free
 from pickstop.regions.solve import ArmWorld, Targets
@@ -116,12 +116,18 @@ class RegionPlanner:
     _workers_pool: Any = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        from pickstop.robot.artifacts import self_collision
+        from pickstop.robot.artifacts import derived, self_collision
         from pickstop.robot.selfcollision import ExactSelfCollision
 
         self.solver = BatchSolver.of(self.robot)
         self.hand = hand_shape(self.robot)
-        self.arm = ArmSpheres.of(self.robot)
+        # Covering the arm links takes about a second: made once per robot, kept on disk.
+        self.arm = derived(
+            self.robot,
+            self.cache_dir,
+            f"arm-spheres-{SPHERE_EXCESS}",
+            lambda: ArmSpheres.of(self.robot),
+        )
         disabled, self.self_spheres = self_collision(self.robot, self.cache_dir)
         self.exact_self = ExactSelfCollision(self.robot, disabled)
         self.exact_arm = ExactArm(self.robot)

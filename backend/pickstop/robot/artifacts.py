@@ -1,4 +1,5 @@
-"""Per-robot derived data that is slow to make: disabled pairs and the self-collision screen.
+"""Per-robot derived data that is slow to make: disabled pairs, the self-collision screen and
+other geometry derived from the robot alone (:func:`derived`).
 
 Kept in memory per process and on disk per robot hash (``<cache>/robots/``), so a build, a
 region planner or a worker makes them once. A cache file that does not load, or belongs to
@@ -10,10 +11,13 @@ from __future__ import annotations
 import os
 import pickle
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from pickstop.robot.model import RobotModel
+
+T = TypeVar("T")
 
 _FORMAT = 2
 _MEMO: dict[str, tuple[Any, Any]] = {}
@@ -49,6 +53,31 @@ def self_collision(robot: RobotModel, cache_dir: Path | None) -> tuple[Any, Any]
     _MEMO[robot.robot_hash] = (disabled, model)
     _QUALITY[robot.robot_hash] = quality
     return disabled, model
+
+
+def derived(robot: RobotModel, cache_dir: Path | None, name: str, make: Callable[[], T]) -> T:
+    """``make()``, a value that depends on nothing but ``robot`` (and ``name``, which says what
+    and how it is made), kept on disk per robot hash in ``<cache>/robots/``; a cache file that
+    does not load, or belongs to another robot or kind, is made again."""
+    path = None
+    if cache_dir is not None:
+        path = Path(cache_dir) / "robots" / f"{name}-{robot.robot_hash[:24]}-v{_FORMAT}.pkl"
+        if path.is_file():
+            try:
+                with open(path, "rb") as f:
+                    stored_hash, stored_name, value = pickle.load(f)
+                if stored_hash == robot.robot_hash and stored_name == name:
+                    return value
+            except Exception:  # an unreadable cache is rebuilt, never trusted
+                pass
+    value = make()
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        with os.fdopen(fd, "wb") as f:
+            pickle.dump((robot.robot_hash, name, value), f, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(tmp, path)
+    return value
 
 
 def tightened_screen(robot: RobotModel, disabled: Any) -> tuple[Any, dict[str, float]]:

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import sqlite3
+from functools import cached_property
 from pathlib import Path
-from typing import Any
-
-import sqlite_utils
+from typing import TYPE_CHECKING, Any
 
 from pickstop.errors import DatabaseError
+
+if TYPE_CHECKING:
+    import sqlite_utils
 
 MIGRATIONS = Path(__file__).parent / "migrations"
 
@@ -35,12 +37,20 @@ class Catalog:
         conn.execute("PRAGMA journal_mode=WAL")
         conn.execute("PRAGMA foreign_keys=ON")
         conn.execute("PRAGMA busy_timeout=30000")
-        self.db = sqlite_utils.Database(conn)
+        self.conn = conn
         self._migrate()
+
+    @cached_property
+    def db(self) -> sqlite_utils.Database:
+        """The connection as sqlite-utils sees it (imported on first use: it costs ~0.5 s and
+        a reader that only queries, like opening a reachability database, never needs it)."""
+        import sqlite_utils
+
+        return sqlite_utils.Database(self.conn)
 
     @property
     def schema_version(self) -> int:
-        return int(self.db.execute("PRAGMA user_version").fetchone()[0])
+        return int(self.conn.execute("PRAGMA user_version").fetchone()[0])
 
     def _migrate(self) -> None:
         current = self.schema_version
@@ -54,7 +64,7 @@ class Catalog:
         for version, path in known:
             if version <= current:
                 continue
-            conn = self.db.conn
+            conn = self.conn
             # A migration may rebuild a table: foreign keys are off while it runs (they cannot
             # change inside a transaction), so dropping the old table cascades nowhere.
             conn.execute("PRAGMA foreign_keys=OFF")
@@ -76,7 +86,9 @@ class Catalog:
         return self.db.table(name)
 
     def query(self, sql: str, params: Any = ()) -> list[dict[str, Any]]:
-        return [dict(r) for r in self.db.query(sql, params)]
+        cur = self.conn.execute(sql, params)
+        names = [d[0] for d in cur.description]
+        return [dict(zip(names, r, strict=True)) for r in cur]
 
     def close(self) -> None:
-        self.db.conn.close()
+        self.conn.close()

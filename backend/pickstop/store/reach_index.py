@@ -109,7 +109,7 @@ def record_index(
     catalog: Catalog, db_id: str, files: list[ArrayFile], figures: dict[str, Any]
 ) -> None:
     """Record a new index of ``db_id`` (replacing any older one) with its ``figures``."""
-    conn = catalog.db.conn
+    conn = catalog.conn
     conn.execute("BEGIN IMMEDIATE")
     try:
         conn.execute("DELETE FROM reach_arrays WHERE db_id = ?", [db_id])
@@ -147,7 +147,7 @@ def mark_verified(data_dir: Path, db_id: str, verified: dict[str, int]) -> None:
         return
     try:
         for name, mtime_ns in verified.items():
-            cat.db.execute(
+            cat.conn.execute(
                 "UPDATE reach_arrays SET mtime_ns = ? WHERE db_id = ? AND name = ?",
                 [mtime_ns, db_id, name],
             )
