@@ -19,6 +19,9 @@ import math
 import os
 import shutil
 import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -63,14 +66,15 @@ def tool_poses(
     return positions, quats, keys
 
 
-def index_database(data_dir: Path, row: dict[str, Any], chain: Chain) -> dict[str, Any]:
+def index_database(
+    data_dir: Path, row: dict[str, Any], chain: Chain, workers: int = 1
+) -> dict[str, Any]:
     """Build the voxel index of the complete database ``row`` from its (verified) shards.
 
-    Written to a temporary folder, then moved in place and recorded in the catalog; returns
-    the figures recorded (voxels, reach_xy, seconds).
+    workers: processes posing the shards (pass 1). Written to a temporary folder, then moved
+    in place and recorded in the catalog; returns the figures recorded (voxels, reach_xy,
+    seconds).
     """
-    from pickstop.reach.build import dequantise
-
     t0 = time.perf_counter()
     data_dir = Path(data_dir)
     db_id, dof = row["id"], row["dof"]
@@ -91,22 +95,23 @@ def index_database(data_dir: Path, row: dict[str, Any], chain: Chain) -> dict[st
     shutil.rmtree(work, ignore_errors=True)
     try:
         # Pass 1: pose each shard's rows and sort them by key, one shard at a time.
-        parts = []
-        for s in shards:
-            data = read_shard(data_dir / s["path"], s["sha256"], dof)
-            j = data.joints
-            pos, quat, keys = tool_poses(
-                chain, voxel, lambda a, b, j=j: dequantise(j[a:b], lower, upper), len(j)
-            )
-            order = np.argsort(keys, kind="stable")
-            d = work / f"chunk-{s['chunk']:06d}"
-            d.mkdir(parents=True)
-            part = {}
-            for name, arr in (("keys", keys), ("joints", j), ("manip", data.manip),
-                              ("positions", pos), ("quats", quat)):  # fmt: skip
-                np.save(d / f"{name}.npy", arr[order])
-                part[name] = np.load(d / f"{name}.npy", mmap_mode="r")
-            parts.append(part)
+        jobs = [
+            _PoseJob(data_dir / s["path"], s["sha256"], dof, work / f"chunk-{s['chunk']:06d}",
+                     chain, voxel, lower, upper)
+            for s in shards
+        ]  # fmt: skip
+        workers = max(1, min(workers, len(jobs)))
+        if workers == 1:
+            for job in jobs:
+                _pose_shard(job)
+        else:
+            ctx = get_context("spawn")
+            with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as ex:
+                list(ex.map(_pose_shard, jobs))
+        parts = [
+            {name: np.load(job.out / f"{name}.npy", mmap_mode="r") for name in _PASS1}
+            for job in jobs
+        ]
         n = sum(len(p["keys"]) for p in parts)
         bounds = _merge_bounds([p["keys"] for p in parts], n)
 
@@ -173,6 +178,42 @@ def index_database(data_dir: Path, row: dict[str, Any], chain: Chain) -> dict[st
         return figures
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+_PASS1 = ("keys", "joints", "manip", "positions", "quats")
+
+
+@dataclass(frozen=True)
+class _PoseJob:
+    """Pass 1 of one shard: read it (checked), pose and sort its rows into ``out``."""
+
+    shard: Path
+    sha256: str
+    dof: int
+    out: Path
+    chain: Chain
+    voxel: VoxelGrid
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+def _init_worker() -> None:
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def _pose_shard(job: _PoseJob) -> None:
+    from pickstop.reach.build import dequantise
+
+    data = read_shard(job.shard, job.sha256, job.dof)
+    j = data.joints
+    pos, quat, keys = tool_poses(
+        job.chain, job.voxel, lambda a, b: dequantise(j[a:b], job.lower, job.upper), len(j)
+    )
+    order = np.argsort(keys, kind="stable")
+    job.out.mkdir(parents=True)
+    cols = {"keys": keys, "joints": j, "manip": data.manip, "positions": pos, "quats": quat}
+    for name in _PASS1:
+        np.save(job.out / f"{name}.npy", cols[name][order])
 
 
 def _joint_range(row: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
