@@ -1,9 +1,10 @@
-"""Build a reachability database: sample joints, FK, self-collision screen, bin, shard.
+"""Build a reachability database: sample joints, FK, self-collision screen, bin, shard, index.
 
 The samples are cut into chunks; chunk ``c`` draws from ``default_rng([seed, c])`` and becomes
 one shard, so a chunk's content depends on nothing but its index: an interrupted build resumes
 with the missing chunks and ends byte-identical to an uninterrupted one, and chunks can run in
-any process (or on any cluster worker) in any order.
+any process (or on any cluster worker) in any order. Once every chunk is in, the shards are
+indexed (:mod:`pickstop.reach.index`): what opening the database maps.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import Any
 import numpy as np
 
 import pickstop
-from pickstop.errors import DatabaseError, InputError
+from pickstop.errors import CorruptShardError, DatabaseError, InputError
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa, manipulability_soa
@@ -326,8 +327,6 @@ def _row(catalog: Catalog, db_id: str) -> dict[str, Any]:
 
 def _index_intact(catalog: Catalog, row: dict[str, Any], data_dir: Path) -> bool:
     """Is the database's voxel index of this format, present and unaltered?"""
-    from pickstop.errors import CorruptShardError
-
     files = index_files(catalog, row["id"])
     if row.get("index_format") != INDEX_FORMAT or not files:
         return False
