@@ -45,11 +45,7 @@ def self_collision(robot: RobotModel, cache_dir: Path | None) -> tuple[Any, Any]
     if model is None:
         model, quality = tightened_screen(robot, disabled)
         if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-            with os.fdopen(fd, "wb") as f:
-                pickle.dump((robot.robot_hash, model, quality), f, protocol=pickle.HIGHEST_PROTOCOL)
-            os.replace(tmp, path)
+            _write(path, (robot.robot_hash, model, quality))
     _MEMO[robot.robot_hash] = (disabled, model)
     _QUALITY[robot.robot_hash] = quality
     return disabled, model
@@ -72,12 +68,17 @@ def derived(robot: RobotModel, cache_dir: Path | None, name: str, make: Callable
                 pass
     value = make()
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
-            pickle.dump((robot.robot_hash, name, value), f, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, path)
+        _write(path, (robot.robot_hash, name, value))
     return value
+
+
+def _write(path: Path, payload: Any) -> None:
+    """Pickle ``payload`` to ``path`` atomically (temporary file, then rename)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(fd, "wb") as f:
+        pickle.dump(payload, f, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(tmp, path)
 
 
 def tightened_screen(robot: RobotModel, disabled: Any) -> tuple[Any, dict[str, float]]:
