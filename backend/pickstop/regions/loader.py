@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pickstop.reach.database import open_database
 from pickstop.regions.base_region import RegionPlanner
 from pickstop.robot.config import RobotConfig, load_config, resolve_robot
 from pickstop.robot.model import RobotModel, load_robot
 from pickstop.scene.model import Scene
-from pickstop.sequence.plan import StopPlanner
 from pickstop.settings import cache_dir
+
+if TYPE_CHECKING:  # the stop planner (and its solver, ortools) loads only when a plan is made
+    from pickstop.sequence.plan import StopPlanner
 
 _ROBOTS: dict[tuple[str, str], RobotModel] = {}
 _PLANNERS: dict[tuple[str, str, str], RegionPlanner] = {}
@@ -56,6 +59,8 @@ def stop_planner_for(
     scene: Scene, scene_root: Path | None, data_dir: Path, db_id: str | None = None
 ) -> StopPlanner:
     """The stop planner (with its caches) over the scene's region planner."""
+    from pickstop.sequence.plan import StopPlanner
+
     regions = planner_for(scene, scene_root, data_dir, db_id)
     sp = _STOP_PLANNERS.get(id(regions))
     if sp is None or sp.regions is not regions:
