@@ -51,8 +51,20 @@ planner = RegionPlanner(robot, db, cache_dir=cache_dir(data))
 t4 = time.perf_counter()
 planner.regions(scene, workers=1)
 t5 = time.perf_counter()
+mapped = resident = 0  # the database's mapped files: their size, and what of them is resident
+inside = False
+with open("/proc/self/smaps") as f:
+    for line in f:
+        parts = line.split()
+        if "-" in parts[0] and len(parts) >= 5:
+            inside = line.rstrip().endswith(".npy")
+        elif inside and parts[0] == "Size:":
+            mapped += int(parts[1])
+        elif inside and parts[0] == "Rss:":
+            resident += int(parts[1])
 print(json.dumps({"import_s": t1 - t0, "robot_s": t2 - t1, "open_s": t3 - t2,
-                  "planner_s": t4 - t3, "regions_s": t5 - t4, "rows": len(db)}))
+                  "planner_s": t4 - t3, "regions_s": t5 - t4, "rows": len(db),
+                  "mapped_mb": mapped / 1024, "mapped_resident_mb": resident / 1024}))
 """
 
 
@@ -191,6 +203,9 @@ def main() -> None:
     print(f"cold_db_open_s: {f['open_s']:.3f}; cold_db_planner_s: {f['planner_s']:.3f}; "
           f"cold_db_regions_s: {f['regions_s']:.3f}")  # fmt: skip
     print(f"rows: {f['rows']}")
+    if f.get("mapped_mb"):
+        print(f"index_mapped_mb: {f['mapped_mb']:.0f}, of which resident after the regions "
+              f"(cold): {f['mapped_resident_mb']:.0f}")  # fmt: skip
 
 
 if __name__ == "__main__":
