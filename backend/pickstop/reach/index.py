@@ -108,26 +108,25 @@ def index_database(
             ctx = get_context("spawn")
             with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as ex:
                 list(ex.map(_pose_shard, jobs))
-        parts = [
-            {name: np.load(job.out / f"{name}.npy", mmap_mode="r") for name in _PASS1}
-            for job in jobs
-        ]
-        n = sum(len(p["keys"]) for p in parts)
-        bounds = _merge_bounds([p["keys"] for p in parts], n)
+        n = sum(_open(job.out, "keys").shape[0] for job in jobs)
+        bounds = _merge_bounds([_open(job.out, "keys") for job in jobs], n)
 
-        # Pass 2: merge key range by key range into the mapped output.
+        # Pass 2: merge key range by key range, appending to the output files. Inputs are
+        # mapped afresh for each range and written with plain writes, so what this process
+        # holds stays about one range, not the database.
         out_dir = work / "index"
         rel = index_relpath(db_id)
-        out = {
-            "joints": create_array(out_dir / "joints.npy", ARRAYS["joints"], (n, dof)),
-            "manip": create_array(out_dir / "manip.npy", ARRAYS["manip"], (n,)),
-            "positions": create_array(out_dir / "positions.npy", ARRAYS["positions"], (n, 3)),
-            "quats": create_array(out_dir / "quats.npy", ARRAYS["quats"], (n, 4)),
-        }
+        shapes = {"joints": (n, dof), "manip": (n,), "positions": (n, 3), "quats": (n, 4)}
+        offsets = {}
+        for name, shape in shapes.items():
+            arr = create_array(out_dir / f"{name}.npy", ARRAYS[name], shape)
+            offsets[name] = arr.offset
+            del arr
         voxel_keys, voxel_counts = [], []
         reach_xy = 0.0
         at = 0
         for lo, hi in itertools.pairwise(bounds):
+            parts = [{name: _open(job.out, name) for name in _PASS1} for job in jobs]
             cuts = [
                 (int(np.searchsorted(p["keys"], lo)), int(np.searchsorted(p["keys"], hi)))
                 for p in parts
@@ -137,31 +136,29 @@ def index_database(
             if m == 0:
                 continue
             order = np.argsort(keys, kind="stable")
-            for name, arr in out.items():
+            for name in shapes:
                 merged = np.concatenate(
                     [p[name][a:b] for p, (a, b) in zip(parts, cuts, strict=True)]
-                )
-                arr[at : at + m] = merged[order]
+                )[order]
+                with open(out_dir / f"{name}.npy", "r+b") as f:
+                    f.seek(offsets[name] + at * merged[:1].nbytes)
+                    merged.tofile(f)
+                if name == "positions":
+                    reach_xy = max(reach_xy, float(np.hypot(merged[:, 0], merged[:, 1]).max()))
+            del parts, merged
             keys = keys[order]
             first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
             voxel_keys.append(keys[first])
             voxel_counts.append(np.diff(np.r_[first, m]))
-            xy = out["positions"][at : at + m]
-            reach_xy = max(reach_xy, float(np.hypot(xy[:, 0], xy[:, 1]).max()))
             at += m
         assert at == n, (at, n)
         all_keys = np.concatenate(voxel_keys) if voxel_keys else np.empty(0, np.int64)
         counts = np.concatenate(voxel_counts) if voxel_counts else np.empty(0, np.int64)
-        out["keys"] = create_array(out_dir / "keys.npy", ARRAYS["keys"], all_keys.shape)
-        out["keys"][:] = all_keys
-        out["starts"] = create_array(out_dir / "starts.npy", ARRAYS["starts"], (len(counts) + 1,))
-        out["starts"][0] = 0
-        np.cumsum(counts, out=out["starts"][1:])
+        np.save(out_dir / "keys.npy", all_keys.astype(ARRAYS["keys"]))
+        np.save(out_dir / "starts.npy", np.r_[0, np.cumsum(counts)].astype(ARRAYS["starts"]))
         files: list[ArrayFile] = [
-            seal_array(arr, name, out_dir / f"{name}.npy", f"{rel}/{name}.npy")
-            for name, arr in out.items()
+            seal_array(name, out_dir / f"{name}.npy", f"{rel}/{name}.npy") for name in ARRAYS
         ]
-        del out, parts
         # In place: a process still mapping the old index keeps reading its (unlinked) files.
         old = final.with_name(f"index.old{os.getpid()}")
         if final.exists():
@@ -195,6 +192,10 @@ class _PoseJob:
     voxel: VoxelGrid
     lower: np.ndarray
     upper: np.ndarray
+
+
+def _open(folder: Path, name: str) -> np.ndarray:
+    return np.load(folder / f"{name}.npy", mmap_mode="r")
 
 
 def _init_worker() -> None:

@@ -88,17 +88,19 @@ def create_array(path: Path, dtype: str, shape: tuple[int, ...]) -> np.memmap:
     return np.lib.format.open_memmap(path, mode="w+", dtype=np.dtype(dtype), shape=shape)
 
 
-def seal_array(arr: np.memmap, name: str, path: Path, relpath: str) -> ArrayFile:
-    """Flush a written array to disk (fsync) and describe it with its checksum."""
-    arr.flush()
+def seal_array(name: str, path: Path, relpath: str) -> ArrayFile:
+    """Flush a written ``.npy`` file to disk (fsync) and describe it with its checksum."""
     with open(path, "rb+") as f:
         os.fsync(f.fileno())
+    arr = np.load(path, mmap_mode="r")
+    dtype, shape = str(arr.dtype), tuple(int(s) for s in arr.shape)
+    del arr
     st = path.stat()
     return ArrayFile(
         name=name,
         path=relpath,
-        dtype=str(arr.dtype),
-        shape=tuple(int(s) for s in arr.shape),
+        dtype=dtype,
+        shape=shape,
         sha256=file_sha256(path),
         bytes=st.st_size,
         mtime_ns=st.st_mtime_ns,
