@@ -42,8 +42,8 @@ from pickstop.store.reach_index import (
 )
 from pickstop.store.shards import read_shard
 
-#: Rows merged at once in pass 2 (about 50 bytes each in memory).
-MERGE_ROWS = 1 << 21
+#: Rows merged at once in pass 2 (each costs about 100 bytes of memory while merged).
+MERGE_ROWS = 1 << 20
 _STEP = 1 << 18  # rows posed at once
 
 
