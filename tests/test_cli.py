@@ -44,6 +44,7 @@ def test_build_info_query(cli_data, capsys):
     assert code == 0
     info = json.loads(out)
     assert info[0]["state"] == "complete" and info[0]["shards"] == 2
+    assert info[0]["indexed"] and info[0]["index_bytes"] > 0 and info[0]["voxels"] > 0
     code, out, _ = _run(
         capsys,
         "--data-dir",

@@ -86,6 +86,8 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
         "screen_false_rejection",
         "screen_flagged",
         "screen_samples",
+        "voxels",
+        "index_seconds",
     ]
     out = {k: row.get(k) for k in keep}
     if row.get("samples") and row.get("state") == "complete":
@@ -94,6 +96,13 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
     if shards is not None:
         out["shards"] = len(shards)
         out["bytes"] = sum(s["bytes"] for s in shards)
+    index = row.get("index")
+    if index is not None:
+        from pickstop.store.reach_index import INDEX_FORMAT
+
+        # Opened only once indexed: a database built before indices says so here.
+        out["indexed"] = bool(index) and row.get("index_format") == INDEX_FORMAT
+        out["index_bytes"] = sum(f["bytes"] for f in index)
     return out
 
 
