@@ -431,7 +431,7 @@ def build(
         if len(done) == params.n_chunks:
             from pickstop.reach.index import index_database
 
-            index_database(data_dir, _row(catalog, db_id), kernel.chain, workers)
+            index_database(data_dir, _row(catalog, db_id), kernel.chain, workers, nice)
     finally:
         elapsed = time.perf_counter() - t0
         # Whatever stopped it (Ctrl-C, an error, a chunk limit), an unfinished build is

@@ -67,11 +67,12 @@ def tool_poses(
 
 
 def index_database(
-    data_dir: Path, row: dict[str, Any], chain: Chain, workers: int = 1
+    data_dir: Path, row: dict[str, Any], chain: Chain, workers: int = 1, nice: int = 0
 ) -> dict[str, Any]:
     """Build the voxel index of the complete database ``row`` from its (verified) shards.
 
-    workers: processes posing the shards (pass 1). Written to a temporary folder, then moved
+    workers: processes posing the shards (pass 1), their priority lowered by ``nice`` (a
+    service building in the background). Written to a temporary folder, then moved
     in place and recorded in the catalog; returns the figures recorded (voxels, reach_xy,
     seconds).
     """
@@ -106,7 +107,9 @@ def index_database(
                 _pose_shard(job)
         else:
             ctx = get_context("spawn")
-            with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as ex:
+            with ProcessPoolExecutor(
+                workers, mp_context=ctx, initializer=_init_worker, initargs=(nice,)
+            ) as ex:
                 list(ex.map(_pose_shard, jobs))
         n = sum(_open(job.out, "keys").shape[0] for job in jobs)
         bounds = _merge_bounds([_open(job.out, "keys") for job in jobs], n)
@@ -198,8 +201,10 @@ def _open(folder: Path, name: str) -> np.ndarray:
     return np.load(folder / f"{name}.npy", mmap_mode="r")
 
 
-def _init_worker() -> None:
+def _init_worker(nice: int) -> None:
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    if nice:
+        os.nice(nice)
 
 
 def _pose_shard(job: _PoseJob) -> None:
