@@ -12,7 +12,6 @@ from pickstop.sequence.intersections import (
     inscribed_circle,
     intersections,
     polygon_parts,
-    robust,
 )
 
 
@@ -73,15 +72,6 @@ def test_empty_and_degenerate_inputs():
     assert len(polygon_parts(line_and_square)) == 1
     got = intersections({"a": line_and_square, "b": box(0.5, 0, 2, 1)})
     assert {tuple(sorted(c.trays)) for c in got} == {("a",), ("b",), ("a", "b")}
-
-
-def test_sigma_rule():
-    regions = {"a": box(0, 0, 2, 2), "b": box(1.8, 0, 4, 2)}
-    cands = intersections(regions)
-    kept = robust(cands, sigma=0.15)
-    assert {tuple(sorted(c.trays)) for c in kept} == {("a",), ("b",)}  # the 0.2 m strip: r 0.1
-    assert len(robust(cands, sigma=0.05)) == 3
-    assert robust(cands, sigma=2.0) == []
 
 
 def test_many_trays_only_nonempty_subsets_explored():

@@ -179,6 +179,8 @@ class Regions(BaseModel):
 
     database: str
     sigma: float
+    rule: Literal["sigma", "success"] = "sigma"
+    target: float = 0.95
     regions: FeatureCollection
     intersections: FeatureCollection
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import shapely
 
 from pickstop.api import limits as lim
@@ -39,8 +40,9 @@ from pickstop.robot.config import (
 )
 from pickstop.robot.model import RobotModel, _mesh_refs, load_robot, resolve_path
 from pickstop.scene.model import Scene, parse_scene
-from pickstop.sequence.plan import StopPlanner
+from pickstop.sequence.plan import StopPlanner, route_points
 from pickstop.sequence.plan_model import Plan, PlanOptions
+from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
 from pickstop.settings import Settings, cache_dir
 
 log = logging.getLogger("pickstop.api")
@@ -406,19 +408,34 @@ class Service:
         except Exception:  # a background nicety: never let it disturb a request
             log.exception("prefetching candidate checks failed")
 
-    def regions(self, scene: Scene, sigma: float | None, db_id: str | None) -> dict[str, Any]:
+    def regions(
+        self,
+        scene: Scene,
+        sigma: float | None,
+        db_id: str | None,
+        rule: RuleName = "sigma",
+        target: float = 0.95,
+    ) -> dict[str, Any]:
+        """Regions and intersections, each candidate judged as a plan with this rule would."""
         from pickstop.regions.geojson import region_feature
 
         slot = self.slot(scene, db_id)
+        sigma = scene.sigma if sigma is None else sigma
         with slot.lock:
             sp = slot.planner
             regions = sp.regions.regions(scene)
             cands = sp.candidates(regions)
-        sigma = scene.sigma if sigma is None else sigma
+            dist = sp.paths(sp.floor(scene), route_points(scene, cands)).dist
+        verdicts = cut_off(
+            judge(Rule(rule, sigma, scene.error_model.kind, target), cands),
+            [bool(np.isfinite(dist[0, i + 2])) for i in range(len(cands))],
+        )
         names = {t.id: t.name for t in scene.trays}
         return {
             "database": sp.regions.db.id,
             "sigma": sigma,
+            "rule": rule,
+            "target": target,
             "regions": {
                 "type": "FeatureCollection",
                 "features": [region_feature(r, names.get(r.tray_id, "")) for r in regions.values()],
@@ -436,10 +453,12 @@ class Service:
                             "centre": list(c.centre),
                             "inscribed_radius": c.radius,
                             "area_m2": c.polygon.area,
-                            "kept": c.radius >= sigma,
+                            "kept": v.kept,
+                            "reason": v.reason,
+                            "predicted_success": v.predicted,
                         },
                     }
-                    for c in cands
+                    for c, v in zip(cands, verdicts, strict=True)
                 ],
             },
         }

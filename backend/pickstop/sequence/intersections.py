@@ -87,8 +87,3 @@ def intersections(
         level = nxt
         k += 1
     return out
-
-
-def robust(candidates: list[Candidate], sigma: float) -> list[Candidate]:
-    """The paper's rule: keep candidates whose inscribed radius is at least ``sigma`` [m]."""
-    return [c for c in candidates if c.radius >= sigma]

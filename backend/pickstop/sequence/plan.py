@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import shapely
 from shapely.geometry import Point, Polygon
 
 from pickstop.regions.base_region import (
@@ -40,18 +39,11 @@ from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
 from pickstop.sequence.intersections import Candidate, intersections
 from pickstop.sequence.route import FloorMap, Paths, shortest_paths
-from pickstop.sequence.success import (
-    Rate,
-    combined,
-    disc_probability,
-    monte_carlo,
-    radius_for,
-    sample_errors,
-)
+from pickstop.sequence.rules import Rule, cut_off, judge
+from pickstop.sequence.success import Rate, combined, monte_carlo
 from pickstop.sequence.timing import TimeBreakdown, leg_time, plan_time
 
 MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
-SHAPE_SAMPLES = 4000  # samples of the region-shape success estimate ('success' rule)
 DUPLICATE = 1e-3  # [m] candidates of the same trays this close are one
 
 
@@ -233,6 +225,12 @@ class StopPlanner:
         return _Planning(self, scene, opts).run()
 
 
+def route_points(scene: Scene, cands: list[Candidate]) -> np.ndarray:
+    """``(2 + n, 2)`` floor points [m]: the start, the goal, then each candidate's centre."""
+    ends = [[scene.start.x, scene.start.y], [scene.goal.x, scene.goal.y]]
+    return np.array(ends + [list(c.centre) for c in cands], float).reshape(-1, 2)
+
+
 def world_key(scene: Scene) -> str:
     """What feasibility at a base pose depends on: everything but task, start, goal, sigma."""
     keep = scene.model_dump(
@@ -286,12 +284,7 @@ class _Planning:
 
         floor = sp.floor(scene)
         self._check_endpoints(floor)
-        points = np.array(
-            [[scene.start.x, scene.start.y], [scene.goal.x, scene.goal.y]]
-            + [list(c.centre) for c in cands],
-            float,
-        )
-        paths = sp.paths(floor, points)
+        paths = sp.paths(floor, route_points(scene, cands))
         if not np.isfinite(paths.dist[0, 1]):
             raise InfeasiblePlanError(
                 f"the goal ({scene.goal.x:.2f}, {scene.goal.y:.2f}) cannot be reached from the "
@@ -339,37 +332,20 @@ class _Planning:
                 field=name,
             )
 
+    def _rule(self) -> Rule:
+        opts = self.opts
+        return Rule(opts.rule, self.sigma, self.kind, opts.target, opts.seed)
+
     def _apply_rule(self, cands: list[Candidate], paths: Paths) -> float:
         """Reject candidates by the rule and by reachability; returns the threshold radius."""
-        opts, sigma = self.opts, self.sigma
-        if opts.rule == "sigma":
-            threshold = sigma
-        else:
-            threshold = radius_for(self.kind, sigma, opts.target) if sigma > 0 else 0.0
-            rng = np.random.default_rng(opts.seed)
-            dxy, _ = sample_errors(self.kind, sigma, 0.0, SHAPE_SAMPLES, rng)
-        for i, c in enumerate(cands):
-            # The rule first: it belongs to the candidate; being cut off depends on the route.
-            if opts.rule == "sigma":
-                if c.radius < sigma:
-                    self.rejected[i] = (
-                        f"inscribed radius {c.radius:.3f} m is below sigma {sigma:.3f} m"
-                    )
-            else:
-                p = float(
-                    shapely.contains_xy(c.polygon, c.centre[0] + dxy[:, 0], c.centre[1] + dxy[:, 1])
-                    .mean()
-                ) if sigma > 0 else 1.0  # fmt: skip
-                self.predicted[i] = max(p, disc_probability(self.kind, sigma, c.radius))
-                if c.radius < threshold and self.predicted[i] < opts.target:
-                    self.rejected[i] = (
-                        f"predicted success {self.predicted[i]:.1%} is below the target "
-                        f"{opts.target:.0%} (inscribed radius {c.radius:.3f} m, "
-                        f"{threshold:.3f} m would guarantee it)"
-                    )
-            if i not in self.rejected and not np.isfinite(paths.dist[0, i + 2]):
-                self.rejected[i] = "obstacles cut it off from the start"
-        return threshold
+        rule = self._rule()
+        reachable = [bool(np.isfinite(paths.dist[0, i + 2])) for i in range(len(cands))]
+        for i, v in enumerate(cut_off(judge(rule, cands), reachable)):
+            if v.predicted is not None:
+                self.predicted[i] = v.predicted
+            if not v.kept:
+                self.rejected[i] = v.reason or "rejected"
+        return rule.threshold
 
     def _explain_uncovered(self, cands: list[Candidate], missing: list[str]) -> None:
         parts = []
@@ -381,13 +357,9 @@ class _Planning:
                 f"widest (trays {', '.join(sorted(best.trays))} at ({best.centre[0]:.2f}, "
                 f"{best.centre[1]:.2f})): {self.rejected[i]}"
             )
-        rule = (
-            f"sigma = {self.sigma:.3f} m"
-            if self.opts.rule == "sigma"
-            else f"target success {self.opts.target:.0%} at sigma = {self.sigma:.3f} m "
-            f"({self.kind} error)"
+        raise InfeasiblePlanError(
+            f"no plan with {self._rule().describe()}: " + "; ".join(parts), field="sigma"
         )
-        raise InfeasiblePlanError(f"no plan with {rule}: " + "; ".join(parts), field="sigma")
 
     # -- selection with verification ----------------------------------------------------------
     def _select_verified(

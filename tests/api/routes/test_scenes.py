@@ -186,3 +186,39 @@ def test_mesh_paths_outside_the_data_folder_are_refused(client, paper_doc):
     assert body["field"] == "obstacles.2.geometry.path"
     assert "outside the allowed folders" in body["detail"]
     assert count(client, "/api/v1/scenes") == before
+
+
+@pytest.mark.parametrize(
+    ("sigma", "rule", "target"),
+    [(0.1, "sigma", 0.95), (0.15, "sigma", 0.95), (0.1, "success", 0.9)],
+)
+def test_the_regions_endpoint_and_a_plan_judge_every_candidate_alike(
+    client, paper_doc, sigma, rule, target
+):
+    sid = client.post("/api/v1/scenes", json=paper_doc, headers=AUTH).json()["id"]
+    params = {"sigma": sigma, "rule": rule, "target": target}
+    regions = client.get(f"/api/v1/scenes/{sid}/regions", params=params).json()
+    options = {**params, "samples": 0}
+    r = client.post("/api/v1/plans", json={"scene_id": sid, "options": options}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    plan = r.json()["plan"]
+    inter = [f["properties"] for f in regions["intersections"]["features"]]
+    assert len(inter) == len(plan["candidates"]) > 3
+    verdicts = {}
+    for c in plan["candidates"]:
+        key = (tuple(c["trays"]), round(c["yaw"], 6), round(c["x"], 6), round(c["y"], 6))
+        verdicts[key] = c
+    rejected_by_rule = 0
+    for p in inter:
+        key = (tuple(p["trays"]), round(p["yaw"], 6), round(p["centre"][0], 6),
+               round(p["centre"][1], 6))  # fmt: skip
+        c = verdicts[key]
+        assert c["predicted_success"] == p["predicted_success"]
+        if p["kept"]:
+            # kept by the rule: the plan may still reject it, but only by its exact checks
+            assert c["status"] != "rejected" or c["reason"].startswith("the exact check"), c
+        else:
+            rejected_by_rule += 1
+            assert c["status"] == "rejected" and c["reason"] == p["reason"], (c, p)
+    if sigma == 0.15:
+        assert rejected_by_rule > 0  # the case is not vacuous

@@ -13,6 +13,7 @@ from pickstop.api.problems import Problem
 from pickstop.api.schemas import API_PREFIX, PlanSummary, Regions, SceneRecord
 from pickstop.api.store import Conflict
 from pickstop.api.work import compute
+from pickstop.sequence.rules import RuleName
 
 router = APIRouter(tags=["scenes"])
 
@@ -128,11 +129,18 @@ async def scene_regions(
     scene_id: str,
     sigma: Annotated[float | None, Query(ge=0, le=1, allow_inf_nan=False)] = None,
     database: str | None = None,
+    rule: Annotated[RuleName, Query(description="judge candidates as a plan with this rule")] = (
+        "sigma"
+    ),
+    target: Annotated[float, Query(gt=0.5, lt=1.0, description="the success rule's target")] = 0.95,
 ) -> Regions:
-    """Base regions and intersections (GeoJSON); computed under the request deadline."""
+    """Base regions and intersections (GeoJSON), each intersection judged as a plan with the
+    same sigma, rule and target would judge it; computed under the request deadline."""
     scene = await run_in_threadpool(service.stored_scene, scene_id)
-    regions: dict[str, Any] = await compute(service.pool, service.regions, scene, sigma, database,
-                         deadline=service.settings.request_deadline, request=request)  # fmt: skip
+    regions: dict[str, Any] = await compute(
+        service.pool, service.regions, scene, sigma, database, rule, target,
+        deadline=service.settings.request_deadline, request=request,
+    )  # fmt: skip
     return Regions.model_validate(regions)
 
 

@@ -1,0 +1,56 @@
+"""The rules' verdicts on hand-made candidates with known radii and shapes."""
+
+from __future__ import annotations
+
+import pytest
+from shapely.geometry import box
+
+from pickstop.sequence.intersections import intersections
+from pickstop.sequence.rules import CUT_OFF, Rule, Verdict, cut_off, judge
+from pickstop.sequence.success import disc_probability
+
+
+def _kept(rule, cands):
+    verdicts = judge(rule, cands)
+    return {tuple(sorted(c.trays)) for c, v in zip(cands, verdicts, strict=True) if v.kept}
+
+
+def test_sigma_rule():
+    cands = intersections({"a": box(0, 0, 2, 2), "b": box(1.8, 0, 4, 2)})
+    assert _kept(Rule("sigma", 0.15), cands) == {("a",), ("b",)}  # the 0.2 m strip: r 0.1
+    assert len(_kept(Rule("sigma", 0.05), cands)) == 3
+    assert _kept(Rule("sigma", 2.0), cands) == set()
+    strip = next(c for c in cands if len(c.trays) == 2)
+    (v,) = judge(Rule("sigma", 0.15), [strip])
+    assert not v.kept and "below sigma 0.150 m" in v.reason and v.predicted is None
+
+
+def test_success_rule_uses_the_shape_beyond_the_disc():
+    # A long 0.4 m strip: inscribed radius 0.2 m, but errors along it stay inside.
+    (strip,) = intersections({"a": box(0, 0, 20, 0.4)})
+    rule = Rule("success", 0.1, "gaussian", 0.8)
+    (v,) = judge(rule, [strip])
+    disc = disc_probability("gaussian", 0.1, strip.radius)
+    assert v.kept and v.predicted is not None and v.predicted >= disc
+    # A narrow strip below the target: rejected with both figures in the reason.
+    (thin,) = intersections({"a": box(0, 0, 20, 0.05)})
+    (w,) = judge(Rule("success", 0.1, "gaussian", 0.95), [thin])
+    assert not w.kept and "below the target 95%" in w.reason
+    assert disc_probability("gaussian", 0.1, thin.radius) <= w.predicted < 0.95
+
+
+def test_a_radius_at_the_threshold_is_kept_whatever_the_shape():
+    rule = Rule("success", 0.1, "bounded", 0.9)
+    assert rule.threshold == pytest.approx(0.1 * 0.9**0.5)
+    (sq,) = intersections({"a": box(0, 0, 2 * rule.threshold + 0.01, 2 * rule.threshold + 0.01)})
+    assert judge(rule, [sq])[0].kept
+
+
+def test_cut_off_rejects_only_kept_candidates():
+    vs = [Verdict(True), Verdict(False, "too small"), Verdict(True, None, 0.97)]
+    out = cut_off(vs, [False, False, True])
+    assert out[0] == Verdict(False, CUT_OFF)
+    assert out[1].reason == "too small"  # the rule's own reason stays
+    assert out[2].kept
+    with pytest.raises(ValueError, match="2 verdicts but 1"):
+        cut_off(vs[:2], [True])
