@@ -2,7 +2,9 @@
 
 Links are every collision link of the reduced model that moves with the arm (joints 1..n),
 the hand's own links included at their pre-grasp joint values. The part being grasped is no
-obstacle for the hand links (``target``); everything else is, for every link.
+obstacle for the hand links (``target``); everything else is, for every link. The floor is an
+obstacle too (``floor``: the clearance every link keeps above it [m]), for the arm's links and
+for the hand, its own links or the boxes that stand in for them (:mod:`pickstop.robot.floor`).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from pickstop.robot.floor import FloorSpheres, below_floor, geometry_below
 from pickstop.robot.model import RobotModel
 from pickstop.scene.world import BoxArrays, Solid, _coal, collide
 
@@ -40,6 +43,21 @@ def arm_links(robot: RobotModel) -> list[Any]:
 
 def is_hand_link(robot: RobotModel, name: str) -> bool:
     return any(fnmatch.fnmatch(name, p) for p in robot.config.hand.links)
+
+
+def stand_in_hand(robot: RobotModel) -> list[tuple[Any, np.ndarray]]:
+    """The boxes standing in for the hand (``hand.geometry: boxes``) as ``(coal geometry,
+    T_joint_geometry (4, 4))`` in the last arm joint's frame; none for a hand of links."""
+    if robot.config.hand.geometry != "boxes":
+        return []
+    from pickstop.robot.hand import hand_shape
+
+    hand = hand_shape(robot)
+    M = robot.model.frames[robot.tool_frame_id].placement  # tool in the last joint's frame
+    T_joint_tool = np.eye(4)
+    T_joint_tool[:3, :3], T_joint_tool[:3, 3] = M.rotation, M.translation
+    T_joint_tcp = T_joint_tool @ np.linalg.inv(hand.T_tcp_tool)
+    return [(geom, T_joint_tcp @ T_tcp_geom) for _, geom, T_tcp_geom in hand.geometries]
 
 
 def arm_geometry_ids(robot: RobotModel) -> list[int]:
@@ -71,9 +89,11 @@ class ArmSpheres:
     leaf_link: np.ndarray  # (S,) link of each covering sphere
     leaf_c: np.ndarray  # (S, 3)
     leaf_r: np.ndarray  # (S,)
+    floor: FloorSpheres  # the leaves, and the stand-in hand's hull points, per joint
 
     @classmethod
     def of(cls, robot: RobotModel, excess: float = SPHERE_EXCESS) -> ArmSpheres:
+        from pickstop.robot.hand import geometry_points
         from pickstop.robot.link_geometry import LinkShape
         from pickstop.robot.spheres import cover
 
@@ -89,6 +109,15 @@ class ArmSpheres:
             ll += [k] * len(s)
             lc.append(s[:, :3])
             lr.append(s[:, 3])
+        leaf_joint = np.array(joints)[np.array(ll)]
+        # A stand-in hand meets the floor's half-space only if a point of its hull does.
+        pts = [geometry_points(g) @ T[:3, :3].T + T[:3, 3] for g, T in stand_in_hand(robot)]
+        hull = np.concatenate(pts) if pts else np.zeros((0, 3))
+        floor = FloorSpheres.of_spheres(
+            np.concatenate([leaf_joint, np.full(len(hull), robot.dof)]),
+            np.concatenate([*lc, hull]),
+            np.concatenate([*lr, np.full(len(hull), 1e-9)]),
+        )
         return cls(
             np.array(joints),
             np.array(hand, dtype=bool),
@@ -97,6 +126,7 @@ class ArmSpheres:
             np.array(ll),
             np.concatenate(lc),
             np.concatenate(lr),
+            floor,
         )
 
 
@@ -127,29 +157,31 @@ def screen_arm(
     yaw: float,
     envelope: Any = None,
     targets: Sequence[str] | np.ndarray | str | None = None,
+    floor: float | None = None,
 ) -> np.ndarray:
-    """``(B,)`` True where the arm may touch a solid; False is guaranteed free.
+    """``(B,)`` True where the arm may touch a solid or the floor; False is guaranteed free.
 
     frames: :func:`fk_soa` joint frames of B configurations (base frame); base_xy: (B, 2).
     envelope: if given, the owners of the solids that flagged a configuration are recorded.
     targets: the part each configuration grasps (one for all, or one per configuration): no
-    obstacle for the hand links.
+    obstacle for the hand links. floor: the clearance [m] every link and the hand keep above
+    the floor (None: the floor is not checked).
     """
     from pickstop.scene.world import spheres_hit
 
     B = base_xy.shape[0]
     if B == 0:
         return np.zeros(B, bool)
-    bw = _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
+    flagged = np.zeros(B, bool) if floor is None else below_floor(spheres.floor, frames, floor)
     if len(boxes.centres) == 0:
-        return np.zeros(B, bool)
+        return flagged
+    bw = _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
     L = len(spheres.bound_r)
     code = owner_codes(boxes, targets, B)  # (B,)
     skip = np.where(spheres.is_hand[None, :], code[:, None], -1)  # (B, L)
     hit_link = spheres_hit(
         boxes, bw.reshape(-1, 3), np.tile(spheres.bound_r, B), skip=skip.ravel()
     ).reshape(B, L)
-    flagged = np.zeros(B, bool)
     cfg, lnk = np.nonzero(hit_link)
     if len(cfg) == 0:
         return flagged
@@ -195,6 +227,31 @@ class ExactArm:
             geom.computeLocalAABB()
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
             self.local_boxes.append(((lo + hi) / 2, (hi - lo) / 2))
+        self.stand_in = stand_in_hand(robot)
+
+    def below_floor(self, clearance: float) -> list[str]:
+        """After :meth:`colliding` or :meth:`place`: the arm geometries, and the stand-in hand
+        boxes (``hand:<k>``), reaching ``z <= clearance`` [m] (the floor is z = 0 of the base)."""
+        gm = self.robot.geom_model
+        out = [
+            gm.geometryObjects[i].name
+            for i in self.ids
+            if geometry_below(gm.geometryObjects[i].geometry, self.gdata.oMg[i], clearance)
+        ]
+        if self.stand_in:
+            M = self.data.oMi[self.robot.dof]
+            T_base_joint = np.eye(4)
+            T_base_joint[:3, :3], T_base_joint[:3, 3] = M.rotation, M.translation
+            for k, (geom, T_joint_geom) in enumerate(self.stand_in):
+                if geometry_below(geom, T_base_joint @ T_joint_geom, clearance):
+                    out.append(f"hand:{k}")
+        return out
+
+    def place(self, theta: np.ndarray) -> None:
+        """Forward kinematics and geometry placements (base frame) of ``theta: (dof,)``."""
+        q = self.robot.angles_to_q(theta)
+        pin.forwardKinematics(self.robot.model, self.data, q)
+        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
 
     def colliding(
         self,
@@ -204,14 +261,16 @@ class ExactArm:
         yaw: float,
         solids: list[Solid],
         target: str | None = None,
+        floor: float | None = None,
     ) -> bool:
-        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``?
+        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``, or
+        come within ``floor`` [m] of the floor (None: the floor is not checked)?
 
         target: the part being grasped, no obstacle for the hand links.
         """
-        q = self.robot.angles_to_q(theta)
-        pin.forwardKinematics(self.robot.model, self.data, q)
-        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
+        self.place(theta)
+        if floor is not None and self.below_floor(floor):
+            return True
         T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
         boxes = [(s, *s.aabb()) for s in solids]
         for i, hand, (c_local, h_local) in zip(self.ids, self.hand, self.local_boxes, strict=True):
