@@ -27,7 +27,13 @@ import pickstop
 from pickstop.errors import DatabaseError, InputError
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
-from pickstop.robot.floor import FLOOR_CLEARANCE, MAX_CLEARANCE, FloorSpheres, below_floor
+from pickstop.robot.floor import (
+    FLOOR_CLEARANCE,
+    MAX_CLEARANCE,
+    FloorSpheres,
+    below_floor,
+    floor_identity,
+)
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa, manipulability_soa
 from pickstop.robot.model import RobotModel
 from pickstop.store.catalog import Catalog
@@ -86,11 +92,13 @@ class BuildParams:
         return min(self.chunk_size, self.samples - chunk * self.chunk_size)
 
 
-def database_id(robot_hash: str, params: BuildParams) -> str:
-    """Deterministic id of the database ``params`` builds for the robot with ``robot_hash``."""
-    blob = json.dumps(
-        {"robot": robot_hash, "format": FORMAT_VERSION, **params.__dict__}, sort_keys=True
-    )
+def database_id(robot_hash: str, params: BuildParams, floor: str = "links") -> str:
+    """Deterministic id of the database ``params`` builds for the robot with ``robot_hash``.
+
+    floor: :func:`pickstop.robot.floor.floor_identity`, what the floor filter checks beyond
+    the robot hash (the stand-in hand boxes, whose config the robot hash leaves out)."""
+    doc = {"robot": robot_hash, "format": FORMAT_VERSION, "floor": floor, **params.__dict__}
+    blob = json.dumps(doc, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -100,7 +108,7 @@ class BuildKernel:
 
     chain: Chain
     spheres: Any  # selfcollision.SphereModel, or None for no self-collision filter
-    floor: FloorSpheres | None  # covers of every moving link, or None for no floor filter
+    floor: FloorSpheres | None  # covers of the checked links and hand, None: no floor filter
     voxel: VoxelGrid
     lower: np.ndarray  # (dof,) quantisation range [rad or m]
     upper: np.ndarray  # (dof,)
@@ -405,7 +413,7 @@ def build(
     params.validate()
     data_dir = Path(data_dir)
     catalog = Catalog(data_dir)
-    db_id = database_id(robot.robot_hash, params)
+    db_id = database_id(robot.robot_hash, params, floor_identity(robot))
     row = _register(catalog, db_id, robot, params)
     t0 = time.perf_counter()
     done = _chunks_done(catalog, db_id, data_dir)

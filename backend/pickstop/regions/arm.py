@@ -9,7 +9,6 @@ for the hand, its own links or the boxes that stand in for them (:mod:`pickstop.
 
 from __future__ import annotations
 
-import fnmatch
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -18,46 +17,12 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from pickstop.robot.floor import FloorSpheres, below_floor, geometry_below
+from pickstop.robot.floor import FloorSpheres, below_floor, exact_below
+from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
 from pickstop.scene.world import BoxArrays, Solid, _coal, collide
 
 SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
-
-
-def arm_links(robot: RobotModel) -> list[Any]:
-    """Collision links on moving arm bodies, the hand's included unless boxes stand in for
-    them (``hand.geometry: boxes``; sorted by name)."""
-    from pickstop.robot.link_geometry import collision_links
-
-    boxes = robot.config.hand.geometry == "boxes"
-    return sorted(
-        (
-            link
-            for link in collision_links(robot)
-            if link.joint != 0 and not (boxes and is_hand_link(robot, link.name))
-        ),
-        key=lambda link: link.name,
-    )
-
-
-def is_hand_link(robot: RobotModel, name: str) -> bool:
-    return any(fnmatch.fnmatch(name, p) for p in robot.config.hand.links)
-
-
-def stand_in_hand(robot: RobotModel) -> list[tuple[Any, np.ndarray]]:
-    """The boxes standing in for the hand (``hand.geometry: boxes``) as ``(coal geometry,
-    T_joint_geometry (4, 4))`` in the last arm joint's frame; none for a hand of links."""
-    if robot.config.hand.geometry != "boxes":
-        return []
-    from pickstop.robot.hand import hand_shape
-
-    hand = hand_shape(robot)
-    M = robot.model.frames[robot.tool_frame_id].placement  # tool in the last joint's frame
-    T_joint_tool = np.eye(4)
-    T_joint_tool[:3, :3], T_joint_tool[:3, 3] = M.rotation, M.translation
-    T_joint_tcp = T_joint_tool @ np.linalg.inv(hand.T_tcp_tool)
-    return [(geom, T_joint_tcp @ T_tcp_geom) for _, geom, T_tcp_geom in hand.geometries]
 
 
 def arm_geometry_ids(robot: RobotModel) -> list[int]:
@@ -93,7 +58,6 @@ class ArmSpheres:
 
     @classmethod
     def of(cls, robot: RobotModel, excess: float = SPHERE_EXCESS) -> ArmSpheres:
-        from pickstop.robot.hand import geometry_points
         from pickstop.robot.link_geometry import LinkShape
         from pickstop.robot.spheres import cover
 
@@ -109,14 +73,8 @@ class ArmSpheres:
             ll += [k] * len(s)
             lc.append(s[:, :3])
             lr.append(s[:, 3])
-        leaf_joint = np.array(joints)[np.array(ll)]
-        # A stand-in hand meets the floor's half-space only if a point of its hull does.
-        pts = [geometry_points(g) @ T[:3, :3].T + T[:3, 3] for g, T in stand_in_hand(robot)]
-        hull = np.concatenate(pts) if pts else np.zeros((0, 3))
-        floor = FloorSpheres.of_spheres(
-            np.concatenate([leaf_joint, np.full(len(hull), robot.dof)]),
-            np.concatenate([*lc, hull]),
-            np.concatenate([*lr, np.full(len(hull), 1e-9)]),
+        floor = FloorSpheres.with_hand(
+            robot, np.array(joints)[np.array(ll)], np.concatenate(lc), np.concatenate(lr)
         )
         return cls(
             np.array(joints),
@@ -227,25 +185,11 @@ class ExactArm:
             geom.computeLocalAABB()
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
             self.local_boxes.append(((lo + hi) / 2, (hi - lo) / 2))
-        self.stand_in = stand_in_hand(robot)
 
     def below_floor(self, clearance: float) -> list[str]:
-        """After :meth:`colliding` or :meth:`place`: the arm geometries, and the stand-in hand
-        boxes (``hand:<k>``), reaching ``z <= clearance`` [m] (the floor is z = 0 of the base)."""
-        gm = self.robot.geom_model
-        out = [
-            gm.geometryObjects[i].name
-            for i in self.ids
-            if geometry_below(gm.geometryObjects[i].geometry, self.gdata.oMg[i], clearance)
-        ]
-        if self.stand_in:
-            M = self.data.oMi[self.robot.dof]
-            T_base_joint = np.eye(4)
-            T_base_joint[:3, :3], T_base_joint[:3, 3] = M.rotation, M.translation
-            for k, (geom, T_joint_geom) in enumerate(self.stand_in):
-                if geometry_below(geom, T_base_joint @ T_joint_geom, clearance):
-                    out.append(f"hand:{k}")
-        return out
+        """After :meth:`place`: the arm geometries, and the stand-in hand boxes
+        (``hand:<k>``), reaching ``z <= clearance`` [m] (the floor is z = 0 of the base)."""
+        return exact_below(self.robot, self.data, self.gdata, self.ids, clearance)
 
     def place(self, theta: np.ndarray) -> None:
         """Forward kinematics and geometry placements (base frame) of ``theta: (dof,)``."""

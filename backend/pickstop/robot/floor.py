@@ -1,15 +1,18 @@
 """The floor as an obstacle for every moving robot link, with a clearance.
 
 The base frame stands on the floor (docs/conventions.md), so whatever the base pose the floor
-is the plane z = 0 of the base frame, and a configuration is kept only when every collision
-geometry on a moving joint stays above ``z = clearance``. The screen (:func:`below_floor`)
+is the plane z = 0 of the base frame, and a configuration is kept only when every checked
+collision geometry stays above ``z = clearance``: the links on moving joints
+(:func:`pickstop.robot.link_geometry.arm_links`), the hand as the checks see it (its own links,
+or the boxes standing in for them). The screen (:func:`below_floor`)
 tests covering spheres, which hold their links: a link with a point at or below the clearance
 has a sphere reaching there too, so the screen flags every configuration the exact check
-(:class:`ExactFloor`, coal against the half-space ``z <= clearance``) rejects.
+(:func:`exact_below`, coal against the half-space ``z <= clearance``) rejects.
 """
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -24,13 +27,6 @@ FLOOR_CLEARANCE = 0.01
 MAX_CLEARANCE = 0.5  # [m]
 
 Frames = Sequence[tuple[np.ndarray, np.ndarray]]
-
-
-def floor_links(robot: RobotModel) -> list[Any]:
-    """Every collision link on a moving joint (the hand's own links included), by name."""
-    from pickstop.robot.link_geometry import collision_links
-
-    return sorted((lk for lk in collision_links(robot) if lk.joint != 0), key=lambda lk: lk.name)
 
 
 @dataclass(frozen=True)
@@ -68,18 +64,35 @@ class FloorSpheres:
 
     @classmethod
     def of(cls, robot: RobotModel, excess: float = 0.01) -> FloorSpheres:
-        """Spheres covering :func:`floor_links`, sticking out by at most ``excess`` [m]."""
-        from pickstop.robot.link_geometry import LinkShape
+        """Spheres covering the checked links (:func:`arm_links`), sticking out by at most
+        ``excess`` [m], and the stand-in hand's hull points."""
+        from pickstop.robot.link_geometry import LinkShape, arm_links
         from pickstop.robot.spheres import cover
 
         joints, centres, radii = [], [], []
-        for link in floor_links(robot):
+        for link in arm_links(robot):
             s = cover(LinkShape.of(robot, tuple(link.geometry_ids)), excess)
             joints.append(np.full(len(s), link.joint))
             centres.append(s[:, :3])
             radii.append(s[:, 3])
+        return cls.with_hand(
+            robot, np.concatenate(joints), np.concatenate(centres), np.concatenate(radii)
+        )
+
+    @classmethod
+    def with_hand(
+        cls, robot: RobotModel, joint: np.ndarray, centre: np.ndarray, radius: np.ndarray
+    ) -> FloorSpheres:
+        """Link spheres plus the hull points of the boxes standing in for the hand, if any: a
+        convex solid meets the floor's half-space only if a point of its hull does."""
+        from pickstop.robot.hand import geometry_points
+
+        pts = [geometry_points(g) @ T[:3, :3].T + T[:3, 3] for g, T in stand_in_hand(robot)]
+        hull = np.concatenate(pts) if pts else np.zeros((0, 3))
         return cls.of_spheres(
-            np.concatenate(joints), np.concatenate(centres), np.concatenate(radii)
+            np.concatenate([joint, np.full(len(hull), robot.dof)]),
+            np.concatenate([centre, hull]),
+            np.concatenate([radius, np.full(len(hull), 1e-9)]),
         )
 
 
@@ -118,35 +131,78 @@ def geometry_below(geometry: Any, T_base_geom: Any, clearance: float) -> bool:
     return bool(coal.collide(geometry, tf, floor, coal.Transform3s(), req, coal.CollisionResult()))
 
 
-class ExactFloor:
-    """Exact floor check of chosen collision geometries with coal (one per thread)."""
+def floor_identity(robot: RobotModel) -> str:
+    """What the floor check covers beyond the robot's hash: the boxes standing in for the hand
+    (the hand's config is not part of the robot hash), or "links" (the robot's own)."""
+    if robot.config.hand.geometry != "boxes":
+        return "links"
+    from pickstop.robot.hand import hand_shape
 
-    def __init__(self, robot: RobotModel, geometry_ids: Sequence[int] | None = None) -> None:
+    return hashlib.sha256(hand_shape(robot).key.encode()).hexdigest()[:16]
+
+
+def exact_below(
+    robot: RobotModel, data: Any, gdata: Any, ids: Sequence[int], clearance: float
+) -> list[str]:
+    """Exact (coal) floor check of placed geometries (``gdata`` after
+    ``pin.updateGeometryPlacements``, base frame): the names of the collision geometries
+    ``ids`` and of the stand-in hand boxes (``hand:<k>``) reaching ``z <= clearance`` [m]."""
+    gm = robot.geom_model
+    out = [
+        gm.geometryObjects[i].name
+        for i in ids
+        if geometry_below(gm.geometryObjects[i].geometry, gdata.oMg[i], clearance)
+    ]
+    stand_in = stand_in_hand(robot)
+    if stand_in:
+        M = data.oMi[robot.dof]
+        T_base_joint = np.eye(4)
+        T_base_joint[:3, :3], T_base_joint[:3, 3] = M.rotation, M.translation
+        for k, (geom, T_joint_geom) in enumerate(stand_in):
+            if geometry_below(geom, T_base_joint @ T_joint_geom, clearance):
+                out.append(f"hand:{k}")
+    return out
+
+
+class ExactFloor:
+    """Exact floor check of the checked links and hand (:func:`exact_below`), one per thread."""
+
+    def __init__(self, robot: RobotModel) -> None:
         import pinocchio as pin
 
+        from pickstop.robot.link_geometry import arm_links
+
         self.robot = robot
-        if geometry_ids is None:
-            geometry_ids = [g for lk in floor_links(robot) for g in lk.geometry_ids]
-        self.ids = list(geometry_ids)
+        self.ids = sorted(g for lk in arm_links(robot) for g in lk.geometry_ids)
         self.data = robot.model.createData()
         self.gdata = pin.GeometryData(robot.geom_model)
 
-    def lowest_links(self, theta: np.ndarray, clearance: float) -> list[str]:
-        """Names of the geometries at ``theta: (dof,)`` reaching ``z <= clearance`` [m]."""
+    def below(self, theta: np.ndarray, clearance: float) -> list[str]:
+        """The geometries at ``theta: (dof,)`` reaching ``z <= clearance`` [m]."""
         import pinocchio as pin
 
-        gm = self.robot.geom_model
         q = self.robot.angles_to_q(np.asarray(theta, dtype=float))
         pin.forwardKinematics(self.robot.model, self.data, q)
-        pin.updateGeometryPlacements(self.robot.model, self.data, gm, self.gdata)
-        return [
-            gm.geometryObjects[i].name
-            for i in self.ids
-            if geometry_below(gm.geometryObjects[i].geometry, self.gdata.oMg[i], clearance)
-        ]
+        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
+        return exact_below(self.robot, self.data, self.gdata, self.ids, clearance)
 
     def colliding(self, thetas: np.ndarray, clearance: float) -> np.ndarray:
-        """``thetas: (N, dof)`` -> ``(N,)`` True where a geometry reaches ``z <= clearance``."""
+        """``thetas: (N, dof)`` -> ``(N,)`` True where something reaches ``z <= clearance``."""
         thetas = np.asarray(thetas, dtype=float)
         assert thetas.ndim == 2 and thetas.shape[1] == self.robot.dof, thetas.shape
-        return np.array([bool(self.lowest_links(th, clearance)) for th in thetas], dtype=bool)
+        return np.array([bool(self.below(th, clearance)) for th in thetas], dtype=bool)
+
+
+def stand_in_hand(robot: RobotModel) -> list[tuple[Any, np.ndarray]]:
+    """The boxes standing in for the hand (``hand.geometry: boxes``) as ``(coal geometry,
+    T_joint_geometry (4, 4))`` in the last arm joint's frame; none for a hand of links."""
+    if robot.config.hand.geometry != "boxes":
+        return []
+    from pickstop.robot.hand import hand_shape
+
+    hand = hand_shape(robot)
+    M = robot.model.frames[robot.tool_frame_id].placement  # tool in the last joint's frame
+    T_joint_tool = np.eye(4)
+    T_joint_tool[:3, :3], T_joint_tool[:3, 3] = M.rotation, M.translation
+    T_joint_tcp = T_joint_tool @ np.linalg.inv(hand.T_tcp_tool)
+    return [(geom, T_joint_tcp @ T_tcp_geom) for _, geom, T_tcp_geom in hand.geometries]
