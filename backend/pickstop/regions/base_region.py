@@ -416,7 +416,8 @@ def compute_tray_region(
             return empty(
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
                 "fits the robot's open hand without touching the tray, a neighbour or a table, "
-                f"or coming within {scene.floor_clearance:.3f} m of the floor" + low
+                f"or coming within the floor clearance of {scene.floor_clearance:.3f} m "
+                f"({gs.near_floor} of them too close to the floor)" + low
             )
     world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance)
     targets = [Targets.of(gs, cen, Rz_T) for gs in grasp_sets]

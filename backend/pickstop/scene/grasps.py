@@ -44,9 +44,10 @@ class GraspSet:
     Ts_part_tcp: np.ndarray
     Ts_world_tool: np.ndarray
     kinds: tuple[str, ...]
-    rejected: int  # generated but blocked by the tray, table or neighbours
+    rejected: int  # generated but blocked by the tray, table, neighbours or the floor
     user_given: bool
     too_low: bool = False  # no top-down grasp: the open hand reaches below the tray floor
+    near_floor: int = 0  # of the rejected: the open hand within the floor clearance
 
     @property
     def Ts_part_tool(self) -> np.ndarray:
@@ -169,9 +170,11 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
     cands = _candidates(scene, tray, part, hand)
     obstacles = tray_solids(scene, tray, exclude_part=part.id)
     kept, kinds = [], []
+    near_floor = 0
     for T_part_tcp, kind in cands:
         solids = hand_solids(hand, T_world_part @ T_part_tcp)
         if any(solid_below(a, scene.floor_clearance) for a in solids):
+            near_floor += 1
             continue
         if not any(solids_overlap(a, b) for a in solids for b in obstacles):
             kept.append(T_part_tcp)
@@ -191,4 +194,5 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
         rejected=len(cands) - len(kept),
         user_given=part.grasps is not None,
         too_low=too_low,
+        near_floor=near_floor,
     )
