@@ -17,7 +17,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from pickstop.robot.floor import FloorSpheres, below_floor, exact_below
+from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
 from pickstop.scene.world import BoxArrays, Solid, _coal, collide
@@ -185,11 +185,12 @@ class ExactArm:
             geom.computeLocalAABB()
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
             self.local_boxes.append(((lo + hi) / 2, (hi - lo) / 2))
+        self.floor = ExactFloor(robot)
 
     def below_floor(self, clearance: float) -> list[str]:
         """After :meth:`place`: the arm geometries, and the stand-in hand boxes
         (``hand:<k>``), reaching ``z <= clearance`` [m] (the floor is z = 0 of the base)."""
-        return exact_below(self.robot, self.data, self.gdata, self.ids, clearance)
+        return self.floor.placed_below(self.data, self.gdata, clearance)
 
     def place(self, theta: np.ndarray) -> None:
         """Forward kinematics and geometry placements (base frame) of ``theta: (dof,)``."""

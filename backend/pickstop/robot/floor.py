@@ -7,7 +7,7 @@ collision geometry stays above ``z = clearance``: the links on moving joints
 or the boxes standing in for them). The screen (:func:`below_floor`)
 tests covering spheres, which hold their links: a link with a point at or below the clearance
 has a sphere reaching there too, so the screen flags every configuration the exact check
-(:func:`exact_below`, coal against the half-space ``z <= clearance``) rejects.
+(:class:`ExactFloor`, coal against the half-space ``z <= clearance``) rejects.
 """
 
 from __future__ import annotations
@@ -141,31 +141,17 @@ def floor_identity(robot: RobotModel) -> str:
     return hashlib.sha256(hand_shape(robot).key.encode()).hexdigest()[:16]
 
 
-def exact_below(
-    robot: RobotModel, data: Any, gdata: Any, ids: Sequence[int], clearance: float
-) -> list[str]:
-    """Exact (coal) floor check of placed geometries (``gdata`` after
-    ``pin.updateGeometryPlacements``, base frame): the names of the collision geometries
-    ``ids`` and of the stand-in hand boxes (``hand:<k>``) reaching ``z <= clearance`` [m]."""
-    gm = robot.geom_model
-    out = [
-        gm.geometryObjects[i].name
-        for i in ids
-        if geometry_below(gm.geometryObjects[i].geometry, gdata.oMg[i], clearance)
-    ]
-    stand_in = stand_in_hand(robot)
-    if stand_in:
-        M = data.oMi[robot.dof]
-        T_base_joint = np.eye(4)
-        T_base_joint[:3, :3], T_base_joint[:3, 3] = M.rotation, M.translation
-        for k, (geom, T_joint_geom) in enumerate(stand_in):
-            if geometry_below(geom, T_base_joint @ T_joint_geom, clearance):
-                out.append(f"hand:{k}")
-    return out
+def _local_box(geometry: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and half extents (3,) of a coal geometry's local bounding box [m]."""
+    geometry.computeLocalAABB()
+    lo, hi = np.asarray(geometry.aabb_local.min_), np.asarray(geometry.aabb_local.max_)
+    return (lo + hi) / 2, (hi - lo) / 2
 
 
 class ExactFloor:
-    """Exact floor check of the checked links and hand (:func:`exact_below`), one per thread."""
+    """Exact floor check (coal) of the checked links (:func:`arm_links`) and of the boxes
+    standing in for the hand, if any; a geometry whose bounding box stays above the clearance
+    is not handed to coal. One per thread."""
 
     def __init__(self, robot: RobotModel) -> None:
         import pinocchio as pin
@@ -173,9 +159,37 @@ class ExactFloor:
         from pickstop.robot.link_geometry import arm_links
 
         self.robot = robot
+        gm = robot.geom_model
         self.ids = sorted(g for lk in arm_links(robot) for g in lk.geometry_ids)
+        objs = [gm.geometryObjects[i] for i in self.ids]
+        self.geoms = [(o.name, o.geometry) for o in objs]
+        self.boxes = [_local_box(g) for _, g in self.geoms]
+        self.stand_in = stand_in_hand(robot)
+        self.stand_in_boxes = [_local_box(g) for g, _ in self.stand_in]
         self.data = robot.model.createData()
-        self.gdata = pin.GeometryData(robot.geom_model)
+        self.gdata = pin.GeometryData(gm)
+
+    def placed_below(self, data: Any, gdata: Any, clearance: float) -> list[str]:
+        """The geometries reaching ``z <= clearance`` [m] as placed in ``data``/``gdata``
+        (after ``pin.updateGeometryPlacements``, base frame); ``hand:<k>``: a stand-in box."""
+        poses = [(gdata.oMg[i].rotation, gdata.oMg[i].translation) for i in self.ids]
+        out = [
+            name
+            for (name, geom), box, (R, p) in zip(self.geoms, self.boxes, poses, strict=True)
+            if _low(R, p, box) <= clearance and geometry_below(geom, _matrix(R, p), clearance)
+        ]
+        if self.stand_in:
+            M = data.oMi[self.robot.dof]
+            T_base_joint = _matrix(M.rotation, M.translation)
+            for k, ((geom, T_joint_geom), box) in enumerate(
+                zip(self.stand_in, self.stand_in_boxes, strict=True)
+            ):
+                T = T_base_joint @ T_joint_geom
+                if _low(T[:3, :3], T[:3, 3], box) <= clearance and geometry_below(
+                    geom, T, clearance
+                ):
+                    out.append(f"hand:{k}")
+        return out
 
     def below(self, theta: np.ndarray, clearance: float) -> list[str]:
         """The geometries at ``theta: (dof,)`` reaching ``z <= clearance`` [m]."""
@@ -184,13 +198,25 @@ class ExactFloor:
         q = self.robot.angles_to_q(np.asarray(theta, dtype=float))
         pin.forwardKinematics(self.robot.model, self.data, q)
         pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
-        return exact_below(self.robot, self.data, self.gdata, self.ids, clearance)
+        return self.placed_below(self.data, self.gdata, clearance)
 
     def colliding(self, thetas: np.ndarray, clearance: float) -> np.ndarray:
         """``thetas: (N, dof)`` -> ``(N,)`` True where something reaches ``z <= clearance``."""
         thetas = np.asarray(thetas, dtype=float)
         assert thetas.ndim == 2 and thetas.shape[1] == self.robot.dof, thetas.shape
         return np.array([bool(self.below(th, clearance)) for th in thetas], dtype=bool)
+
+
+def _low(R: np.ndarray, p: np.ndarray, box: tuple[np.ndarray, np.ndarray]) -> float:
+    """Lowest z [m] of a local bounding box ``(centre, half)`` placed at ``(R, p)``."""
+    c, h = box
+    return float(R[2] @ c + p[2] - np.abs(R[2]) @ h)
+
+
+def _matrix(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, p
+    return T
 
 
 def stand_in_hand(robot: RobotModel) -> list[tuple[Any, np.ndarray]]:
