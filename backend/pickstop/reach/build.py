@@ -158,22 +158,22 @@ def compute_chunk_data(kernel: BuildKernel, chunk: int) -> tuple[ShardData, int,
         th = lower + u_t[:, s : s + BLOCK] * scale
         R, pos, frames = fk_soa(kernel.chain, th, frames=True)
         B = th.shape[1]
-        sel = np.arange(B)
+        # Both screens see the whole block (one subset copy after them); a configuration
+        # below the floor counts as that, not as a self-collision.
+        low = np.zeros(B, bool)
         if kernel.floor is not None:
             low = below_floor(kernel.floor, frames, p.floor_clearance)
             rej_floor += int(low.sum())
-            sel = np.flatnonzero(~low)
-            frames = [(Rj[:, :, sel], pj[:, sel]) for Rj, pj in frames]
-            R, pos = R[:, :, sel], pos[:, sel]
+        hit = np.zeros(B, bool)
         if kernel.spheres is not None:
             from pickstop.robot.selfcollision import screen
 
-            free = ~screen(kernel.spheres, frames)
-            rej_self += int(len(sel) - free.sum())
-            if not free.all():
-                frames = [(Rj[:, :, free], pj[:, free]) for Rj, pj in frames]
-                R, pos = R[:, :, free], pos[:, free]
-            sel = sel[free]
+            hit = screen(kernel.spheres, frames) & ~low
+            rej_self += int(hit.sum())
+        sel = np.flatnonzero(~(low | hit))
+        if len(sel) < B:
+            frames = [(Rj[:, :, sel], pj[:, sel]) for Rj, pj in frames]
+            R, pos = R[:, :, sel], pos[:, sel]
         w = manipulability_soa(kernel.chain, frames, pos)
         if draws is not None:
             keep = draws[s + sel] < w / p.thinning
