@@ -216,20 +216,36 @@ class ExactArm:
         self.place(theta)
         if floor is not None and self.below_floor(floor):
             return True
+        if not solids:
+            return False
         T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
-        boxes = [(s, *s.aabb()) for s in solids]
-        for i, hand, (c_local, h_local) in zip(self.ids, self.hand, self.local_boxes, strict=True):
-            g = self.robot.geom_model.geometryObjects[i]
-            M = T_wb * self.gdata.oMg[i]
-            c = M.rotation @ c_local + M.translation
-            h = np.abs(M.rotation) @ h_local
-            tf = coal.Transform3s(M.rotation, M.translation)
-            for s, lo, hi in boxes:
-                if np.any(c - h > hi) or np.any(c + h < lo) or (hand and s.owner == target):
-                    continue
-                gs, ts = _coal(s)
-                if collide(g.geometry, tf, gs, ts):
-                    return True
+        bounds = [s.aabb() for s in solids]
+        lo = np.array([b[0] for b in bounds])  # (K, 3)
+        hi = np.array([b[1] for b in bounds])
+        placed = [T_wb * self.gdata.oMg[i] for i in self.ids]
+        c = np.array(
+            [
+                M.rotation @ cl + M.translation
+                for M, (cl, _) in zip(placed, self.local_boxes, strict=True)
+            ]
+        )
+        h = np.array(
+            [np.abs(M.rotation) @ hl for M, (_, hl) in zip(placed, self.local_boxes, strict=True)]
+        )
+        # Geometry g and solid k can touch only where their world bounding boxes overlap.
+        near = ~(
+            (c[:, None] - h[:, None] > hi[None]).any(-1)
+            | (c[:, None] + h[:, None] < lo[None]).any(-1)
+        )
+        if target is not None:
+            own = np.array([s.owner == target for s in solids])
+            near &= ~(np.array(self.hand)[:, None] & own[None])
+        for g, k in zip(*np.nonzero(near), strict=True):
+            M = placed[g]
+            geom = self.robot.geom_model.geometryObjects[self.ids[g]].geometry
+            gs, ts = _coal(solids[k])
+            if collide(geom, coal.Transform3s(M.rotation, M.translation), gs, ts):
+                return True
         return False
 
 
