@@ -92,3 +92,21 @@ def test_lifting_the_floor_check_away_frees_the_configuration(tiago, arm_spheres
     assert screen_arm(arm_spheres, BoxArrays.of([]), frames, xy, 0.0, floor=CLEARANCE)[0]
     assert not screen_arm(arm_spheres, BoxArrays.of([]), frames, xy, 0.0, floor=-2.0)[0]
     assert not ExactArm(tiago).colliding(theta, 0.0, 0.0, 0.0, [], floor=-2.0)
+
+
+def test_a_hand_of_links_is_screened_by_its_own_links(pr2):
+    """PR2 checks its own gripper links: they are among the covered links, and the screens
+    hold the exact check on random configurations."""
+    from pickstop.robot.link_geometry import arm_links, is_hand_link
+
+    assert any(is_hand_link(pr2, lk.name) for lk in arm_links(pr2))
+    th = random_thetas(pr2, 1200, seed=9)
+    frames = _frames(pr2, th)
+    exact = ExactFloor(pr2)
+    for clearance in (CLEARANCE, 0.3):
+        below = exact.colliding(th, clearance)
+        flagged = below_floor(FloorSpheres.of(pr2), frames, clearance)
+        assert not (below & ~flagged).any()
+    assert below.sum() > 20  # at 0.3 m many configurations reach down that far
+    hands = [n for t in th[below][:50] for n in exact.below(t, 0.3)]
+    assert any(n.startswith("r_gripper") for n in hands)
