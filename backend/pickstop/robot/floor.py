@@ -3,11 +3,14 @@
 The base frame stands on the floor (docs/conventions.md), so whatever the base pose the floor
 is the plane z = 0 of the base frame, and a configuration is kept only when every checked
 collision geometry stays above ``z = clearance``: the links on moving joints
-(:func:`pickstop.robot.link_geometry.arm_links`), the hand as the checks see it (its own links,
-or the boxes standing in for them). The screen (:func:`below_floor`)
-tests covering spheres, which hold their links: a link with a point at or below the clearance
-has a sphere reaching there too, so the screen flags every configuration the exact check
-(:class:`ExactFloor`, coal against the half-space ``z <= clearance``) rejects.
+(:func:`pickstop.robot.link_geometry.arm_links`) and the hand as the checks see it (its own
+links, or the boxes standing in for them).
+
+The screen (:func:`below_floor`) tests covering spheres, which hold their links, and the hull
+points of the stand-in boxes (a convex solid meets the half-space only where a hull point
+does): whatever reaches down to the clearance has a sphere or a point reaching there too, so
+the screen flags every configuration the exact check (:class:`ExactFloor`, coal against the
+half-space ``z <= clearance``) rejects.
 """
 
 from __future__ import annotations
