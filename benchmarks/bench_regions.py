@@ -99,7 +99,12 @@ def explain_misses(
             _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
             free = np.flatnonzero(
                 ~screen_arm(
-                    planner.arm, boxes, frames, np.repeat(cen[i : i + 1], len(rows), 0), yaw
+                    planner.arm,
+                    boxes,
+                    frames,
+                    np.repeat(cen[i : i + 1], len(rows), 0),
+                    yaw,
+                    floor=scene.floor_clearance,
                 )
             )
             if len(free) == 0:

@@ -37,7 +37,8 @@ footprint: {{radius: 0.275}}
 def assert_stop_verified(planner, scene, stop) -> None:
     """Each witness of ``stop`` reaches its grasp from the stop within 1 mm and 0.5 deg and is
     collision-free for coal: every collision link of the robot (the hand's included, the
-    grasped part no obstacle for it) against the scene, and the robot against itself."""
+    grasped part no obstacle for it) against the scene and the floor (its clearance kept), and
+    the robot against itself."""
     import math
 
     from pickstop.regions.base_region import tray_world
@@ -60,6 +61,8 @@ def assert_stop_verified(planner, scene, stop) -> None:
         assert math.degrees(math.acos(min(1.0, cos))) < 0.5
         _, solids, _, _ = tray_world(planner, scene, tray, stop.yaw)
         theta = np.array(w.theta)
-        assert not planner.exact_arm.colliding(theta, stop.x, stop.y, stop.yaw, solids, w.part_id)
+        assert not planner.exact_arm.colliding(
+            theta, stop.x, stop.y, stop.yaw, solids, w.part_id, scene.floor_clearance
+        )
         assert not planner.exact_self.colliding(theta[None])[0]
         assert w.hand == planner.hand.joints

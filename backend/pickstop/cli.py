@@ -15,6 +15,7 @@ import numpy as np
 
 from pickstop.argtypes import finite_float, positive_int
 from pickstop.errors import CorruptShardError, InputError, PickStopError
+from pickstop.robot.floor import FLOOR_CLEARANCE
 
 DEFAULT_SAMPLES = 2_000_000
 
@@ -77,12 +78,14 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
         "seed",
         "chunk_size",
         "thinning",
+        "floor_clearance",
         "code_version",
         "created",
         "completed",
         "build_seconds",
         "rejected_self_collision",
         "rejected_thinning",
+        "rejected_floor",
         "screen_false_rejection",
         "screen_flagged",
         "screen_samples",
@@ -119,6 +122,7 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
         seed=args.seed,
         chunk_size=args.chunk_size,
         thinning=args.thinning,
+        floor_clearance=args.floor_clearance,
     )
     params.validate()
     robot = load(args.robot)
@@ -663,6 +667,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=finite_float,
         default=0.0,
         help="manipulability reference w_ref: keep prob. min(1, w/w_ref); 0 = off",
+    )
+    b.add_argument(
+        "--floor-clearance",
+        type=finite_float,
+        default=FLOOR_CLEARANCE,
+        help="drop configurations with a moving link this close to the floor or below [m]",
     )
     b.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1)
     b.add_argument("--quiet", action="store_true", help="no progress bar")

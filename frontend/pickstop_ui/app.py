@@ -33,6 +33,8 @@ from pickstop_ui.geometry import (
     quat_yaw,
     ring_segments,
     route_segments,
+    tilt_quat,
+    tray_boxes,
     yaw_quat,
 )
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
@@ -228,30 +230,16 @@ class PlannerApp:
             position=(p.get("x", 0.0), p.get("y", 0.0), p.get("z", 0.0)),
             wxyz=yaw_quat(p.get("yaw", 0.0)),
         )
-        ix, iy = tray["inner_size"]
-        t, wh = tray.get("wall_thickness", 0.01), tray.get("wall_height", 0.06)
-        ft = tray.get("floor_thickness", 0.005)
-        sc.add_box(
-            f"{root}/floor",
-            dimensions=(ix + 2 * t, iy + 2 * t, ft),
-            color=colour,
-            position=(0, 0, -ft / 2),
-        )
-        for k, (dx, dy, sx, sy) in enumerate(
-            [
-                ((ix + t) / 2, 0, t, iy + 2 * t),
-                (-(ix + t) / 2, 0, t, iy + 2 * t),
-                (0, (iy + t) / 2, ix, t),
-                (0, -(iy + t) / 2, ix, t),
-            ]
-        ):
-            sc.add_box(
-                f"{root}/wall{k}", dimensions=(sx, sy, wh), color=colour, position=(dx, dy, wh / 2)
-            )
+        # Floor, walls and parts hang below a frame turned by the tray's tilt (a flow rack's
+        # slanted shelf), so they lie as the backend checks them.
+        body = f"{root}/body"
+        sc.add_frame(body, show_axes=False, wxyz=tilt_quat(tray.get("tilt")))
+        for name, dims, centre in tray_boxes(tray):
+            sc.add_box(f"{body}/{name}", dimensions=dims, color=colour, position=centre)
         for part in tray.get("parts", []):
             g, pp = part["geometry"], part.get("pose", {})
             pos = (pp.get("x", 0.0), pp.get("y", 0.0), pp.get("z", 0.0))
-            name = f"{root}/parts/{part['id']}"
+            name = f"{body}/parts/{part['id']}"
             if g["shape"] == "box":
                 sc.add_box(
                     name,
@@ -268,7 +256,8 @@ class PlannerApp:
                     color=(200, 200, 210),
                     position=(pos[0], pos[1], pos[2] + g["height"] / 2),
                 )
-        sc.add_label(f"{root}/label", tray.get("name") or tray["id"], position=(0, 0, 0.15))
+        above = tray.get("wall_height", 0.06) + 0.09
+        sc.add_label(f"{root}/label", tray.get("name") or tray["id"], position=(0, 0, above))
 
         @ctl.on_update
         def _(event: Any) -> None:

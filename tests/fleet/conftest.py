@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
-SCENES = ["paper_experiment", "five_trays", "factory_cell"]
+SCENES = ["paper_experiment", "five_trays", "factory_cell", "rack_cell"]
 
 
 def scene_of(name: str):

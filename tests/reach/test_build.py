@@ -24,7 +24,9 @@ def test_catalog_records_complete_build(small_db):
     assert len(info["shards"]) == params.n_chunks
     assert all(len(s["sha256"]) == 64 and s["bytes"] > 0 for s in info["shards"])
     assert 0 < row["stored"] <= params.samples
-    assert row["stored"] + row["rejected_self_collision"] == params.samples
+    assert row["rejected_floor"] > 0 and row["floor_clearance"] == params.floor_clearance
+    rejected = row["rejected_self_collision"] + row["rejected_floor"]
+    assert row["stored"] + rejected == params.samples
     assert row["robot_hash"] and row["code_version"] and row["build_seconds"] > 0
 
 
@@ -58,6 +60,35 @@ def test_stored_configurations_are_free_of_self_collision(small_db, small_loaded
     exact = ExactSelfCollision(tiago, disabled)
     rows = np.random.default_rng(1).choice(len(small_loaded), 500, replace=False)
     assert not exact.colliding(small_loaded.thetas(rows)).any()
+
+
+def test_stored_configurations_keep_every_link_above_the_floor(small_db, small_loaded, tiago):
+    """The exact check (coal, every moving link, the hand's too) on stored configurations."""
+    from pickstop.robot.floor import ExactFloor
+
+    rows = np.random.default_rng(2).choice(len(small_loaded), 500, replace=False)
+    clearance = small_db[2].floor_clearance
+    assert not ExactFloor(tiago).colliding(small_loaded.thetas(rows), clearance).any()
+
+
+def test_floor_clearance_is_part_of_the_database_identity(tiago):
+    from pickstop.reach.build import database_id
+
+    a = database_id(tiago.robot_hash, BuildParams(samples=10_000))
+    b = database_id(tiago.robot_hash, BuildParams(samples=10_000, floor_clearance=0.05))
+    assert a != b
+
+
+def test_a_larger_floor_clearance_drops_more(tmp_path, tiago):
+    low = build(tiago, BuildParams(samples=20_000, chunk_size=20_000), tmp_path, workers=1)
+    high = build(
+        tiago,
+        BuildParams(samples=20_000, chunk_size=20_000, floor_clearance=0.3),
+        tmp_path,
+        workers=1,
+    )
+    assert high["rejected_floor"] > low["rejected_floor"] > 0
+    assert high["stored"] < low["stored"]
 
 
 def _shas(folder):
@@ -130,6 +161,8 @@ def test_changed_config_is_another_robot(small_db, tmp_path):
         ({"samples": 10_000, "resolution": 0.0}, "resolution"),
         ({"samples": 10_000, "orientation": 0}, "orientation"),
         ({"samples": 10_000, "thinning": -1.0}, "thinning"),
+        ({"samples": 10_000, "floor_clearance": -0.01}, "floor_clearance"),
+        ({"samples": 10_000, "floor_clearance": float("nan")}, "floor_clearance"),
     ],
 )
 def test_bad_build_parameters(tmp_path, tiago, kwargs, field):

@@ -110,3 +110,45 @@ def test_neighbouring_part_blocks_a_grasp(hand):
     crowded = grasps_for_part(scene, scene.tray("tray_2"), scene.tray("tray_2").parts[0], hand)
     assert len(crowded.Ts_part_tool) < len(alone.Ts_part_tool)
     assert Pose() == Pose(x=0, y=0, z=0, yaw=0)
+
+
+@pytest.mark.parametrize(("axis", "angle"), [("x", 0.26), ("y", -0.3)])
+def test_tilted_tray_grasps_approach_along_its_tilted_normal(hand, axis, angle):
+    doc = json.loads(json.dumps(PAPER))
+    doc["trays"][0]["pose"]["z"] += 0.1  # lifted clear of the table, whatever the tilt
+    doc["trays"][0]["tilt"] = {"axis": axis, "angle": angle}
+    scene = parse_scene(doc)
+    tray = scene.tray("tray_1")
+    normal = world_part_transform(tray, tray.parts[0])[:3, 2]
+    assert abs(normal[2] - np.cos(angle)) < 1e-12
+    R_tcp_grasp = hand.R_grasp_tcp.T
+    for part in tray.parts:
+        gs = grasps_for_part(scene, tray, part, hand)
+        T_world_part = world_part_transform(tray, part)
+        assert "top" in gs.kinds
+        for T, kind in zip(gs.Ts_part_tcp, gs.kinds, strict=True):
+            approach = (T_world_part @ T)[:3, :3] @ R_tcp_grasp[:, 0]
+            if kind == "top":
+                assert np.allclose(approach, -normal, atol=1e-9)
+            else:  # side grasps run parallel to the tilted floor
+                assert abs(approach @ normal) < 1e-9
+        # The tool targets are the same grasp points, moved by the hand's tool offset.
+        assert np.allclose(gs.Ts_world_tool, T_world_part @ gs.Ts_part_tcp @ hand.T_tcp_tool)
+
+
+def test_grasps_too_close_to_the_floor_are_dropped(hand):
+    """A tray on the floor: top-down grasps put the open hand within the clearance."""
+    doc = json.loads(json.dumps(PAPER))
+    doc["obstacles"] = []
+    doc["trays"][0]["pose"]["z"] = doc["trays"][0]["floor_thickness"]
+    tray_id = doc["trays"][0]["id"]
+    counts = {}
+    for clearance in (0.0, 0.05):
+        doc["floor_clearance"] = clearance
+        scene = parse_scene(doc)
+        tray = scene.tray(tray_id)
+        sets = [grasps_for_part(scene, tray, p, hand) for p in tray.parts]
+        counts[clearance] = [(len(gs.kinds), gs.near_floor) for gs in sets]
+    assert all(n > 0 for n, _ in counts[0.0])
+    for (kept, near), (kept_high, near_high) in zip(counts[0.0], counts[0.05], strict=True):
+        assert kept_high < kept and near_high - near >= kept - kept_high

@@ -14,7 +14,7 @@ EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 PAPER = json.loads((EXAMPLES / "paper_experiment.json").read_text())
 
 
-@pytest.mark.parametrize("name", ["paper_experiment", "five_trays", "factory_cell"])
+@pytest.mark.parametrize("name", ["paper_experiment", "five_trays", "factory_cell", "rack_cell"])
 def test_examples_are_valid(name):
     scene = load_scene(EXAMPLES / f"{name}.json")
     assert scene.trays and scene.name
@@ -49,6 +49,48 @@ def _problems(mutate) -> list[tuple[str, str]]:
 
 def _has(problems, field, text):
     assert any(f == field and text in m for f, m in problems), problems
+
+
+def test_rack_cell_has_every_level():
+    """Floor bin, lower shelf, slanted flow-rack tray, upper shelf, table; the task needs all."""
+    scene = load_scene(EXAMPLES / "rack_cell.json")
+    heights = sorted(t.pose.z for t in scene.trays)
+    assert heights[0] < 0.05 and heights[-1] > 0.85
+    assert any(t.tilt is not None and 0.17 <= abs(t.tilt.angle) <= 0.35 for t in scene.trays)
+    assert scene.task_trays == [t.id for t in scene.trays]
+    boards = {o.id: o for o in scene.obstacles if "shelf" in o.id}
+    lower, upper = boards["lower_shelf"], boards["upper_shelf"]
+    assert abs(lower.pose.z + lower.geometry.size[2] - 0.25) < 0.01
+    assert abs(upper.pose.z + upper.geometry.size[2] - 0.90) < 0.01
+    # The upper board reaches further out than the lower one: it overhangs the lower trays.
+    front = {k: b.pose.y - b.geometry.size[1] / 2 for k, b in boards.items()}
+    assert front["upper_shelf"] < front["lower_shelf"] - 0.1
+
+
+def test_tilt_and_floor_clearance_are_checked():
+    p = _problems(lambda d: d["trays"][0].update(tilt={"axis": "z", "angle": 0.2}))
+    assert any(f.startswith("trays.0.tilt.axis") for f, _ in p), p
+    p = _problems(lambda d: d["trays"][0].update(tilt={"axis": "x", "angle": 1.2}))
+    _has(p, "trays.0.tilt.angle", "less than or equal to 0.8")
+    p = _problems(lambda d: d.update(floor_clearance=-0.01))
+    _has(p, "floor_clearance", "greater than or equal to 0")
+
+
+def test_a_tilted_tray_is_checked_by_its_tilted_outline():
+    """Tilted 0.6 rad about x, the tray's low edge dips into the table it sits on."""
+    p = _problems(lambda d: d["trays"][0].update(tilt={"axis": "x", "angle": 0.6}))
+    _has(p, "trays.0", "tray 'tray_1' intersects obstacle 'table_a'")
+    doc = copy.deepcopy(PAPER)
+    doc["trays"][0]["pose"]["z"] += 0.1
+    doc["trays"][0]["tilt"] = {"axis": "y", "angle": -0.6}
+    scene = parse_scene(doc)
+    from pickstop.scene.world import tray_body_solids, tray_transform
+
+    tray = scene.tray("tray_1")
+    T = tray_transform(tray)
+    assert abs(T[2, 2] - 0.8253356149) < 1e-9 and T[0, 2] < 0  # z turned towards -x
+    floor = tray_body_solids(tray)[0]
+    assert abs(floor.T_world_solid[:3, 2] @ T[:3, 2] - 1.0) < 1e-12
 
 
 def test_part_outside_its_tray():

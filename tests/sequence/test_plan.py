@@ -59,6 +59,20 @@ def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planne
     assert any("hand.boxes" in n for n in plan.notes)
 
 
+def test_rack_cell_plans_every_level_from_verified_stops(stop_planner, planner):
+    """Floor bin, lower shelf under the overhanging board, slanted flow-rack tray, upper
+    shelf and table: each served once, from stops whose witnesses keep clear of the floor."""
+    scene = parse_scene(json.loads((EXAMPLES / "rack_cell.json").read_text()))
+    plan = stop_planner.plan(scene, PlanOptions(samples=100))
+    served = sorted(t for s in plan.stops for t in s.trays)
+    assert served == sorted(scene.task_trays) and len(served) == 5
+    assert plan.totals.stops < len(scene.task_trays)
+    for s in plan.stops:
+        assert s.inscribed_radius >= plan.parameters.sigma
+        assert_stop_verified(planner, scene, s)
+        assert s.success is not None and s.success.rate > 0.5
+
+
 def test_route_joins_start_stops_goal_and_times_add_up(paper_plan):
     scene, plan = paper_plan
     assert plan.route[0] == pytest.approx((scene.start.x, scene.start.y))

@@ -13,6 +13,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, model_validator
 
 from pickstop.api.limits import Limits
+from pickstop.robot.floor import FLOOR_CLEARANCE, MAX_CLEARANCE
 from pickstop.sequence.plan_model import Plan, PlanOptions
 
 API_PREFIX = "/api/v1"
@@ -116,6 +117,8 @@ class DatabaseInfo(BaseModel):
     build_seconds: float | None = None
     rejected_self_collision: int | None = None
     rejected_thinning: int | None = None
+    floor_clearance: float | None = None
+    rejected_floor: int | None = None
     shards: int | None = None
     bytes: int | None = None
 
@@ -142,6 +145,13 @@ class BuildRequest(BaseModel):
     chunk_size: int = Field(default=250_000, ge=1000, le=5_000_000)
     thinning: float = Field(
         default=0.0, ge=0, lt=10, allow_inf_nan=False, description="thinning distance [rad]"
+    )
+    floor_clearance: float = Field(
+        default=FLOOR_CLEARANCE,
+        ge=0,
+        le=MAX_CLEARANCE,
+        allow_inf_nan=False,
+        description="configurations with a moving link this close to the floor are dropped [m]",
     )
 
 

@@ -1,4 +1,5 @@
-"""Build a reachability database: sample joints, FK, self-collision screen, bin, shard, index.
+"""Build a reachability database: sample joints, FK, floor and self-collision screens, bin,
+shard, index.
 
 The samples are cut into chunks; chunk ``c`` draws from ``default_rng([seed, c])`` and becomes
 one shard, so a chunk's content depends on nothing but its index: an interrupted build resumes
@@ -28,14 +29,22 @@ import pickstop
 from pickstop.errors import CorruptShardError, DatabaseError, InputError
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
+from pickstop.robot.floor import (
+    FLOOR_CLEARANCE,
+    MAX_CLEARANCE,
+    FloorSpheres,
+    below_floor,
+    floor_identity,
+)
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa, manipulability_soa
 from pickstop.robot.model import RobotModel
 from pickstop.store.catalog import Catalog
 from pickstop.store.reach_index import INDEX_FORMAT, check_file, file_sha256, index_files
 from pickstop.store.shards import ShardData, write_shard
 
-#: Bumped whenever a change alters what a build stores for the same inputs.
-FORMAT_VERSION = 1
+#: Bumped whenever a change alters what a build stores for the same inputs
+#: (2: configurations with a moving link below the floor clearance are dropped).
+FORMAT_VERSION = 2
 QUANT_LEVELS = 65535  # uint16 joint quantisation: theta = lower + u * (upper - lower) / 65535
 
 
@@ -49,6 +58,7 @@ class BuildParams:
     seed: int = 0
     chunk_size: int = 250_000
     thinning: float = 0.0  # manipulability reference w_ref; keep prob. min(1, w / w_ref); 0 = off
+    floor_clearance: float = FLOOR_CLEARANCE  # [m] moving links stay this far above the floor
 
     def validate(self) -> None:
         if not (1_000 <= self.samples <= 2_000_000_000):
@@ -70,6 +80,12 @@ class BuildParams:
             raise InputError(f"seed must be in [0, 2^63), got {self.seed}", field="seed")
         if not (0.0 <= self.thinning < 10.0) or not math.isfinite(self.thinning):
             raise InputError(f"thinning must be in [0, 10), got {self.thinning}", field="thinning")
+        c = self.floor_clearance
+        if not (math.isfinite(c) and 0.0 <= c <= MAX_CLEARANCE):
+            raise InputError(
+                f"floor_clearance must be in [0, {MAX_CLEARANCE}] m, got {c}",
+                field="floor_clearance",
+            )
 
     @property
     def n_chunks(self) -> int:
@@ -79,11 +95,13 @@ class BuildParams:
         return min(self.chunk_size, self.samples - chunk * self.chunk_size)
 
 
-def database_id(robot_hash: str, params: BuildParams) -> str:
-    """Deterministic id of the database ``params`` builds for the robot with ``robot_hash``."""
-    blob = json.dumps(
-        {"robot": robot_hash, "format": FORMAT_VERSION, **params.__dict__}, sort_keys=True
-    )
+def database_id(robot_hash: str, params: BuildParams, floor: str = "links") -> str:
+    """Deterministic id of the database ``params`` builds for the robot with ``robot_hash``.
+
+    floor: :func:`pickstop.robot.floor.floor_identity`, what the floor filter checks beyond
+    the robot hash (the stand-in hand boxes, whose config the robot hash leaves out)."""
+    doc = {"robot": robot_hash, "format": FORMAT_VERSION, "floor": floor, **params.__dict__}
+    blob = json.dumps(doc, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -93,6 +111,7 @@ class BuildKernel:
 
     chain: Chain
     spheres: Any  # selfcollision.SphereModel, or None for no self-collision filter
+    floor: FloorSpheres | None  # covers of the checked links and hand, None: no floor filter
     voxel: VoxelGrid
     lower: np.ndarray  # (dof,) quantisation range [rad or m]
     upper: np.ndarray  # (dof,)
@@ -113,6 +132,7 @@ class ChunkResult:
     rejected_self_collision: int
     rejected_thinning: int
     seconds: float
+    rejected_floor: int = 0
 
 
 def dequantise(joints: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -120,8 +140,11 @@ def dequantise(joints: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.n
     return lower + joints.astype(np.float64) * ((upper - lower) / QUANT_LEVELS)
 
 
-def compute_chunk_data(kernel: BuildKernel, chunk: int) -> tuple[ShardData, int, int]:
-    """Samples of one chunk -> (sorted shard data, rejected by self-collision, by thinning)."""
+def compute_chunk_data(kernel: BuildKernel, chunk: int) -> tuple[ShardData, int, int, int]:
+    """Samples of one chunk -> (sorted shard data, rejected by self-collision, by thinning, by
+    the floor).
+
+    The floor screen runs first (it is cheap); self-collision counts only what it kept."""
     p = kernel.params
     m = p.chunk_samples(chunk)
     dof = kernel.chain.dof
@@ -133,19 +156,24 @@ def compute_chunk_data(kernel: BuildKernel, chunk: int) -> tuple[ShardData, int,
     lower = kernel.lower[:, None]
 
     keys_parts, idx_parts, manip_parts = [], [], []
-    rej_self = rej_thin = 0
+    rej_self = rej_thin = rej_floor = 0
     for s in range(0, m, BLOCK):
         th = lower + u_t[:, s : s + BLOCK] * scale
         R, pos, frames = fk_soa(kernel.chain, th, frames=True)
         B = th.shape[1]
+        # Both screens see the whole block (one subset copy after them); a configuration
+        # below the floor counts as that, not as a self-collision.
+        low = np.zeros(B, bool)
+        if kernel.floor is not None:
+            low = below_floor(kernel.floor, frames, p.floor_clearance)
+            rej_floor += int(low.sum())
+        hit = np.zeros(B, bool)
         if kernel.spheres is not None:
             from pickstop.robot.selfcollision import screen
 
-            free = ~screen(kernel.spheres, frames)
-            rej_self += int(B - free.sum())
-            sel = np.flatnonzero(free)
-        else:
-            sel = np.arange(B)
+            hit = screen(kernel.spheres, frames) & ~low
+            rej_self += int(hit.sum())
+        sel = np.flatnonzero(~(low | hit))
         if len(sel) < B:
             frames = [(Rj[:, :, sel], pj[:, sel]) for Rj, pj in frames]
             R, pos = R[:, :, sel], pos[:, sel]
@@ -164,7 +192,7 @@ def compute_chunk_data(kernel: BuildKernel, chunk: int) -> tuple[ShardData, int,
     manip = np.concatenate(manip_parts)
     order = np.argsort(keys, kind="stable")
     data = ShardData(joints=u[idx[order]], manip=manip[order].astype(np.float16))
-    return data, rej_self, rej_thin
+    return data, rej_self, rej_thin, rej_floor
 
 
 def shard_relpath(db_id: str, chunk: int) -> str:
@@ -174,7 +202,7 @@ def shard_relpath(db_id: str, chunk: int) -> str:
 def compute_chunk(kernel: BuildKernel, chunk: int, data_dir: Path, db_id: str) -> ChunkResult:
     """Compute chunk ``chunk`` and write its shard atomically; safe to run anywhere, retried."""
     t0 = time.perf_counter()
-    data, rej_self, rej_thin = compute_chunk_data(kernel, chunk)
+    data, rej_self, rej_thin, rej_floor = compute_chunk_data(kernel, chunk)
     sha, nbytes = write_shard(data_dir / shard_relpath(db_id, chunk), data)
     return ChunkResult(
         chunk=chunk,
@@ -185,6 +213,7 @@ def compute_chunk(kernel: BuildKernel, chunk: int, data_dir: Path, db_id: str) -
         rejected_self_collision=rej_self,
         rejected_thinning=rej_thin,
         seconds=time.perf_counter() - t0,
+        rejected_floor=rej_floor,
     )
 
 
@@ -205,7 +234,7 @@ def _run_chunk(chunk: int, data_dir: Path, db_id: str) -> ChunkResult:
 
 
 def make_kernel(robot: RobotModel, params: BuildParams, data_dir: Path) -> BuildKernel:
-    """The build kernel of ``robot``: its chain, self-collision screen and voxel grid."""
+    """The build kernel of ``robot``: its chain, floor and self-collision screens, voxel grid."""
     from pickstop.robot.artifacts import self_collision
     from pickstop.settings import cache_dir
 
@@ -213,6 +242,7 @@ def make_kernel(robot: RobotModel, params: BuildParams, data_dir: Path) -> Build
     return BuildKernel(
         chain=Chain.from_robot(robot),
         spheres=spheres,
+        floor=FloorSpheres.of(robot),
         voxel=VoxelGrid(params.resolution, params.orientation),
         lower=robot.lower,
         upper=robot.upper,
@@ -277,6 +307,7 @@ def _register(catalog: Catalog, db_id: str, robot: RobotModel, params: BuildPara
         "seed": params.seed,
         "chunk_size": params.chunk_size,
         "thinning": params.thinning,
+        "floor_clearance": params.floor_clearance,
         "code_version": f"{pickstop.__version__}+format{FORMAT_VERSION}",
         "joint_lower": json.dumps(robot.lower.tolist()),
         "joint_upper": json.dumps(robot.upper.tolist()),
@@ -315,6 +346,7 @@ def _record(catalog: Catalog, db_id: str, res: ChunkResult) -> None:
             "samples": res.samples,
             "rejected_self_collision": res.rejected_self_collision,
             "rejected_thinning": res.rejected_thinning,
+            "rejected_floor": res.rejected_floor,
             "seconds": res.seconds,
         },
         replace=True,
@@ -393,7 +425,7 @@ def build(
     params.validate()
     data_dir = Path(data_dir)
     catalog = Catalog(data_dir)
-    db_id = database_id(robot.robot_hash, params)
+    db_id = database_id(robot.robot_hash, params, floor_identity(robot))
     row = _register(catalog, db_id, robot, params)
     t0 = time.perf_counter()
     done = _chunks_done(catalog, db_id, data_dir)
@@ -445,8 +477,8 @@ def build(
         )
     if len(done) == params.n_chunks:
         totals = catalog.query(
-            "SELECT SUM(rows) s, SUM(rejected_self_collision) c, SUM(rejected_thinning) t "
-            "FROM reach_shards WHERE db_id = ?",
+            "SELECT SUM(rows) s, SUM(rejected_self_collision) c, SUM(rejected_thinning) t, "
+            "SUM(rejected_floor) f FROM reach_shards WHERE db_id = ?",
             [db_id],
         )[0]
         catalog.table("reach_databases").update(
@@ -457,6 +489,7 @@ def build(
                 "stored": totals["s"],
                 "rejected_self_collision": totals["c"],
                 "rejected_thinning": totals["t"],
+                "rejected_floor": totals["f"],
             },
         )
     out = catalog.query("SELECT * FROM reach_databases WHERE id = ?", [db_id])[0]

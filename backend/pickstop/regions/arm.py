@@ -2,12 +2,13 @@
 
 Links are every collision link of the reduced model that moves with the arm (joints 1..n),
 the hand's own links included at their pre-grasp joint values. The part being grasped is no
-obstacle for the hand links (``target``); everything else is, for every link.
+obstacle for the hand links (``target``); everything else is, for every link. The floor is an
+obstacle too (``floor``: the clearance every link keeps above it [m]), for the arm's links and
+for the hand, its own links or the boxes that stand in for them (:mod:`pickstop.robot.floor`).
 """
 
 from __future__ import annotations
 
-import fnmatch
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -16,30 +17,12 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
+from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
 from pickstop.scene.world import BoxArrays, Solid, _coal, collide
 
 SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
-
-
-def arm_links(robot: RobotModel) -> list[Any]:
-    """Collision links on moving arm bodies, the hand's included unless boxes stand in for
-    them (``hand.geometry: boxes``; sorted by name)."""
-    from pickstop.robot.link_geometry import collision_links
-
-    boxes = robot.config.hand.geometry == "boxes"
-    return sorted(
-        (
-            link
-            for link in collision_links(robot)
-            if link.joint != 0 and not (boxes and is_hand_link(robot, link.name))
-        ),
-        key=lambda link: link.name,
-    )
-
-
-def is_hand_link(robot: RobotModel, name: str) -> bool:
-    return any(fnmatch.fnmatch(name, p) for p in robot.config.hand.links)
 
 
 def arm_geometry_ids(robot: RobotModel) -> list[int]:
@@ -71,6 +54,7 @@ class ArmSpheres:
     leaf_link: np.ndarray  # (S,) link of each covering sphere
     leaf_c: np.ndarray  # (S, 3)
     leaf_r: np.ndarray  # (S,)
+    floor: FloorSpheres  # the leaves, and the stand-in hand's hull points, per joint
 
     @classmethod
     def of(cls, robot: RobotModel, excess: float = SPHERE_EXCESS) -> ArmSpheres:
@@ -89,6 +73,9 @@ class ArmSpheres:
             ll += [k] * len(s)
             lc.append(s[:, :3])
             lr.append(s[:, 3])
+        floor = FloorSpheres.with_hand(
+            robot, np.array(joints)[np.array(ll)], np.concatenate(lc), np.concatenate(lr)
+        )
         return cls(
             np.array(joints),
             np.array(hand, dtype=bool),
@@ -97,6 +84,7 @@ class ArmSpheres:
             np.array(ll),
             np.concatenate(lc),
             np.concatenate(lr),
+            floor,
         )
 
 
@@ -127,29 +115,31 @@ def screen_arm(
     yaw: float,
     envelope: Any = None,
     targets: Sequence[str] | np.ndarray | str | None = None,
+    floor: float | None = None,
 ) -> np.ndarray:
-    """``(B,)`` True where the arm may touch a solid; False is guaranteed free.
+    """``(B,)`` True where the arm may touch a solid or the floor; False is guaranteed free.
 
     frames: :func:`fk_soa` joint frames of B configurations (base frame); base_xy: (B, 2).
     envelope: if given, the owners of the solids that flagged a configuration are recorded.
     targets: the part each configuration grasps (one for all, or one per configuration): no
-    obstacle for the hand links.
+    obstacle for the hand links. floor: the clearance [m] every link and the hand keep above
+    the floor (None: the floor is not checked).
     """
     from pickstop.scene.world import spheres_hit
 
     B = base_xy.shape[0]
     if B == 0:
         return np.zeros(B, bool)
-    bw = _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
+    flagged = np.zeros(B, bool) if floor is None else below_floor(spheres.floor, frames, floor)
     if len(boxes.centres) == 0:
-        return np.zeros(B, bool)
+        return flagged
+    bw = _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
     L = len(spheres.bound_r)
     code = owner_codes(boxes, targets, B)  # (B,)
     skip = np.where(spheres.is_hand[None, :], code[:, None], -1)  # (B, L)
     hit_link = spheres_hit(
         boxes, bw.reshape(-1, 3), np.tile(spheres.bound_r, B), skip=skip.ravel()
     ).reshape(B, L)
-    flagged = np.zeros(B, bool)
     cfg, lnk = np.nonzero(hit_link)
     if len(cfg) == 0:
         return flagged
@@ -195,6 +185,18 @@ class ExactArm:
             geom.computeLocalAABB()
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
             self.local_boxes.append(((lo + hi) / 2, (hi - lo) / 2))
+        self.floor = ExactFloor(robot)
+
+    def below_floor(self, clearance: float) -> list[str]:
+        """After :meth:`place`: the arm geometries, and the stand-in hand boxes
+        (``hand:<k>``), reaching ``z <= clearance`` [m] (the floor is z = 0 of the base)."""
+        return self.floor.placed_below(self.data, self.gdata, clearance)
+
+    def place(self, theta: np.ndarray) -> None:
+        """Forward kinematics and geometry placements (base frame) of ``theta: (dof,)``."""
+        q = self.robot.angles_to_q(theta)
+        pin.forwardKinematics(self.robot.model, self.data, q)
+        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
 
     def colliding(
         self,
@@ -204,28 +206,46 @@ class ExactArm:
         yaw: float,
         solids: list[Solid],
         target: str | None = None,
+        floor: float | None = None,
     ) -> bool:
-        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``?
+        """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``, or
+        come within ``floor`` [m] of the floor (None: the floor is not checked)?
 
         target: the part being grasped, no obstacle for the hand links.
         """
-        q = self.robot.angles_to_q(theta)
-        pin.forwardKinematics(self.robot.model, self.data, q)
-        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
+        self.place(theta)
+        if floor is not None and self.below_floor(floor):
+            return True
+        if not solids:
+            return False
         T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
-        boxes = [(s, *s.aabb()) for s in solids]
-        for i, hand, (c_local, h_local) in zip(self.ids, self.hand, self.local_boxes, strict=True):
-            g = self.robot.geom_model.geometryObjects[i]
-            M = T_wb * self.gdata.oMg[i]
-            c = M.rotation @ c_local + M.translation
-            h = np.abs(M.rotation) @ h_local
-            tf = coal.Transform3s(M.rotation, M.translation)
-            for s, lo, hi in boxes:
-                if np.any(c - h > hi) or np.any(c + h < lo) or (hand and s.owner == target):
-                    continue
-                gs, ts = _coal(s)
-                if collide(g.geometry, tf, gs, ts):
-                    return True
+        bounds = [s.aabb() for s in solids]
+        lo = np.array([b[0] for b in bounds])  # (K, 3)
+        hi = np.array([b[1] for b in bounds])
+        placed = [T_wb * self.gdata.oMg[i] for i in self.ids]
+        c = np.array(
+            [
+                M.rotation @ cl + M.translation
+                for M, (cl, _) in zip(placed, self.local_boxes, strict=True)
+            ]
+        )
+        h = np.array(
+            [np.abs(M.rotation) @ hl for M, (_, hl) in zip(placed, self.local_boxes, strict=True)]
+        )
+        # Geometry g and solid k can touch only where their world bounding boxes overlap.
+        near = ~(
+            (c[:, None] - h[:, None] > hi[None]).any(-1)
+            | (c[:, None] + h[:, None] < lo[None]).any(-1)
+        )
+        if target is not None:
+            own = np.array([s.owner == target for s in solids])
+            near &= ~(np.array(self.hand)[:, None] & own[None])
+        for g, k in zip(*np.nonzero(near), strict=True):
+            M = placed[g]
+            geom = self.robot.geom_model.geometryObjects[self.ids[g]].geometry
+            gs, ts = _coal(solids[k])
+            if collide(geom, coal.Transform3s(M.rotation, M.translation), gs, ts):
+                return True
         return False
 
 

@@ -141,6 +141,7 @@ class RegionPlanner:
             "yaw": yaw,
             "grid": [scene.grid_extent.model_dump(), scene.base_grid.resolution],
             "floor": scene.floor.model_dump(),
+            "floor_clearance": scene.floor_clearance,
             "gripper": scene.gripper.model_dump(),
             "hand": self.hand.key,
             "robot": self.robot.robot_hash,
@@ -237,7 +238,7 @@ class RegionPlanner:
         space of its open hands changes (other trays elsewhere may move freely)."""
         others = self._bounds_of(scene, tray.id)
         tray_json = tray.model_dump_json()
-        gripper_json = scene.gripper.model_dump_json() + self.hand.key
+        gripper_json = f"{scene.gripper.model_dump_json()}{self.hand.key}|{scene.floor_clearance}"
         out = []
         for part in tray.parts:
             key = f"{tray_json}|{part.id}|{gripper_json}"
@@ -420,9 +421,11 @@ def compute_tray_region(
             )
             return empty(
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
-                "fits the robot's open hand without touching the tray, a neighbour or a table" + low
+                "fits the robot's open hand without touching the tray, a neighbour or a table, "
+                f"or coming within the floor clearance of {scene.floor_clearance:.3f} m "
+                f"({gs.near_floor} of them too close to the floor)" + low
             )
-    world = ArmWorld(boxes, solids, yaw, env)
+    world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance)
     targets = [Targets.of(gs, cen, Rz_T) for gs in grasp_sets]
     # Cells the database cannot serve for some part are left to the growth below.
     alive = np.flatnonzero(solve.served(planner.db, targets))
@@ -499,7 +502,9 @@ def feasible_at(
     if not P:
         return np.zeros(M, bool), thetas, grasp
     _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
-    world = ArmWorld(boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max))
+    world = ArmWorld(
+        boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max), scene.floor_clearance
+    )
     for k, gs in enumerate(planner.grasps(scene, tray)):
         if len(alive) == 0 or len(gs.Ts_world_tool) == 0:
             return np.zeros(M, bool), thetas, grasp
@@ -537,7 +542,9 @@ def feasible_near(
         return ok, thetas, grasp
     tray = scene.tray(region.tray_id)
     _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
-    world = ArmWorld(boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max))
+    world = ArmWorld(
+        boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max), scene.floor_clearance
+    )
     cells_xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
     S = min(NEIGHBOUR_SEEDS, len(cells_xy))
     d2 = ((xy[todo, None, :] - cells_xy[None]) ** 2).sum(-1)

@@ -159,6 +159,7 @@ class _Setup:
     boxes: BoxArrays
     bound: ReachBound
     stats: dict[str, int]
+    floor: float  # [m] the scene's floor clearance
 
     def targets(self, k: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Part ``k``'s grasp targets from candidate ``cells: (M,)``: R (G, 3, 3), p (M, G, 3)."""
@@ -178,7 +179,7 @@ class _Setup:
             _, _, frames = fk_soa(pl.solver.chain, th, frames=True)
             cen = self.cand.centres[cells[s : s + CHUNK]]
             env[s : s + CHUNK] = screen_arm(
-                pl.arm, self.boxes, frames, cen, self.yaw, targets=target
+                pl.arm, self.boxes, frames, cen, self.yaw, targets=target, floor=self.floor
             )
             own[s : s + CHUNK] = screen(pl.self_spheres, frames)
         return env, own
@@ -194,7 +195,7 @@ class _Setup:
         return not (
             env
             and self.planner.exact_arm.colliding(
-                theta, float(x), float(y), self.yaw, self.solids, target
+                theta, float(x), float(y), self.yaw, self.solids, target, self.floor
             )
         )
 
@@ -213,6 +214,7 @@ def _setup(
         boxes,
         ReachBound.of(planner.solver),
         {"ik_problems": 0, "ik_converged": 0, "exact_checks": 0},
+        scene.floor_clearance,
     )
 
 
@@ -476,6 +478,7 @@ def verify_witnesses(planner: RegionPlanner, scene: Scene, region: TrayRegion) -
                 region.yaw,
                 solids,
                 region.part_ids[i % P],
+                scene.floor_clearance,
             )
             for i, t in enumerate(th)
         ]

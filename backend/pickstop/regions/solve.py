@@ -24,6 +24,7 @@ from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import screen_arm
 from pickstop.regions.envelope import Envelope
+from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
 from pickstop.scene.grasps import GraspSet
@@ -67,12 +68,14 @@ class Targets:
 
 @dataclass(frozen=True)
 class ArmWorld:
-    """What the arm is checked against near one tray, at one base yaw."""
+    """What the arm is checked against near one tray, at one base yaw: the solids and the
+    floor, which every link keeps ``floor`` [m] away from (the scene's floor_clearance)."""
 
     boxes: BoxArrays
     solids: list[Solid]
     yaw: float  # [rad]
     env: Envelope
+    floor: float = FLOOR_CLEARANCE
 
 
 def served(db: ReachDatabase, targets: list[Targets]) -> np.ndarray:
@@ -212,6 +215,7 @@ def _rounds(
                     world.yaw,
                     world.env,
                     tg.grasps.part_id,
+                    world.floor,
                 )
                 state[sel] = np.where(hit, 2, 1)
         cand = np.flatnonzero((state == 1) & ~found[cell])
@@ -257,8 +261,8 @@ def verify(
     targets: np.ndarray | str | None = None,
 ) -> np.ndarray:
     """``(B,)`` True where ``thetas: (B, dof)`` on a base at ``base_xy: (B, 2)`` is free of the
-    scene and of itself, the robot's whole collision geometry (hand included) checked: the
-    sphere screens first, coal for whatever they flag.
+    scene, of the floor and of itself, the robot's whole collision geometry (hand included)
+    checked: the sphere screens first, coal for whatever they flag.
 
     owner: ``(B,)`` the problem each row solves; once one row of a problem is verified, the
     coal checks of its other flagged rows are skipped (they count as not verified).
@@ -266,7 +270,9 @@ def verify(
     """
     p = planner
     _, _, frames = fk_soa(p.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
-    env_hit = screen_arm(p.arm, world.boxes, frames, base_xy, world.yaw, world.env, targets)
+    env_hit = screen_arm(
+        p.arm, world.boxes, frames, base_xy, world.yaw, world.env, targets, world.floor
+    )
     self_hit = screen_self(p.self_spheres, frames)
     flagged = env_hit | self_hit
     good = ~flagged
@@ -278,7 +284,8 @@ def verify(
         x, y = base_xy[j]
         target = targets if targets is None or isinstance(targets, str) else str(targets[j])
         bad = (self_hit[j] and p.exact_self.colliding(thetas[j][None])[0]) or (
-            env_hit[j] and p.exact_arm.colliding(thetas[j], x, y, world.yaw, world.solids, target)
+            env_hit[j]
+            and p.exact_arm.colliding(thetas[j], x, y, world.yaw, world.solids, target, world.floor)
         )
         good[j] = not bad
         if not bad and o is not None:
@@ -425,4 +432,4 @@ def grow(
 
 
 #: Changes whenever the algorithm's answer may change (part of a cached region's key).
-VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 7]
+VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 8]

@@ -11,6 +11,7 @@ Cut into small *elements* (sub-triangles, grid cells, padded centres) it feeds t
 
 from __future__ import annotations
 
+import fnmatch
 import re
 from collections import defaultdict
 from collections.abc import Callable
@@ -45,6 +46,24 @@ def collision_links(robot: RobotModel) -> tuple[CollisionLink, ...]:
         if joint.setdefault(name, int(obj.parentJoint)) != obj.parentJoint:
             raise RobotConfigError(f"link {name!r} has geometries on two joints")
     return tuple(CollisionLink(n, joint[n], tuple(g)) for n, g in ids.items())
+
+
+def arm_links(robot: RobotModel) -> list[Any]:
+    """Collision links on moving arm bodies, the hand's included unless boxes stand in for
+    them (``hand.geometry: boxes``; sorted by name)."""
+    boxes = robot.config.hand.geometry == "boxes"
+    return sorted(
+        (
+            link
+            for link in collision_links(robot)
+            if link.joint != 0 and not (boxes and is_hand_link(robot, link.name))
+        ),
+        key=lambda link: link.name,
+    )
+
+
+def is_hand_link(robot: RobotModel, name: str) -> bool:
+    return any(fnmatch.fnmatch(name, p) for p in robot.config.hand.links)
 
 
 class _Triangles:

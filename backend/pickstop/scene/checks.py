@@ -38,22 +38,32 @@ def height(geometry: Box | Cylinder | Mesh) -> float | None:
     return None
 
 
+def tray_corners(tray: Tray) -> list[tuple[float, float, float]]:
+    """World corners of the tray's outer box (floor bottom to wall top), tilt included."""
+    ox, oy = tray.outer_size
+    R = tray.tilt.matrix() if tray.tilt is not None else [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+    c, s = math.cos(tray.pose.yaw), math.sin(tray.pose.yaw)
+    out = []
+    for x in (-ox / 2, ox / 2):
+        for y in (-oy / 2, oy / 2):
+            for z in (-tray.floor_thickness, tray.wall_height):
+                tx, ty, tz = (R[i][0] * x + R[i][1] * y + R[i][2] * z for i in range(3))
+                out.append((tray.pose.x + c * tx - s * ty, tray.pose.y + s * tx + c * ty,
+                            tray.pose.z + tz))  # fmt: skip
+    return out
+
+
 def tray_footprint(tray: Tray) -> Polygon:
-    return rect(tray.pose.x, tray.pose.y, tray.pose.yaw, *tray.outer_size)
+    if tray.tilt is None:
+        return rect(tray.pose.x, tray.pose.y, tray.pose.yaw, *tray.outer_size)
+    hull = shapely.MultiPoint([(x, y) for x, y, _ in tray_corners(tray)]).convex_hull
+    assert isinstance(hull, Polygon)
+    return hull
 
 
 def tray_z_range(tray: Tray) -> tuple[float, float]:
-    return (tray.pose.z - tray.floor_thickness, tray.pose.z + tray.wall_height)
-
-
-def part_world_pose(tray: Tray, part_pose: Pose) -> Pose:
-    c, s = math.cos(tray.pose.yaw), math.sin(tray.pose.yaw)
-    return Pose(
-        x=tray.pose.x + c * part_pose.x - s * part_pose.y,
-        y=tray.pose.y + s * part_pose.x + c * part_pose.y,
-        z=tray.pose.z + part_pose.z,
-        yaw=tray.pose.yaw + part_pose.yaw,
-    )
+    zs = [z for _, _, z in tray_corners(tray)]
+    return (min(zs), max(zs))
 
 
 def _overlap(a: BaseGeometry, b: BaseGeometry) -> bool:
@@ -102,11 +112,11 @@ def check_scene(scene: Scene) -> list[tuple[str, str]]:
         fp = tray_footprint(tray)
         if not floor.contains(fp):
             problems.append((f"{where}.pose", f"tray {tray.id!r} is not inside the floor"))
-        inner = rect(tray.pose.x, tray.pose.y, tray.pose.yaw, *tray.inner_size)
+        # Parts are checked in the tray's own frame (the same whether or not it is tilted).
+        inner = rect(0.0, 0.0, 0.0, *tray.inner_size)
         part_fps: list[tuple[int, BaseGeometry]] = []
         for k, part in enumerate(tray.parts):
-            pw = part_world_pose(tray, part.pose)
-            pfp = footprint(part.geometry, pw)
+            pfp = footprint(part.geometry, part.pose)
             if pfp is None:
                 continue
             if not inner.buffer(TOUCH).contains(pfp):

@@ -6,7 +6,9 @@ its closing direction (the robot config says which TCP axes those are). Top-down
 approach along -z at several angles about the vertical; side grasps approach horizontally with
 the closing direction horizontal or vertical. A grasp whose open hand (the robot's own hand
 geometry, at its pre-grasp joint values) would touch the tray walls, the tray floor, the table
-or a neighbouring part is dropped; the target part itself is never an obstacle for the fingers.
+or a neighbouring part, or come within the scene's floor clearance of the floor, is dropped; the
+target part itself is never an obstacle for the fingers. Grasps live in the part frame, which
+sits on the tray's floor: in a tilted tray they approach along its tilted normal.
 The scene's ``gripper`` block tunes which grasps are generated, never the hand's geometry.
 """
 
@@ -19,7 +21,14 @@ import numpy as np
 
 from pickstop.robot.hand import HandShape
 from pickstop.scene.model import Box, Cylinder, Gripper, Mesh, Part, Scene, Tray
-from pickstop.scene.world import Solid, _Offset, solids_overlap, tray_solids, world_part_transform
+from pickstop.scene.world import (
+    Solid,
+    _Offset,
+    solid_below,
+    solids_overlap,
+    tray_solids,
+    world_part_transform,
+)
 
 FLOOR_CLEARANCE = 0.003  # [m] between the lowest point of a top-down hand and the tray floor
 
@@ -35,9 +44,10 @@ class GraspSet:
     Ts_part_tcp: np.ndarray
     Ts_world_tool: np.ndarray
     kinds: tuple[str, ...]
-    rejected: int  # generated but blocked by the tray, table or neighbours
+    rejected: int  # generated but blocked by the tray, table, neighbours or the floor
     user_given: bool
     too_low: bool = False  # no top-down grasp: the open hand reaches below the tray floor
+    near_floor: int = 0  # of the rejected: the open hand within the floor clearance
 
     @property
     def Ts_part_tool(self) -> np.ndarray:
@@ -160,8 +170,12 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
     cands = _candidates(scene, tray, part, hand)
     obstacles = tray_solids(scene, tray, exclude_part=part.id)
     kept, kinds = [], []
+    near_floor = 0
     for T_part_tcp, kind in cands:
         solids = hand_solids(hand, T_world_part @ T_part_tcp)
+        if any(solid_below(a, scene.floor_clearance) for a in solids):
+            near_floor += 1
+            continue
         if not any(solids_overlap(a, b) for a in solids for b in obstacles):
             kept.append(T_part_tcp)
             kinds.append(kind)
@@ -180,4 +194,5 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
         rejected=len(cands) - len(kept),
         user_given=part.grasps is not None,
         too_low=too_low,
+        near_floor=near_floor,
     )

@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from pickstop.errors import InputError
+from pickstop.robot.floor import FLOOR_CLEARANCE, MAX_CLEARANCE
 
 FORMAT = "pickstop.scene"
 VERSION = 1
@@ -112,12 +113,32 @@ class Part(_Strict):
     grasps: list[Grasp] | None = None  # override generated grasps
 
 
+MAX_TILT = 0.8  # [rad], about 46 degrees
+
+
+class Tilt(_Strict):
+    """A rotation of a tray about its own x or y axis [rad], as on a flow rack's slanted
+    shelf (10-20 degrees); positive turns y towards z (axis x) or z towards x (axis y)."""
+
+    axis: Literal["x", "y"]
+    angle: Annotated[float, Field(ge=-MAX_TILT, le=MAX_TILT, allow_inf_nan=False)]
+
+    def matrix(self) -> list[list[float]]:
+        """``R_yawed_tray`` (3 x 3): the tilt, applied after the tray's yaw."""
+        c, s = math.cos(self.angle), math.sin(self.angle)
+        if self.axis == "x":
+            return [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]
+        return [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
+
+
 class Tray(_Strict):
-    """An open box on a table. Its frame: centre of the inner floor, x along ``inner_size[0]``."""
+    """An open box on a table or shelf. Its frame: centre of the inner floor, x along
+    ``inner_size[0]``, z along the floor's normal (tilted with the tray)."""
 
     id: Ident
     name: str = ""
     pose: Pose  # inner floor centre in the world [m], yaw [rad]
+    tilt: Tilt | None = None  # about the tray's own x or y axis, after the yaw
     inner_size: tuple[Positive, Positive]  # [m]
     wall_height: Positive = 0.06
     wall_thickness: Positive = 0.01
@@ -252,6 +273,8 @@ class Scene(_Strict):
     name: str = ""
     description: str = ""
     floor: Extent
+    # Every robot link, the hand's included, keeps this far above the floor [m].
+    floor_clearance: Annotated[float, Field(ge=0, le=MAX_CLEARANCE)] = FLOOR_CLEARANCE
     robot: RobotRef = RobotRef()
     gripper: Gripper = Gripper()
     obstacles: list[Obstacle] = Field(default_factory=list)

@@ -30,12 +30,16 @@ def pose_matrix(pose: Pose, dz: float = 0.0) -> np.ndarray:
 
 
 def tray_transform(tray: Tray) -> np.ndarray:
-    """``T_world_tray``: the inner floor centre, z up."""
-    return pose_matrix(tray.pose)
+    """``T_world_tray``: the inner floor centre, z along the floor's normal (up unless the
+    tray is tilted about its own x or y axis)."""
+    T = pose_matrix(tray.pose)
+    if tray.tilt is not None:
+        T[:3, :3] = T[:3, :3] @ np.array(tray.tilt.matrix())
+    return T
 
 
 def world_part_transform(tray: Tray, part: Part) -> np.ndarray:
-    """``T_world_part``: the part's bottom centre, z up."""
+    """``T_world_part``: the part's bottom centre, z along its tray floor's normal."""
     return tray_transform(tray) @ pose_matrix(part.pose)
 
 
@@ -132,6 +136,18 @@ def solids_overlap(a: Solid, b: Solid) -> bool:
     ga, ta = _coal(a)
     gb, tb = _coal(b)
     return collide(ga, ta, gb, tb)
+
+
+def solid_below(s: Solid, clearance: float) -> bool:
+    """Exact (coal): does ``s`` reach down to ``z <= clearance`` [m] (the floor is z = 0)?"""
+    from pickstop.robot.floor import geometry_below
+
+    if s.aabb()[0][2] > clearance:
+        return False
+    g, t = _coal(s)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = t.getRotation(), t.getTranslation()
+    return geometry_below(g, T, clearance)
 
 
 def tray_body_solids(tray: Tray) -> list[Solid]:

@@ -1,0 +1,166 @@
+"""The layers are one-way: the core plans without the service, the planner UI is only a client.
+
+- Importing the core (robot, reach, scene, regions, sequence) loads no web framework, UI or
+  SQLite: it runs in a batch job, a Dask worker or a notebook as it is.
+- The planner UI (``pickstop_ui``) imports nothing of the backend but the shared plan schema
+  (``pickstop.sequence.plan_model``) and the frames module; robot geometry and everything
+  else come over the REST API.
+- The backend never imports the UI, except the two places that wire the programs together
+  (the command line and the stack that starts the API and the planner side by side).
+- No two modules import each other, directly or round a longer cycle (imports inside
+  functions and under ``TYPE_CHECKING`` count: a cycle is a cycle however it is hidden).
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).parents[1]
+PACKAGES = {
+    "pickstop": ROOT / "backend" / "pickstop",
+    "pickstop_ui": ROOT / "frontend" / "pickstop_ui",
+}
+CORE = [
+    "pickstop.robot",
+    "pickstop.reach",
+    "pickstop.scene",
+    "pickstop.regions",
+    "pickstop.sequence",
+]
+FORBIDDEN_IN_CORE = ("fastapi", "starlette", "uvicorn", "viser", "sqlite3", "sqlite_utils")
+UI_MAY_IMPORT = ("pickstop.sequence.plan_model", "pickstop.frames")
+WIRING = ("pickstop.cli", "pickstop.stack")
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for top, root in PACKAGES.items():
+        for f in root.rglob("*.py"):
+            parts = [top, *f.relative_to(root).with_suffix("").parts]
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = f
+    return out
+
+
+MODULES = _modules()
+
+
+def _resolve(name: str) -> str | None:
+    while name and name not in MODULES:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+def _imports(module: str) -> set[str]:
+    """The project modules ``module`` imports anywhere in its text (not its parent packages)."""
+    path = MODULES[module]
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*up, base] if base else up)
+            names = [base] + [f"{base}.{a.name}" for a in node.names]
+        for n in names:
+            target = _resolve(n)
+            if target and target != module and not module.startswith(target + "."):
+                found.add(target)
+    return found
+
+
+GRAPH = {m: _imports(m) for m in MODULES}
+
+
+def _cycles() -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan, iterative)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    counter = 0
+    for root in sorted(GRAPH):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(GRAPH[root])))]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on.add(root)
+        while work:
+            v, it = work[-1]
+            for w in it:
+                if w not in index:
+                    index[w] = low[w] = counter
+                    counter += 1
+                    stack.append(w)
+                    on.add(w)
+                    work.append((w, iter(sorted(GRAPH[w]))))
+                    break
+                if w in on:
+                    low[v] = min(low[v], index[w])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[v])
+                if low[v] == index[v]:
+                    comp = []
+                    while True:
+                        w = stack.pop()
+                        on.discard(w)
+                        comp.append(w)
+                        if w == v:
+                            break
+                    if len(comp) > 1:
+                        out.append(sorted(comp))
+    return out
+
+
+def test_no_import_cycles():
+    assert _cycles() == []
+
+
+def test_the_cycle_finder_finds_cycles(monkeypatch):
+    monkeypatch.setitem(GRAPH, "pickstop.sequence.plan_model", {"pickstop.sequence.plan"})
+    assert ["pickstop.sequence.plan", "pickstop.sequence.plan_model"] in _cycles()
+
+
+@pytest.mark.parametrize("package", CORE)
+def test_the_core_loads_no_service_ui_or_sqlite(package):
+    code = (
+        "import importlib, pkgutil, sys\n"
+        f"pkg = importlib.import_module({package!r})\n"
+        "for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + '.'):\n"
+        "    importlib.import_module(m.name)\n"
+        f"print(' '.join(sorted(set(sys.modules) & set({FORBIDDEN_IN_CORE!r}))))\n"
+    )
+    env_path = f"{ROOT / 'backend'}"
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True,
+        env={"PYTHONPATH": env_path, "PATH": "/usr/bin:/bin"},
+    )  # fmt: skip
+    assert out.stdout.split() == [], f"importing {package} loads {out.stdout.strip()}"
+
+
+def test_the_ui_imports_only_the_plan_schema_of_the_backend():
+    for m, targets in GRAPH.items():
+        if m.startswith("pickstop_ui"):
+            backend = {t for t in targets if t.startswith("pickstop.")}
+            assert backend <= set(UI_MAY_IMPORT) | {"pickstop", "pickstop.sequence"}, (m, backend)
+
+
+def test_the_backend_imports_the_ui_only_where_the_programs_are_wired():
+    for m, targets in GRAPH.items():
+        if m.startswith("pickstop.") and any(t.startswith("pickstop_ui") for t in targets):
+            assert m in WIRING, m
