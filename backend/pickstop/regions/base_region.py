@@ -26,6 +26,7 @@ from pickstop.regions import solve
 from pickstop.regions.arm import ArmSpheres, ExactArm, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import blocked_by, footprint_check, footprint_free
+from pickstop.regions.reuse import ReuseCache, TrayAnchor, grasps_digest
 from pickstop.regions.solve import ArmWorld, Targets
 from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.robot.kinematics import fk_soa
@@ -109,6 +110,7 @@ class RegionPlanner:
     reach_xy: float = field(init=False)
     cache: dict[str, list[_CacheEntry]] = field(default_factory=dict)
     grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
+    reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
     _memo: dict[str, Any] = field(default_factory=dict, repr=False)  # hand spaces, bounds
     cache_size: int = 256
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
@@ -417,9 +419,14 @@ def compute_tray_region(
                 "fits the robot's open hand without touching the tray, a neighbour or a table" + low
             )
     world = ArmWorld(boxes, solids, yaw, env)
-    targets = [Targets.of(gs, cen, Rz_T) for gs in grasp_sets]
+    anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
+    memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
+    keys = anchor.cell_keys(IX, IY)
+    targets = [Targets.of(gs, cen, Rz_T, keys, memo) for gs in grasp_sets]
     # Cells the database cannot serve for some part are left to the growth below.
-    alive = np.flatnonzero(solve.served(planner.db, targets))
+    alive = np.flatnonzero(
+        memo.served(keys, lambda idx: solve.served(planner.db, [t.take(idx) for t in targets]))
+    )
     counts["served"] = len(alive)
     witness = np.zeros((len(IX), len(part_ids), robot.dof))
     grasp_of = np.zeros((len(IX), len(part_ids)), int)
@@ -461,6 +468,33 @@ def compute_tray_region(
         key,
         env,
     )
+
+
+def reuse_key(
+    planner: RegionPlanner,
+    scene: Scene,
+    tray: Tray,
+    yaw: float,
+    anchor: TrayAnchor,
+    grasp_sets: list[GraspSet],
+) -> str:
+    """What the refinements from cells anchored to ``tray`` depend on: everything the region
+    does except the tray's position in whole cells and the rest of the scene."""
+    pose = tray.pose.model_dump()
+    pose.pop("x"), pose.pop("y")
+    blob = {
+        "tray": tray.model_dump(exclude={"pose", "name"}),
+        "pose": pose,
+        "phase": anchor.phase,
+        "yaw": yaw,
+        "res": scene.base_grid.resolution,
+        "hand": planner.hand.key,
+        "robot": planner.robot.robot_hash,
+        "db": planner.db.id,
+        "algo": solve.VERSION,
+        "grasps": grasps_digest(tray, grasp_sets),
+    }
+    return hashlib.sha256(json.dumps(blob, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def tray_world(
