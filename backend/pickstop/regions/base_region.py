@@ -111,6 +111,9 @@ class RegionPlanner:
     cache: dict[str, list[_CacheEntry]] = field(default_factory=dict)
     grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
     reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
+    _layouts: dict[str, dict[tuple[str, float], TrayRegion]] = field(
+        default_factory=dict, repr=False
+    )  # the regions of the last layouts
     _memo: dict[str, Any] = field(default_factory=dict, repr=False)  # hand spaces, bounds
     cache_size: int = 256
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
@@ -165,13 +168,25 @@ class RegionPlanner:
         ``workers``); they are forked from this process, so they share its database.
         """
         pairs = [(t, y) for t in scene.task_trays for y in scene.base_yaw.yaws]
+        # The regions are a function of the layout: the same layout (a change of sigma, rule
+        # or objective) takes them as they were, without checking each cached region anew.
+        layout = scene.model_dump_json(
+            exclude={"name", "description", "sigma", "error_model", "motion", "start", "goal"}
+        )
+        hit = self._layouts.get(layout)
+        if hit is not None:
+            return dict(hit)
         workers = self.workers if workers is None else workers
         todo = [(t, y) for t, y in pairs if self._cached(scene, t, y) is None]
         if workers > 1 and len(todo) > 1:
             pool = self._pool(workers)
             for region in pool.starmap(_pool_region, [(scene, t, y) for t, y in todo]):
                 self._store(scene, region)
-        return {(t, y): self.tray_region(scene, t, y) for t, y in pairs}
+        out = {(t, y): self.tray_region(scene, t, y) for t, y in pairs}
+        self._layouts[layout] = out
+        while len(self._layouts) > 8:
+            self._layouts.pop(next(iter(self._layouts)))
+        return dict(out)
 
     def _cached(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion | None:
         tray = scene.tray(tray_id)

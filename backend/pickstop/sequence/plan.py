@@ -108,6 +108,7 @@ class StopPlanner:
         self._paths = _Lru(cache_size)
         self._checks = _Lru(4096)
         self._rates = _Lru(4096)
+        self._selections = _Lru(256)
 
     # -- pieces ------------------------------------------------------------------------------
     def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Candidate]:
@@ -226,6 +227,39 @@ class StopPlanner:
                         self.check(scene, world, regions[t, c.yaw], c.centre)
                         done += 1
         return done
+
+    def selection(
+        self,
+        trays_of: list[frozenset[str]],
+        required: list[str],
+        cost: np.ndarray,
+        objective: str,
+        stop_cost: float,
+        time_limit: float,
+    ) -> Selection:
+        """:func:`~pickstop.sequence.cover.select_stops`, remembered: while sigma or the rule
+        moves, the kept candidates often stay the same set."""
+        key = (
+            tuple(tuple(sorted(t)) for t in trays_of),
+            tuple(required),
+            hashlib.sha1(np.ascontiguousarray(cost).tobytes()).hexdigest(),
+            cost.shape,
+            objective,
+            stop_cost,
+            time_limit,
+        )
+        hit = self._selections.hit(key)
+        if hit is None:
+            hit = select_stops(
+                trays_of,
+                required,
+                cost,
+                objective=objective,
+                stop_cost=stop_cost,
+                time_limit=time_limit,
+            )
+            self._selections.put(key, hit)
+        return hit
 
     # -- the plan ------------------------------------------------------------------------------
     def plan(self, scene: Scene, options: pm.PlanOptions | None = None) -> pm.Plan:
@@ -475,13 +509,13 @@ class _Planning:
             cost = np.where(np.isfinite(dist), cost, np.inf)
         else:
             cost = dist
-        sel = select_stops(
+        sel = self.sp.selection(
             trays_of,
             self.required,
             cost,
-            objective=self.opts.objective,
-            stop_cost=motion.stop_time,
-            time_limit=self.opts.time_limit,
+            self.opts.objective,
+            motion.stop_time,
+            self.opts.time_limit,
         )
         return Selection(
             tuple(idx[c] for c in sel.order),
