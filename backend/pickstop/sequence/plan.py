@@ -22,7 +22,7 @@ import math
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import shapely
@@ -233,7 +233,7 @@ class StopPlanner:
         trays_of: list[frozenset[str]],
         required: list[str],
         cost: np.ndarray,
-        objective: str,
+        objective: Literal["stops", "time"],
         stop_cost: float,
         time_limit: float,
     ) -> Selection:
