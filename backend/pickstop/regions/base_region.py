@@ -114,6 +114,9 @@ class RegionPlanner:
     _layouts: dict[str, dict[tuple[str, float], TrayRegion]] = field(
         default_factory=dict, repr=False
     )  # the regions of the last layouts
+    _last: dict[tuple[str, float], tuple[Tray, TrayRegion]] = field(
+        default_factory=dict, repr=False
+    )  # per tray id and yaw: the tray as it stood and its last computed region
     _memo: dict[str, Any] = field(default_factory=dict, repr=False)  # hand spaces, bounds
     cache_size: int = 256
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
@@ -220,7 +223,22 @@ class RegionPlanner:
             entry.cleared.add(new[0])
         return True
 
+    def known_regions(
+        self, scene: Scene, pairs: list[tuple[str, float]]
+    ) -> dict[tuple[str, float], TrayRegion]:
+        """For each ``(tray id, yaw)`` planned before: the last region computed for the tray
+        wherever it stood, carried rigidly to where it stands now and clipped to the cells
+        where the base footprint fits (for a preview: nothing is checked but the footprint)."""
+        from pickstop.regions.carry import carried_regions
+
+        known = [(p, self._last[p]) for p in pairs if p in self._last]
+        carried = carried_regions(self.robot, scene, [k for _, k in known])
+        return {p: r for (p, _), r in zip(known, carried, strict=True)}
+
     def _store(self, scene: Scene, region: TrayRegion) -> None:
+        self._last[region.tray_id, region.yaw] = (scene.tray(region.tray_id), region)
+        if len(self._last) > 4 * self.cache_size:
+            self._last.pop(next(iter(self._last)))
         entries = self.cache.setdefault(region.key, [])
         entries.insert(0, _CacheEntry(region, _snapshot(scene, region.tray_id)))
         del entries[4:]  # a few layouts per tray and yaw
