@@ -6,7 +6,9 @@
 Starts ``pickstop serve`` on 127.0.0.1 over the data folder, then per example scene: plans the
 scene as it is (warm), and for each of its first ``--trays`` trays and each move (0.05, 0.1,
 0.2, 0.3 and 0.5 m along x or y, and a 0.3 rad turn) asks for the preview (``mode: preview``)
-and then the exact plan of the moved layout, before the layout goes back; a move that makes
+and then the exact plan of the moved layout, before the layout goes back and a pause of a
+second (what an engineer takes to look; the service checks candidates in the background
+then); a move that makes
 the scene invalid (a tray into its neighbour, off its table) is skipped. Then sigma steps
 (0.05 to 0.15 m), rule, target and objective changes on the scene as it is. Prints the time
 each request took at the client (HTTP and JSON included), median and p90, per kind and scene.
@@ -32,6 +34,7 @@ from pickstop.stack import spawn_api
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"
 KEY = "bench-key"
 AUTH = {"Authorization": f"Bearer {KEY}"}
+PAUSE = 1.0  # [s] between a move and the next (background checks of the last plan run then)
 MOVES = [(0.05, 0, 0), (0, 0.05, 0), (0.1, 0, 0), (0, -0.1, 0), (0.2, 0, 0), (-0.3, 0, 0),
          (0.5, 0, 0), (0, 0, 0.3)]  # fmt: skip
 
@@ -50,8 +53,12 @@ def _stats(xs: list[float]) -> str:
     return f"median {statistics.median(xs) * 1e3:6.0f} ms, p90 {p90 * 1e3:6.0f} ms (n={len(xs)})"
 
 
+SERVER: list[float] = []  # the plans' own total times [s] (timings.total), request by request
+
+
 def _plan(c: httpx.Client, doc: dict, options: dict, mode: str = "sync") -> tuple[float, int]:
-    """Seconds the request took and its status (-1: the service has no such mode)."""
+    """Seconds the request took and its status (-1: the service has no such mode); the plan's
+    own computing time is appended to SERVER."""
     body = {"scene": doc, "options": {"samples": 0, **options}, "store": False}
     if mode != "sync":
         body["mode"] = mode
@@ -60,6 +67,7 @@ def _plan(c: httpx.Client, doc: dict, options: dict, mode: str = "sync") -> tupl
     dt = time.perf_counter() - t0
     if r.status_code == 422 and r.json().get("field") == "mode":
         return dt, -1
+    SERVER.append(r.json()["plan"]["timings"]["total"] if r.status_code == 200 else float("nan"))
     return dt, r.status_code
 
 
@@ -78,6 +86,7 @@ def bench_scene(c: httpx.Client, name: str, n_trays: int) -> None:
     print(f"\n{name}: first plan {t * 1e3:.0f} ms ({code})")
     preview: dict[str, list[float]] = {"move": [], "turn": []}
     exact: dict[str, list[float]] = {"move": [], "turn": []}
+    own: dict[str, list[float]] = {"preview": [], "exact": []}
     skipped = 0
     no_preview = False
     for tray in doc["trays"][:n_trays]:
@@ -86,21 +95,30 @@ def bench_scene(c: httpx.Client, name: str, n_trays: int) -> None:
             moved = _moved(doc, tray["id"], dx, dy, dyaw)
             tp, pcode = _plan(c, moved, {}, "preview")
             no_preview |= pcode == -1
+            tp_own = SERVER[-1] if pcode not in (-1,) and SERVER else float("nan")
             te, code = _plan(c, moved, {})
             if code != 200:
                 skipped += 1  # the move made the scene invalid or infeasible
                 continue
             exact[kind].append(te)
+            if kind == "move":
+                own["exact"].append(SERVER[-1])
             if pcode == 200:
                 preview[kind].append(tp)
+                if kind == "move":
+                    own["preview"].append(tp_own)
             _plan(c, doc, {})  # back to the layout as it was
+            time.sleep(PAUSE)  # the engineer looks at the plan before the next move
     for kind in ("move", "turn"):
         label = "translations 0.05-0.5 m" if kind == "move" else "turns by 0.3 rad"
         pv = "not offered" if no_preview else _stats(preview[kind])
         print(f"  preview, {label:24s} {pv}")
         print(f"  exact,   {label:24s} {_stats(exact[kind])}")
+    for what, xs in own.items():
+        print(f"  {what} of translations, the plan's own time (timings.total): {_stats(xs)}")
     print(f"  ({skipped} moves skipped: the moved layout is invalid or has no plan)")
     sig = []
+    time.sleep(PAUSE)
     for k in range(11):
         t, code = _plan(c, doc, {"sigma": 0.05 + 0.01 * k})
         if code == 200:
