@@ -19,6 +19,20 @@ from pickstop_ui.plan_view import MAX_LABELS, PlanDrawing
 _NOWHERE = np.zeros((1, 2, 3), np.float32) - 10.0  # a placeholder segment below the floor
 
 
+def _set(h: Any, **props: Any) -> None:
+    """Assign only the properties that changed: each assignment is a message to every
+    browser, and each message costs the page a render."""
+    for name, value in props.items():
+        old = getattr(h, name)
+        if isinstance(value, np.ndarray) or isinstance(old, np.ndarray):
+            old_a, new_a = np.asarray(old), np.asarray(value)
+            if old_a.shape == new_a.shape and np.array_equal(old_a, new_a.astype(old_a.dtype)):
+                continue
+        elif old == value:
+            continue
+        setattr(h, name, value)
+
+
 class PlanLayer:
     """Scene nodes under ``/plan`` and ``/ghosts`` for one planner window."""
 
@@ -46,8 +60,7 @@ class PlanLayer:
                 cast_shadow=False, receive_shadow=False,
             )  # fmt: skip
             return
-        h.vertices, h.faces = v, f
-        h.color, h.opacity, h.visible = colour, opacity, True
+        _set(h, vertices=v, faces=f, color=tuple(colour), opacity=opacity, visible=True)
 
     def _segments(self, name: str, pts: np.ndarray, colour: Any, width: float) -> None:
         h = self._lines.get(name)
@@ -59,8 +72,8 @@ class PlanLayer:
                 name, pts, colors=colours, thickness=width
             )
         else:
-            h.points, h.colors, h.thickness = pts, colours, width
-        h.visible = not empty
+            _set(h, points=pts, colors=colours, thickness=width)
+        _set(h, visible=not empty)
 
     def _points(self, pts: np.ndarray, colours: np.ndarray) -> None:
         empty = not len(pts)
@@ -71,8 +84,8 @@ class PlanLayer:
                 "/plan/circles/centres", pts, colors=colours, point_size=0.04
             )
         else:
-            self._centres.points, self._centres.colors = pts, colours
-        self._centres.visible = not empty
+            _set(self._centres, points=pts, colors=colours)
+        _set(self._centres, visible=not empty)
 
     def _label(self, k: int, text: str | None, pos: tuple[float, float, float]) -> None:
         while len(self._labels) <= k:
@@ -82,9 +95,9 @@ class PlanLayer:
             )
         h = self._labels[k]
         if text is None:
-            h.visible = False
+            _set(h, visible=False)
             return
-        h.text, h.position, h.visible = text, pos, True
+        _set(h, text=text, position=np.asarray(pos, float), visible=True)
 
     # -- the whole plan ---------------------------------------------------------------------------
     def show(self, d: PlanDrawing) -> None:
@@ -114,11 +127,11 @@ class PlanLayer:
                 self._add_ghost()
         for k, (frame, urdf) in enumerate(self.ghosts):
             if k >= len(ghosts):
-                frame.visible = False
+                _set(frame, visible=False)
                 continue
             g = ghosts[k]
-            frame.position, frame.wxyz = (g.x, g.y, 0.0), yaw_quat(g.yaw)
-            frame.visible = self.show_ghosts
+            _set(frame, position=np.array([g.x, g.y, 0.0]), wxyz=np.array(yaw_quat(g.yaw)))
+            _set(frame, visible=self.show_ghosts)
             if g.cfg is not None:
                 urdf.update_cfg(g.cfg)
         self._n_ghosts = len(ghosts)
