@@ -66,3 +66,40 @@ def assert_stop_verified(planner, scene, stop) -> None:
         )
         assert not planner.exact_self.colliding(theta[None])[0]
         assert w.hand == planner.hand.joints
+
+
+def assert_cells_verified(planner, scene, region, rows) -> None:
+    """Each witness of the region's cells ``rows`` reaches its grasp from the cell's centre
+    within 1 mm and 0.5 deg, within the joint limits, and is collision-free for coal (the
+    robot's arm against the scene and against itself)."""
+    import math
+
+    from pickstop.regions.arm import ExactArm
+    from pickstop.robot.artifacts import self_collision
+    from pickstop.robot.kinematics import fk
+    from pickstop.robot.selfcollision import ExactSelfCollision
+    from pickstop.scene.world import scene_solids
+
+    robot = planner.robot
+    rows = np.asarray(rows, int)
+    if not len(rows):
+        return
+    grasps = planner.grasps(scene, scene.tray(region.tray_id))
+    solids = scene_solids(scene)
+    exact_arm = ExactArm(robot)
+    exact_self = ExactSelfCollision(robot, self_collision(robot, planner.cache_dir)[0])
+    c, s = math.cos(region.yaw), math.sin(region.yaw)
+    R_world_base = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    xy = region.grid.centres(region.cells[rows, 1], region.cells[rows, 0])
+    for k, gs in enumerate(grasps):
+        th = region.thetas[rows, k]
+        R, p = fk(planner.solver.chain, th)
+        for i in range(len(rows)):
+            T_world_tool = gs.Ts_world_tool[region.grasp_index[rows[i], k]]
+            pw = R_world_base @ p[i] + [xy[i, 0], xy[i, 1], 0.0]
+            assert np.linalg.norm(pw - T_world_tool[:3, 3]) <= 1e-3
+            cos = (np.trace((R_world_base @ R[i]).T @ T_world_tool[:3, :3]) - 1) / 2
+            assert math.acos(float(np.clip(cos, -1, 1))) <= math.radians(0.5) + 1e-9
+            assert (th[i] >= robot.lower - 1e-9).all() and (th[i] <= robot.upper + 1e-9).all()
+            assert not exact_arm.colliding(th[i], xy[i, 0], xy[i, 1], region.yaw, solids)
+        assert not exact_self.colliding(th).any()

@@ -2,11 +2,16 @@
 
 The scene (tables, trays with parts, obstacles, start and goal, the robot) is drawn from the
 stored scene; trays and obstacles are dragged on the floor (x, y and yaw only). Every change of
-sigma, rule, task or layout asks the API for a new plan (a preview, not stored) and draws it:
-each tray's base region as a translucent patch in its colour, the intersections' outlines, the
-inscribed circles (dashed red where sigma rejects them, with the reason), the chosen stops with
-a ghost robot in its witness configuration, and the route with its direction. A quick plan
-without Monte Carlo is drawn first, then the success rates follow.
+sigma, rule, task or layout asks the API for a new plan (not stored) and draws it: each tray's
+base region as a translucent patch in its colour, the intersections' outlines, the inscribed
+circles (dashed red where sigma rejects them, with the reason), the chosen stops with a ghost
+robot in its witness configuration, and the route with its direction. A quick plan without
+Monte Carlo is drawn first, then the success rates follow.
+
+While a tray or an obstacle is being dragged, previews follow it (known regions carried with
+the tray, nothing verified), drawn in the preview style (:mod:`pickstop_ui.plan_view`) and
+said so in the panel; the exact plan replaces the preview on release. Drawings update the
+existing scene nodes in place (:mod:`pickstop_ui.plan_layer`).
 """
 
 from __future__ import annotations
@@ -22,21 +27,19 @@ from typing import Any
 
 import numpy as np
 import viser
-from shapely.geometry import Polygon
 
 from pickstop.sequence.plan_model import Plan
+from pickstop_ui import edits
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.geometry import (
-    circle_segments,
-    patch_mesh,
     polyline_at,
     quat_yaw,
-    ring_segments,
-    route_segments,
     tilt_quat,
     tray_boxes,
     yaw_quat,
 )
+from pickstop_ui.plan_layer import PlanLayer
+from pickstop_ui.plan_view import joint_cfg, plan_drawing, status_line, style_of
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 
 log = logging.getLogger("pickstop.ui")
@@ -55,11 +58,6 @@ PALETTE = [
     (128, 0, 0),
     (0, 0, 128),
 ]
-GREY = (150, 150, 150)
-KEPT = (40, 200, 90)
-REJECTED = (220, 40, 40)
-ROUTE = (255, 200, 0)
-STALE = (140, 140, 175)  # the last valid plan while the current request has none
 MC_SAMPLES = 300
 MC_QUIET = 0.4  # [s] without a newer request before the Monte Carlo starts
 
@@ -78,6 +76,7 @@ class _Request:
     options: dict[str, Any]
     t0: float
     cause: str
+    preview: bool = False  # a drag is under way: a quick unverified plan
 
 
 @dataclass
@@ -92,6 +91,8 @@ class PlannerState:
     seq: int = 0
     drawn_seq: int = 0
     last_ms: float = 0.0
+    exact_ms: float | None = None  # the last exact plan, request to drawn [ms]
+    mc_ms: float | None = None  # the last Monte Carlo, request to drawn [ms]
     busy: bool = False
     dirty: bool = False  # edited since the last save
     history: list[dict[str, Any]] = field(default_factory=list)
@@ -120,9 +121,10 @@ class PlannerApp:
         self.robot = robot
         self._urdf = robot.urdf if robot is not None else None
         self._locked = robot.joint_values if robot is not None else {}
-        self._ghosts: list[Any] = []
         self._tray_ui: dict[str, Any] = {}
         self._draw_scene()
+        self.layer = PlanLayer(self.server, self._urdf)
+        self._urdf_joints: list[str] = []
         self._build_gui()
         self.server.on_client_connect(self._on_connect)
         self._worker = threading.Thread(target=self._plan_loop, name="pickstop-ui", daemon=True)
@@ -214,9 +216,8 @@ class PlannerApp:
             )
 
         @ctl.on_update
-        def _(event: Any) -> None:
-            if event.phase == "end":  # replan on release, not on every pose while dragging
-                self._moved("obstacles", ob["id"], ctl)
+        def _(event: Any) -> None:  # previews while dragging, the exact plan on release
+            self._moved("obstacles", ob["id"], ctl, final=event.phase == "end")
 
     def _draw_tray(self, index: int, tray: dict[str, Any]) -> None:
         sc, p = self.server.scene, tray["pose"]
@@ -261,25 +262,25 @@ class PlannerApp:
 
         @ctl.on_update
         def _(event: Any) -> None:
-            if event.phase == "end":
-                self._moved("trays", tray["id"], ctl)
+            self._moved("trays", tray["id"], ctl, final=event.phase == "end")
 
-    def _moved(self, kind: str, oid: str, ctl: Any) -> None:
-        """A drag ended: keep x, y and yaw (the height stays), then replan."""
+    def _moved(self, kind: str, oid: str, ctl: Any, final: bool = True) -> None:
+        """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
+        was; a preview while the drag goes on, the exact plan when it ends."""
+        x, y, yaw = float(ctl.position[0]), float(ctl.position[1]), quat_yaw(ctl.wxyz)
         with self._lock:
-            for item in self.state.doc[kind]:
-                if item["id"] == oid:
-                    pose = item.setdefault("pose", {})
-                    pose["x"], pose["y"] = float(ctl.position[0]), float(ctl.position[1])
-                    pose["yaw"] = quat_yaw(ctl.wxyz)
-                    ctl.position = (pose["x"], pose["y"], pose.get("z", 0.0))
-                    ctl.wxyz = yaw_quat(pose["yaw"])
+            pose = edits.move(self.state.doc, kind, oid, x, y, yaw)
             self.state.dirty = True
-        self.request(f"moved {oid}")
+        if pose is None:
+            return
+        if final:
+            ctl.position = (pose["x"], pose["y"], pose.get("z", 0.0))
+            ctl.wxyz = yaw_quat(pose["yaw"])
+        self.request(f"moved {oid}" if final else f"dragging {oid}", preview=not final)
 
     def _redraw_layout(self) -> None:
         self.server.scene.reset()
-        self._ghosts = []
+        self.layer.forget()
         self._draw_scene()
 
     # -- the panel ---------------------------------------------------------------------------
@@ -303,7 +304,7 @@ class PlannerApp:
             self.objective = gui.add_dropdown("objective", ("stops", "time"), initial_value="stops")
             # The robots stand on their stops' circles; hide them to see the circles whole.
             self.show_robots = gui.add_checkbox("robots at stops", True)
-            self.show_robots.on_update(lambda _: self._robots_visible())
+            self.show_robots.on_update(lambda _: self.layer.ghosts_visible(self.show_robots.value))
 
         for h in (self.sigma, self.rule, self.target, self.objective):
             h.on_update(self._changed)
@@ -415,7 +416,9 @@ class PlannerApp:
             "samples": samples,
         }
 
-    def request(self, cause: str) -> None:
+    def request(self, cause: str, preview: bool = False) -> None:
+        """Plan the document as it is now; a newer request replaces a pending one, so while
+        a plan is computed or drawn the frames in between are skipped."""
         with self._lock:
             self.state.seq += 1
             self._pending = _Request(
@@ -424,9 +427,11 @@ class PlannerApp:
                 self.options(0),
                 time.perf_counter(),
                 cause,
+                preview,
             )
             self.state.busy = True
-        self.status.content = f"**Status:** computing… ({cause})"
+        if not preview:
+            self.status.content = f"**Status:** ⏳ exact plan… ({cause})"
         self._wake.set()
 
     def _plan_loop(self) -> None:
@@ -438,7 +443,7 @@ class PlannerApp:
             if req is None or self._stop:
                 continue
             try:
-                res = self.api.plan(req.scene, req.options)
+                res = self.api.plan(req.scene, req.options, preview=req.preview)
             except ApiProblem as e:
                 self._failed(req, e)
                 continue
@@ -448,16 +453,21 @@ class PlannerApp:
             if self._newer(req):
                 continue
             self._draw_plan(req, res.plan, final=False)
+            if req.preview:
+                continue
             # Then the success rates (Monte Carlo), once the engineer has paused: while a
             # slider or a tray is still moving, a running Monte Carlo would hold up the next
             # quick plan.
             if self._wake.wait(MC_QUIET) or self._newer(req):
                 continue
+            t_mc = time.perf_counter()
+            self._panel_status(req, "plan drawn", "success rates (Monte Carlo)")
             try:
                 mc = self.api.plan(req.scene, {**req.options, "samples": MC_SAMPLES})
             except ApiProblem:
                 continue
             if not self._newer(req):
+                self.state.mc_ms = (time.perf_counter() - t_mc) * 1e3
                 self._draw_plan(req, mc.plan, final=True)
 
     def _newer(self, req: _Request) -> bool:
@@ -480,118 +490,39 @@ class PlannerApp:
     def _grey_out(self) -> None:
         """The last valid plan stays on screen in one stale colour; its ghosts go."""
         plan = self.state.plan
-        with self.server.atomic():
-            if plan is not None:
-                self._draw_geometry(plan, self.state.doc, stale=True)
-            for g in self._ghosts:
-                g[0].visible = False
+        if plan is not None:
+            self.layer.show(plan_drawing(plan, self._colours(self.state.doc), style_of(plan, True)))
+        else:
+            self.layer.place_ghosts(None)
 
     # -- drawing a plan ------------------------------------------------------------------------
+    def _colours(self, doc: dict[str, Any]) -> dict[str, tuple[int, int, int]]:
+        return {t["id"]: tray_colour(i, t) for i, t in enumerate(doc["trays"])}
+
     def _draw_plan(self, req: _Request, plan: Plan, final: bool) -> None:
-        with self.server.atomic():
-            self._draw_geometry(plan, req.scene, stale=False)
-            self._place_ghosts(plan)
-            self.state.plan, self.state.error, self.state.drawn_seq = plan, None, req.seq
-            self.state.busy = not final
-            self.state.last_ms = (time.perf_counter() - req.t0) * 1e3
-            self._panel(plan, req, final)
+        joints = self._joint_names()
+        drawing = plan_drawing(plan, self._colours(req.scene), style_of(plan), joints, self._locked)
+        self.layer.show(drawing)
+        self.state.plan, self.state.error, self.state.drawn_seq = plan, None, req.seq
+        self.state.busy = not final
+        self.state.last_ms = (time.perf_counter() - req.t0) * 1e3
+        if plan.verified and not final:
+            self.state.exact_ms = self.state.last_ms
+        self._panel(plan, req, final)
 
-    def _draw_geometry(self, plan: Plan, doc: dict[str, Any], stale: bool) -> None:
-        """Regions, intersections, circles and route; all in one grey-blue when ``stale``."""
-        sc = self.server.scene
-        colours = {t["id"]: tray_colour(i, t) for i, t in enumerate(doc["trays"])}
-        kept, rejected_c, route = (STALE, STALE, STALE) if stale else (KEPT, REJECTED, ROUTE)
-        sc.add_frame("/plan", show_axes=False)
-        for name in ("/plan/regions", "/plan/route", "/plan/circles", "/plan/outlines"):
-            sc.add_frame(name, show_axes=False, visible=True)
-        # Regions: each tray's own components, translucent in its colour.
-        for k, tid in enumerate(plan.trays):
-            polys = [_poly(c.polygon) for c in plan.candidates if c.trays == [tid]]
-            v, f = patch_mesh(polys, 0.004 + 0.001 * k)
-            if len(f):
-                sc.add_mesh_simple(
-                    f"/plan/regions/{tid}",
-                    v,
-                    f,
-                    color=STALE if stale else colours.get(tid, GREY),
-                    opacity=0.35,
-                    side="double",
-                    cast_shadow=False,
-                    receive_shadow=False,
-                )
-            else:
-                sc.add_frame(f"/plan/regions/{tid}", show_axes=False, visible=False)
-        # Intersections (order >= 2): outlined; circles: kept solid, rejected dashed red.
-        segs: list[np.ndarray] = []
-        circ_ok: list[np.ndarray] = []
-        circ_bad: list[np.ndarray] = []
-        for c in plan.candidates:
-            poly = _poly(c.polygon)
-            if len(c.trays) >= 2:
-                segs.append(ring_segments(np.asarray(poly.exterior.coords), 0.02))
-            rejected = c.status == "rejected"
-            ring = circle_segments((c.x, c.y), c.inscribed_radius, 0.025, dashed=rejected)
-            (circ_bad if rejected else circ_ok).append(ring)
-        _segments(sc, "/plan/outlines/intersections", segs, (255, 255, 255), 0.012)
-        _segments(sc, "/plan/circles/kept", circ_ok, kept, 0.012)
-        _segments(sc, "/plan/circles/rejected", circ_bad, rejected_c, 0.008)
-        sc.add_point_cloud(
-            "/plan/circles/centres",
-            np.array([[c.x, c.y, 0.03] for c in plan.candidates] or [[0, 0, -1]], np.float32),
-            colors=np.array(
-                [kept if c.status != "rejected" else rejected_c for c in plan.candidates] or [GREY],
-                np.uint8,
-            ),
-            point_size=0.04,
-        )
-        _segments(sc, "/plan/route/line", [route_segments(plan.route, 0.05)], route, 0.025)
-        for k, s in enumerate(plan.stops):
-            ok = "" if s.success is None else f", {s.success.rate:.0%} success"
-            sc.add_label(
-                f"/plan/route/stop{k}",
-                f"stop {k + 1}: {', '.join(s.trays)}{ok}",
-                position=(s.x, s.y, 1.3),
-            )
-        for k in range(len(plan.stops), 32):
-            sc.add_frame(f"/plan/route/stop{k}", show_axes=False, visible=False)
-
-    def _place_ghosts(self, plan: Plan) -> None:
+    def _joint_names(self) -> list[str] | None:
+        """The URDF's actuated joints (known once a ghost exists), None without a robot."""
         if self._urdf is None:
-            return
-        from viser.extras import ViserUrdf
+            return None
+        if not self._urdf_joints:
+            from viser.extras import ViserUrdf
 
-        sc = self.server.scene
-        while len(self._ghosts) < len(plan.stops):
-            k = len(self._ghosts)
-            frame = sc.add_frame(f"/ghosts/{k}", show_axes=False)
-            # Ghosts show the collision meshes: far fewer triangles than the visual ones, so
-            # a browser without a GPU keeps up while sigma or a tray moves.
-            ghost = ViserUrdf(
-                self.server,
-                self._urdf,
-                root_node_name=f"/ghosts/{k}",
-                load_meshes=False,
-                load_collision_meshes=True,
-                collision_mesh_color_override=(0.55, 0.6, 0.95, 0.5),
-            )
-            self._ghosts.append((frame, ghost))
-        for k, (frame, urdf) in enumerate(self._ghosts):
-            if k >= len(plan.stops):
-                frame.visible = False
-                continue
-            s = plan.stops[k]
-            frame.position, frame.wxyz = (s.x, s.y, 0.0), yaw_quat(s.yaw)
-            frame.visible = self.show_robots.value
-            if s.witnesses:
-                w = s.witnesses[0]
-                urdf.update_cfg(self._cfg(urdf, plan.joints, w.theta, w.hand))
-
-    def _robots_visible(self) -> None:
-        st = self.state
-        current = st.plan is not None and st.error is None and st.drawn_seq == st.seq
-        n = len(st.plan.stops) if current and st.plan is not None else 0
-        for k, (frame, _) in enumerate(self._ghosts):
-            frame.visible = self.show_robots.value and k < n
+            if not self.layer.ghosts:
+                self.layer._add_ghost()
+                self.layer.ghosts[0][0].visible = False
+            ghost: ViserUrdf = self.layer.ghosts[0][1]
+            self._urdf_joints = list(ghost.get_actuated_joint_names())
+        return self._urdf_joints
 
     def _cfg(
         self,
@@ -600,19 +531,12 @@ class PlannerApp:
         theta: list[float],
         hand: dict[str, float] | None = None,
     ) -> np.ndarray:
-        """The URDF's actuated joint values: the arm's, then the witness's hand values, then
-        the robot's locked (and pre-grasp) values."""
-        names = urdf.get_actuated_joint_names()
-        cfg = np.zeros(len(names))
-        values = dict(zip(joints, theta, strict=True))
-        for name, value in (hand or {}).items():
-            values.setdefault(name, value)
-        for name, value in self._locked.items():
-            values.setdefault(name, value)
-        for i, n in enumerate(names):
-            if n in values:
-                cfg[i] = values[n]
-        return cfg
+        """The URDF's actuated joint values for a witness (:func:`plan_view.joint_cfg`)."""
+        return joint_cfg(list(urdf.get_actuated_joint_names()), joints, theta, hand, self._locked)
+
+    def _panel_status(self, req: _Request, phase: str, busy: str | None) -> None:
+        st = self.state
+        self.status.content = status_line(phase, req.seq, st.last_ms, st.exact_ms, busy)
 
     def _panel(self, plan: Plan, req: _Request, final: bool) -> None:
         t, n = plan.totals, plan.naive
@@ -623,13 +547,26 @@ class PlannerApp:
         else:
             lo, hi = t.success_interval
             succ = f"{t.success:.1%} (95% interval {lo:.1%} to {hi:.1%})"
-        phase = "ready" if final else "plan drawn, success rates computing…"
-        self.status.content = (
-            f"**Status:** {phase} · plan #{req.seq} in {self.state.last_ms:.0f} ms"
-        )
+        if not plan.verified:
+            succ = "— (preview)"
+            phase = "preview (not verified)"
+        else:
+            phase = "ready" if final else "plan drawn"
+        mc = f" · last Monte Carlo {self.state.mc_ms:.0f} ms" if self.state.mc_ms else ""
+        busy = None if final or not plan.verified else "success rates (Monte Carlo)"
+        self._panel_status(req, phase, busy)
+        if final:
+            self.status.content += mc
         rejected = [c for c in plan.candidates if c.status == "rejected"]
+        head = (
+            ["**PREVIEW — not verified:** regions carried with the moved tray; the exact plan "
+             "follows on release.", ""]
+            if not plan.verified
+            else []
+        )  # fmt: skip
         self.summary.content = "\n".join(
             [
+                *head,
                 f"**σ = {plan.parameters.sigma:.3f} m**, rule *{plan.parameters.rule}*",
                 f"- Stops: **{t.stops}** (naive {len(n.stops)})",
                 f"- Route: **{t.route_length:.2f} m**",
@@ -724,19 +661,6 @@ class PlannerApp:
                     robot.update_cfg(self._cfg(robot, plan.joints, w.theta))
                     time.sleep(0.6)
                 robot.update_cfg(self._cfg(robot, plan.joints, [0.0] * len(plan.joints)))
-
-
-def _poly(rings: list[list[tuple[float, float]]]) -> Polygon:
-    return Polygon(rings[0], rings[1:]) if rings else Polygon()
-
-
-def _segments(sc: Any, name: str, parts: list[np.ndarray], colour: Any, width: float) -> None:
-    parts = [p for p in parts if len(p)]
-    if not parts:
-        sc.add_frame(name, show_axes=False, visible=False)
-        return
-    pts = np.concatenate(parts).astype(np.float32)
-    sc.add_line_segments(name, pts, colors=colour, thickness=width)
 
 
 def run(api_url: str, scene_id: str, api_key: str | None, host: str, port: int) -> PlannerApp:

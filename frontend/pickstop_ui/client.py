@@ -94,14 +94,18 @@ class PickStopClient:
         return dict(self._check(self.http.get(f"{API}/limits")).json())
 
     def plan(
-        self, scene: dict[str, Any], options: dict[str, Any], store: bool = False
+        self,
+        scene: dict[str, Any],
+        options: dict[str, Any],
+        store: bool = False,
+        preview: bool = False,
     ) -> PlanResult:
-        """Plan an inline scene document (a preview unless ``store``)."""
-        r = self._check(
-            self.http.post(
-                f"{API}/plans", json={"scene": scene, "options": options, "store": store}
-            )
-        )
+        """Plan an inline scene document (not stored unless ``store``; ``preview``: the quick
+        unverified plan drawn while a tray is dragged)."""
+        body = {"scene": scene, "options": options, "store": store}
+        if preview:
+            body["mode"] = "preview"
+        r = self._check(self.http.post(f"{API}/plans", json=body))
         body = r.json()
         return PlanResult(Plan.model_validate(body["plan"]), body["id"], r.elapsed.total_seconds())
 

@@ -206,7 +206,7 @@ def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app):
     # The robots stand on their circles: the engineer hides them to see the circles whole.
     _robots_checkbox(ui_page).click()
     _wait_for(lambda: not planner_app.show_robots.value)
-    assert not any(frame.visible for frame, _ in planner_app._ghosts)
+    assert not any(frame.visible for frame, _ in planner_app.layer.ghosts)
     time.sleep(1.5)
     before = _shot(ui_page, "02-sigma-before")
     green_before = len(_pixels(before, KEPT, tol=35))
@@ -246,12 +246,12 @@ def test_dragging_a_tray_replans_and_moves_its_region(ui_page, planner_app):
     # Grab the gizmo's x arrow (0.3 m long) at 70% and pull it 0.4 m along +x.
     a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
     b = _project(cam, base + np.array([0.61, 0.0, 0.0]))
-    seq = planner_app.state.seq
     _arm_timer(ui_page)
     _drag(ui_page, a, b)
     ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
-    assert planner_app.state.seq == seq + 1  # one replan, on release
-    ms = _elapsed_ms(ui_page, f"plan #{seq + 1} in")
+    seq = planner_app.state.seq  # previews while dragging, then the exact plan on release
+    assert planner_app.state.plan.verified and planner_app.state.drawn_seq == seq
+    ms = _elapsed_ms(ui_page, f"plan #{seq} in")
     print(f"\ndrag release -> redrawn plan: {ms:.0f} ms")
     moved = next(t for t in planner_app.state.doc["trays"] if t["id"] == "tray_4")
     assert moved["pose"]["x"] == pytest.approx(x0 + 0.4, abs=0.1)
@@ -296,3 +296,110 @@ def test_save_conflict_is_reported(ui_page, planner_app, live_api):
     ui_page.wait_for_function("document.body.innerText.includes('Save conflict')", timeout=30_000)
     assert other.scene(sid).doc["description"] == "changed by someone else"  # not overwritten
     _shot(ui_page, "07-save-conflict")
+
+
+PREVIEW_ROUTE = np.array([150, 60, 255])  # the preview's dashed violet route
+
+
+def _count_meshes(app):
+    """Count the mesh messages the planner sends from now on (robot and ghost meshes)."""
+    iface = app.server.scene._websock_interface
+    sent = {"meshes": 0}
+    original = iface.queue_message
+
+    def counting(message):
+        if type(message).__name__ in {"GlbMessage", "MeshMessage", "BatchedMeshesMessage"}:
+            sent["meshes"] += 1
+        return original(message)
+
+    iface.queue_message = counting
+    return sent, lambda: setattr(iface, "queue_message", original)
+
+
+def test_dragging_slowly_previews_the_plan_then_draws_the_exact_one(ui_page, planner_app):
+    """Region and stop follow the tray during the drag, drawn as a preview and said so; on
+    release the verified plan replaces it and the preview style is gone."""
+    ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
+    tray = next(t for t in planner_app.state.doc["trays"] if t["id"] == "tray_4")
+    cam = next(iter(planner_app.server.get_clients().values())).camera
+    base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
+    a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
+    b = _project(cam, base + np.array([-0.14, 0.0, 0.0]))  # 0.35 m back along -x
+    ui_page.evaluate(
+        """() => {
+            window.__f = [];
+            new MutationObserver(() => {
+                const m = document.body.innerText
+                    .match(/preview \\(not verified\\) · plan #(\\d+)/);
+                if (m) { window.__f.push([performance.now(), +m[1]]); }
+            }).observe(document.body, {subtree: true, childList: true, characterData: true});
+        }"""
+    )
+    _arm_timer(ui_page)
+    steps, shots, stops = 40, {}, {}
+    ui_page.mouse.move(*a)
+    ui_page.mouse.down()
+    for k in range(1, steps + 1):
+        ui_page.mouse.move(a[0] + (b[0] - a[0]) * k / steps, a[1] + (b[1] - a[1]) * k / steps)
+        time.sleep(0.08)
+        if k in (15, 35):
+            time.sleep(0.6)  # let the last preview be drawn, then look
+            shots[k] = _shot(ui_page, f"08-drag-preview-{k}")
+            plan = planner_app.state.plan
+            assert not plan.verified
+            stops[k] = next((s.x, s.y) for s in plan.stops if "tray_4" in s.trays)
+            text = ui_page.inner_text("body")
+            assert "PREVIEW — not verified" in text and "preview (not verified)" in text
+    ui_page.mouse.up()
+    frames = ui_page.evaluate("window.__f")
+    ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
+    seq = planner_app.state.seq
+    ms = _elapsed_ms(ui_page, f"plan #{seq} in")
+    plans = sorted({n for _, n in frames})
+    span = (frames[-1][0] - frames[0][0]) / 1e3 if len(frames) > 1 else float("nan")
+    print(f"\npreview during a slow drag: {len(plans)} previews drawn in {span:.1f} s "
+          f"({(len(plans) - 1) / span:.1f} per second, with two 0.6 s pauses)")  # fmt: skip
+    print(f"drag release -> exact plan drawn: {ms:.0f} ms")
+    # The stop marker moved with the tray between the two moments, and the picture changed
+    # around it (the region patch and the marker).
+    (x1, y1), (x2, y2) = stops[15], stops[35]
+    assert math.hypot(x2 - x1, y2 - y1) > 0.05
+    diff = np.abs(shots[15] - shots[35]).sum(axis=-1)[:, :860] > 30
+    for x, y in (stops[15], stops[35]):
+        u, v = _project(cam, (x, y, 0.0))
+        win = diff[max(int(v) - 60, 0) : int(v) + 60, max(int(u) - 60, 0) : int(u) + 60]
+        assert win.sum() > 200, "the drawing changed where the region and its stop are"
+    assert len(_pixels(shots[35], PREVIEW_ROUTE, tol=45)) > 40, "the dashed preview route"
+    # Released: the verified plan, the preview's style and words gone.
+    assert planner_app.state.plan.verified and planner_app.state.drawn_seq == seq
+    text = ui_page.inner_text("body")
+    assert "PREVIEW" not in text and "preview (not verified)" not in text
+    time.sleep(1.5)
+    after = _shot(ui_page, "09-drag-released")
+    assert len(_pixels(after, PREVIEW_ROUTE, tol=45)) < 10
+    assert len(_pixels(after, ROUTE)) > 300
+
+
+def test_a_sigma_change_updates_nodes_and_sends_no_robot_meshes(ui_page, planner_app):
+    plan = planner_app.state.plan
+    target = _sigma_splitting_a_stop(plan)
+    # Once there and back, so that a ghost exists for each stop count.
+    for value in (target, 0.10):
+        _set_slider(ui_page, 0, value, 0.0, 0.25)
+        _settled_sigma(planner_app)
+        ui_page.wait_for_function("document.body.innerText.includes('Status: ready')",
+                                  timeout=60_000)  # fmt: skip
+    sent, restore = _count_meshes(planner_app)
+    try:
+        times = []
+        for value in (target, 0.10):
+            _arm_timer(ui_page)
+            _set_slider(ui_page, 0, value, 0.0, 0.25)
+            sigma = _settled_sigma(planner_app)
+            times.append(_elapsed_ms(ui_page, f"σ = {sigma:.3f} m"))
+            ui_page.wait_for_function("document.body.innerText.includes('Status: ready')",
+                                      timeout=60_000)  # fmt: skip
+    finally:
+        restore()
+    print(f"\nslider gesture end -> redrawn: {', '.join(f'{t:.0f}' for t in times)} ms")
+    assert sent["meshes"] == 0, "a re-plan sent robot meshes again"

@@ -54,11 +54,11 @@ def test_planner_draws_the_scene_robot_and_its_ghost_at_the_stop(pr2_app):
     assert not any("hand_palm_link" in n for n in names)  # not TIAGo
     # The ghost at the stop shows PR2 with the witness arm and the open gripper.
     end = time.monotonic() + 180
-    while app.state.plan is None or not app._ghosts:
+    while app.state.plan is None or not app.layer.ghosts:
         assert time.monotonic() < end and app.state.error is None, f"no plan: {app.state.error}"
         time.sleep(0.2)
     plan = app.state.plan
-    frame, ghost = app._ghosts[0]
+    frame, ghost = app.layer.ghosts[0]
     assert np.allclose(frame.position[:2], (plan.stops[0].x, plan.stops[0].y))
     cfg = dict(zip(ghost.get_actuated_joint_names(), ghost._urdf.cfg, strict=False))
     w = plan.stops[0].witnesses[0]

@@ -213,9 +213,14 @@ class BatchItem(BaseModel):
 class PlanRequest(BatchItem):
     options: PlanOptions = PlanOptions()
     database: str | None = Field(default=None, description="reachability database id")
-    mode: Literal["sync", "job"] = Field(default="sync", description="'job': run as a batch job")
+    mode: Literal["sync", "job", "preview"] = Field(
+        default="sync",
+        description="'job': run as a batch job; 'preview': a quick unverified plan to draw "
+        "while a layout is edited (known regions carried with the moved trays, no witnesses, no "
+        "Monte Carlo; the plan says verified: false); never stored, so send store: false",
+    )
     store: bool = Field(
-        default=True, description="keep the plan as a record (false: a preview, not stored)"
+        default=True, description="keep the plan as a record (false: answered, not stored)"
     )
 
 

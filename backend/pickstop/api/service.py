@@ -402,6 +402,12 @@ class Service:
         self.pool.submit(self._prefetch, slot, scene)
         return plan
 
+    def preview(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
+        """An unverified plan to draw while the layout is edited (``StopPlanner.preview``)."""
+        slot = self.slot(scene, db_id)
+        with slot.lock:
+            return slot.planner.preview(scene, options)
+
     def _prefetch(self, slot: _Slot, scene: Scene) -> None:
         try:
             slot.planner.prefetch_checks(scene, slot.lock)

@@ -26,6 +26,7 @@ from pickstop.regions import solve
 from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm, nearby, screen_arm
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import blocked_by, footprint_check, footprint_free
+from pickstop.regions.reuse import ReuseCache, TrayAnchor, grasps_digest
 from pickstop.regions.solve import ArmWorld, Targets
 from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.robot.kinematics import fk_soa
@@ -109,6 +110,13 @@ class RegionPlanner:
     reach_xy: float = field(init=False)
     cache: dict[str, list[_CacheEntry]] = field(default_factory=dict)
     grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
+    reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
+    _layouts: dict[str, dict[tuple[str, float], TrayRegion]] = field(
+        default_factory=dict, repr=False
+    )  # the regions of the last layouts
+    _last: dict[tuple[str, float, str], tuple[Tray, TrayRegion]] = field(
+        default_factory=dict, repr=False
+    )  # per tray id, yaw and what the tray is (pose aside): the tray as it stood, its region
     _memo: dict[str, Any] = field(default_factory=dict, repr=False)  # hand spaces, bounds
     cache_size: int = 256
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
@@ -170,13 +178,25 @@ class RegionPlanner:
         ``workers``); they are forked from this process, so they share its database.
         """
         pairs = [(t, y) for t in scene.task_trays for y in scene.base_yaw.yaws]
+        # The regions are a function of the layout: the same layout (a change of sigma, rule
+        # or objective) takes them as they were, without checking each cached region anew.
+        layout = scene.model_dump_json(
+            exclude={"name", "description", "sigma", "error_model", "motion", "start", "goal"}
+        )
+        hit = self._layouts.get(layout)
+        if hit is not None:
+            return dict(hit)
         workers = self.workers if workers is None else workers
         todo = [(t, y) for t, y in pairs if self._cached(scene, t, y) is None]
         if workers > 1 and len(todo) > 1:
             pool = self._pool(workers)
             for region in pool.starmap(_pool_region, [(scene, t, y) for t, y in todo]):
                 self._store(scene, region)
-        return {(t, y): self.tray_region(scene, t, y) for t, y in pairs}
+        out = {(t, y): self.tray_region(scene, t, y) for t, y in pairs}
+        self._layouts[layout] = out
+        while len(self._layouts) > 8:
+            self._layouts.pop(next(iter(self._layouts)))
+        return dict(out)
 
     def _cached(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion | None:
         tray = scene.tray(tray_id)
@@ -210,7 +230,27 @@ class RegionPlanner:
             entry.cleared.add(new[0])
         return True
 
+    def known_regions(
+        self, scene: Scene, pairs: list[tuple[str, float]]
+    ) -> dict[tuple[str, float], TrayRegion]:
+        """For each ``(tray id, yaw)`` planned before: the last region computed for the tray
+        wherever it stood, carried rigidly to where it stands now and clipped to the cells
+        where the base footprint fits (for a preview: nothing is checked but the footprint)."""
+        from pickstop.regions.carry import carried_regions
+
+        known = []
+        for p in pairs:
+            hit = self._last.get((*p, _carry_key(scene, p[0])))
+            if hit is not None:
+                known.append((p, hit))
+        carried = carried_regions(self.robot, scene, [k for _, k in known])
+        return {p: r for (p, _), r in zip(known, carried, strict=True)}
+
     def _store(self, scene: Scene, region: TrayRegion) -> None:
+        key = (region.tray_id, region.yaw, _carry_key(scene, region.tray_id))
+        self._last[key] = (scene.tray(region.tray_id), region)
+        if len(self._last) > 4 * self.cache_size:
+            self._last.pop(next(iter(self._last)))
         entries = self.cache.setdefault(region.key, [])
         entries.insert(0, _CacheEntry(region, _snapshot(scene, region.tray_id)))
         del entries[4:]  # a few layouts per tray and yaw
@@ -426,9 +466,14 @@ def compute_tray_region(
                 f"({gs.near_floor} of them too close to the floor)" + low
             )
     world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance)
-    targets = [Targets.of(gs, cen, Rz_T) for gs in grasp_sets]
+    anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
+    memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
+    keys = anchor.cell_keys(IX, IY)
+    targets = [Targets.of(gs, cen, Rz_T, keys, memo) for gs in grasp_sets]
     # Cells the database cannot serve for some part are left to the growth below.
-    alive = np.flatnonzero(solve.served(planner.db, targets))
+    alive = np.flatnonzero(
+        memo.served(keys, lambda idx: solve.served(planner.db, [t.take(idx) for t in targets]))
+    )
     counts["served"] = len(alive)
     witness = np.zeros((len(IX), len(part_ids), robot.dof))
     grasp_of = np.zeros((len(IX), len(part_ids)), int)
@@ -470,6 +515,33 @@ def compute_tray_region(
         key,
         env,
     )
+
+
+def reuse_key(
+    planner: RegionPlanner,
+    scene: Scene,
+    tray: Tray,
+    yaw: float,
+    anchor: TrayAnchor,
+    grasp_sets: list[GraspSet],
+) -> str:
+    """What the refinements from cells anchored to ``tray`` depend on: everything the region
+    does except the tray's position in whole cells and the rest of the scene."""
+    pose = tray.pose.model_dump()
+    pose.pop("x"), pose.pop("y")
+    blob = {
+        "tray": tray.model_dump(exclude={"pose", "name"}),
+        "pose": pose,
+        "phase": anchor.phase,
+        "yaw": yaw,
+        "res": scene.base_grid.resolution,
+        "hand": planner.hand.key,
+        "robot": planner.robot.robot_hash,
+        "db": planner.db.id,
+        "algo": solve.VERSION,
+        "grasps": grasps_digest(tray, grasp_sets),
+    }
+    return hashlib.sha256(json.dumps(blob, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def tray_world(
@@ -589,3 +661,19 @@ def feasible_near(
     thetas[win] = th_new[alive]
     grasp[win] = g_new[alive]
     return ok, thetas, grasp
+
+
+def _carry_key(scene: Scene, tray_id: str) -> str:
+    """What a region carried with its tray must share with the region it was computed as: the
+    tray itself but for its pose, and the scene's settings every region depends on. A tray of
+    the same id in another scene, or with other parts, is another tray."""
+    tray = scene.tray(tray_id).model_dump(mode="json", exclude={"pose"})
+    blob = [
+        tray,
+        *(
+            scene.model_dump(
+                mode="json", include={"robot", "gripper", "base_grid", "floor_clearance"}
+            ).values()
+        ),
+    ]
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()

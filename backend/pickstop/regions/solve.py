@@ -15,15 +15,16 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pickstop.reach.batch_ik import refine_batch
+from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import screen_arm
 from pickstop.regions.envelope import Envelope
+from pickstop.regions.reuse import RefineMemo
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
@@ -53,17 +54,53 @@ class Targets:
     R_bt: np.ndarray  # (G, 3, 3) the same from every cell (fixed yaw)
     q_bt: np.ndarray  # (G, 4) wxyz
     p_bt: np.ndarray  # (M, G, 3) [m]
+    # Cells by their offset from the tray ((M,) int64) and the tray's memo of refinements:
+    # set where the cells are grid cells, so that refinements carry over to other positions.
+    cell_keys: np.ndarray | None = None
+    memo: RefineMemo | None = None
 
     @classmethod
-    def of(cls, gs: GraspSet, cen: np.ndarray, Rz_T: np.ndarray) -> Targets:
+    def of(
+        cls,
+        gs: GraspSet,
+        cen: np.ndarray,
+        Rz_T: np.ndarray,
+        cell_keys: np.ndarray | None = None,
+        memo: RefineMemo | None = None,
+    ) -> Targets:
         """``cen: (M, 2)`` base positions [m]; ``Rz_T: (3, 3)`` R_base_world of the yaw."""
         R_bt = np.einsum("ij,gjk->gik", Rz_T, gs.Ts_world_tool[:, :3, :3])
         base = np.concatenate([cen, np.zeros((len(cen), 1))], 1)
         p_bt = (gs.Ts_world_tool[None, :, :3, 3] - base[:, None]) @ Rz_T.T
-        return cls(gs, R_bt, matrices_to_quats(R_bt), p_bt)
+        assert cell_keys is None or cell_keys.shape == (len(cen),)
+        return cls(gs, R_bt, matrices_to_quats(R_bt), p_bt, cell_keys, memo)
 
     def take(self, idx: np.ndarray) -> Targets:
-        return Targets(self.grasps, self.R_bt, self.q_bt, self.p_bt[idx])
+        keys = None if self.cell_keys is None else self.cell_keys[idx]
+        return Targets(self.grasps, self.R_bt, self.q_bt, self.p_bt[idx], keys, self.memo)
+
+    def refine(
+        self,
+        solver: BatchSolver,
+        tag: str,
+        cells: np.ndarray,
+        grasps: np.ndarray,
+        sources: list[Any],
+        seeds: np.ndarray,
+        Rs: np.ndarray,
+        ps: np.ndarray,
+        max_iter: int,
+        give_up: tuple[tuple[int, float], ...],
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Refine ``seeds`` for rows of ``cells`` (indices into the targets' cells) and
+        ``grasps``, through the memo where there is one. Returns thetas and success."""
+        if self.memo is None or self.cell_keys is None:
+            res = refine_batch(solver, seeds, Rs, ps, max_iter=max_iter, give_up=give_up)
+            return res.thetas, res.success
+        part = self.grasps.part_id
+        ck = self.cell_keys[cells].tolist()
+        keys = [(tag, part, c, g, s) for c, g, s in zip(ck, grasps.tolist(), sources, strict=True)]
+        return self.memo.refine(solver, keys, seeds, Rs, ps, max_iter, give_up)
 
 
 @dataclass(frozen=True)
@@ -228,21 +265,23 @@ def _rounds(
         pos = np.arange(len(cand)) - np.repeat(first, count)
         e = cand[pos < width]
         state[e] = 2
-        res = refine_batch(
+        thetas, success = tg.refine(
             solver,
+            "db",
+            cell[e],
+            g[e],
+            rows[e].tolist(),
             db.thetas(rows[e]),
             tg.R_bt[g[e]],
             ps[target[e]],
-            max_iter=REFINE_ITERATIONS,
-            give_up=REFINE_GIVE_UP,
+            REFINE_ITERATIONS,
+            REFINE_GIVE_UP,
         )
-        ok = np.flatnonzero(res.success)
+        ok = np.flatnonzero(success)
         if len(ok) == 0:
             continue
-        good = verify(
-            planner, world, res.thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id
-        )
-        acc, ths = e[ok[good]], res.thetas[ok[good]]
+        good = verify(planner, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id)
+        acc, ths = e[ok[good]], thetas[ok[good]]
         # Several may succeed for a cell: keep its best-ranked (first) one.
         _, keep = np.unique(cell[acc], return_index=True)
         acc, ths = acc[keep], ths[keep]
@@ -305,27 +344,35 @@ def seeded(
     max_iter: int,
     give_up: tuple[tuple[int, float], ...] = (),
     targets: np.ndarray | str | None = None,
+    memo: tuple[RefineMemo, list[Any]] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Refine ``seeds: (B, dof)`` towards ``T_base_tool`` targets ``(B, 3, 3)``, ``(B, 3)`` on
     bases at ``base_xy: (B, 2)``, and verify them; rows solve ``problem: (B,)`` ids.
 
     Returns the winning row of each problem ``(n_problems,)`` (-1 where none verified; the
     first verified row wins) and the refined configurations ``(B, dof)``. targets: the part
-    each row grasps (one for all, or per row).
+    each row grasps (one for all, or per row). memo: a memo of refinements and the key of
+    each row (:mod:`pickstop.regions.reuse`).
     """
     win = np.full(n_problems, -1)
     if not len(seeds):
         return win, seeds
-    res = refine_batch(
-        planner.solver, seeds, Rs_target, ps_target, max_iter=max_iter, give_up=give_up
-    )
-    ok = np.flatnonzero(res.success)
+    if memo is None:
+        res = refine_batch(
+            planner.solver, seeds, Rs_target, ps_target, max_iter=max_iter, give_up=give_up
+        )
+        thetas, success = res.thetas, res.success
+    else:
+        thetas, success = memo[0].refine(
+            planner.solver, memo[1], seeds, Rs_target, ps_target, max_iter, give_up
+        )
+    ok = np.flatnonzero(success)
     if len(ok):
         sub = targets if targets is None or isinstance(targets, str) else targets[ok]
-        good = ok[verify(planner, world, res.thetas[ok], base_xy[ok], problem[ok], sub)]
+        good = ok[verify(planner, world, thetas[ok], base_xy[ok], problem[ok], sub)]
         _, first = np.unique(problem[good], return_index=True)
         win[problem[good[first]]] = good[first]
-    return win, res.thetas
+    return win, thetas
 
 
 _NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 1], [-1, -1]])
@@ -402,10 +449,22 @@ def grow(
                 p_t[m] = targets[p].p_bt[cell[m], g[m]]
             problem = o_loc[pair] * P + part
             part_ids = np.array([tg.grasps.part_id for tg in targets], dtype=object)
+            seeds = thetas[src[pair], part]
+            memo = None
+            keys = targets[0].cell_keys
+            if targets[0].memo is not None and keys is not None:
+                ck = keys[cell].tolist()
+                memo = (
+                    targets[0].memo,
+                    [
+                        ("grow", part_ids[pp], c, gg, sd.tobytes())
+                        for pp, c, gg, sd in zip(part.tolist(), ck, g.tolist(), seeds, strict=True)
+                    ],
+                )
             win, ths = seeded(
                 planner,
                 world,
-                thetas[src[pair], part],
+                seeds,
                 R_t,
                 p_t,
                 cen[cell],
@@ -414,6 +473,7 @@ def grow(
                 GROW_ITERATIONS,
                 GROW_GIVE_UP,
                 part_ids[part],
+                memo,
             )
             solved = np.flatnonzero(win >= 0)
             o, p_ = np.divmod(solved, P)

@@ -22,9 +22,10 @@ import math
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
+import shapely
 from shapely.geometry import Point, Polygon
 
 from pickstop.regions.base_region import (
@@ -100,6 +101,7 @@ class StopPlanner:
         self._paths = _Lru(cache_size)
         self._checks = _Lru(4096)
         self._rates = _Lru(4096)
+        self._selections = _Lru(256)
 
     # -- pieces ------------------------------------------------------------------------------
     def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Candidate]:
@@ -132,6 +134,18 @@ class StopPlanner:
         # and base-fixed links) blocks it, grown by the body's farthest horizontal reach.
         body = upper_body(self.regions.robot)
         solids = [s for s in scene_solids(scene) if s.aabb()[0][2] < body.top]
+        outlines = [(s.owner, Polygon(floor_outline(s))) for s in solids]
+        # An outline within another's (a tray on its table) blocks nothing more: moving it
+        # leaves the floor map as it was.
+        polys = [o for _, o in outlines]
+        inner, outer = shapely.STRtree(polys).query(polys, predicate="within")
+        covered = {
+            int(i)
+            for i, j in zip(inner.tolist(), outer.tolist(), strict=True)
+            if i != j and (j < i or not polys[i].equals(polys[j]))
+        }
+        keep = [k for k in range(len(solids)) if k not in covered]
+        solids, outlines = [solids[k] for k in keep], [outlines[k] for k in keep]
         key = (
             scene.floor.model_dump_json(),
             body.radius,
@@ -140,7 +154,6 @@ class StopPlanner:
         hit = self._floors.hit(key)
         if hit is not None:
             return hit
-        outlines = [(s.owner, Polygon(floor_outline(s))) for s in solids]
         fmap = FloorMap.build(
             (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], body.radius
         )
@@ -219,10 +232,51 @@ class StopPlanner:
                         done += 1
         return done
 
+    def selection(
+        self,
+        trays_of: list[frozenset[str]],
+        required: list[str],
+        cost: np.ndarray,
+        objective: Literal["stops", "time"],
+        stop_cost: float,
+        time_limit: float,
+    ) -> Selection:
+        """:func:`~pickstop.sequence.cover.select_stops`, remembered: while sigma or the rule
+        moves, the kept candidates often stay the same set."""
+        key = (
+            tuple(tuple(sorted(t)) for t in trays_of),
+            tuple(required),
+            hashlib.sha1(np.ascontiguousarray(cost).tobytes()).hexdigest(),
+            cost.shape,
+            objective,
+            stop_cost,
+            time_limit,
+        )
+        hit = self._selections.hit(key)
+        if hit is None:
+            hit = select_stops(
+                trays_of,
+                required,
+                cost,
+                objective=objective,
+                stop_cost=stop_cost,
+                time_limit=time_limit,
+            )
+            self._selections.put(key, hit)
+        return hit
+
     # -- the plan ------------------------------------------------------------------------------
     def plan(self, scene: Scene, options: pm.PlanOptions | None = None) -> pm.Plan:
         opts = options or pm.PlanOptions()
         return _Planning(self, scene, opts).run()
+
+    def preview(self, scene: Scene, options: pm.PlanOptions | None = None) -> pm.Plan:
+        """A plan to draw while the layout is being edited: each tray's known region carried
+        with it (:meth:`RegionPlanner.known_region`), intersected anew, the rule, the stop
+        selection and the route, nothing verified (``verified`` is false, no witnesses, no
+        Monte Carlo). A tray never planned before gets its exact region."""
+        opts = options or pm.PlanOptions()
+        return _Planning(self, scene, opts, preview=True).run()
 
 
 def route_points(scene: Scene, cands: list[Candidate]) -> np.ndarray:
@@ -255,8 +309,11 @@ def _time(tb: TimeBreakdown) -> pm.TimeTotals:
 class _Planning:
     """One planning request; holds its intermediate results."""
 
-    def __init__(self, sp: StopPlanner, scene: Scene, opts: pm.PlanOptions) -> None:
+    def __init__(
+        self, sp: StopPlanner, scene: Scene, opts: pm.PlanOptions, preview: bool = False
+    ) -> None:
         self.sp, self.scene, self.opts = sp, scene, opts
+        self.preview = preview
         self.sigma = scene.sigma if opts.sigma is None else opts.sigma
         self.kind = scene.error_model.kind
         self.required = scene.task_trays
@@ -276,7 +333,7 @@ class _Planning:
     def run(self) -> pm.Plan:
         t_start = t0 = time.perf_counter()
         scene, sp = self.scene, self.sp
-        regions = sp.regions.regions(scene)
+        regions = self._preview_regions() if self.preview else sp.regions.regions(scene)
         t0 = self._clock("regions", t0)
         self._empty_regions(regions)
         cands = sp.candidates(regions)
@@ -299,6 +356,12 @@ class _Planning:
         naive = self._naive(regions, cands, paths, sel)
         self._clock("naive", t0)
         return self._assemble(cands, paths, sel, witnesses, rates, naive, threshold, t_start)
+
+    def _preview_regions(self) -> dict[tuple[str, float], TrayRegion]:
+        rp, scene = self.sp.regions, self.scene
+        pairs = [(t, y) for t in self.required for y in scene.base_yaw.yaws]
+        known = rp.known_regions(scene, pairs)
+        return {p: known[p] if p in known else rp.tray_region(scene, *p) for p in pairs}
 
     # -- checks and explanations --------------------------------------------------------------
     def _empty_regions(self, regions: dict[tuple[str, float], TrayRegion]) -> None:
@@ -377,6 +440,8 @@ class _Planning:
                 self._explain_uncovered(cands, missing)
             sel = self._solve([cands[i].trays for i in kept], kept, paths)
             t0 = self._clock("selection", t0)
+            if self.preview:  # nothing verified: the selection as it stands
+                return sel, {c: [] for c in sel.order}, {}
             serves: dict[int, list[str]] = {}
             for t, c in sel.serves.items():
                 serves.setdefault(c, []).append(t)
@@ -447,13 +512,13 @@ class _Planning:
             cost = np.where(np.isfinite(dist), cost, np.inf)
         else:
             cost = dist
-        sel = select_stops(
+        sel = self.sp.selection(
             trays_of,
             self.required,
             cost,
-            objective=self.opts.objective,
-            stop_cost=motion.stop_time,
-            time_limit=self.opts.time_limit,
+            self.opts.objective,
+            motion.stop_time,
+            self.opts.time_limit,
         )
         return Selection(
             tuple(idx[c] for c in sel.order),
@@ -574,7 +639,16 @@ class _Planning:
             robot=robot.name,
             robot_hash=robot.robot_hash,
             joints=[j.name for j in robot.joints],
-            notes=gripper_notes(scene) + hand_notes(robot),
+            notes=(
+                [
+                    "preview: known regions carried with the moved trays and clipped where the "
+                    "base no longer fits; stops and route are not verified"
+                ]
+                if self.preview
+                else []
+            )
+            + gripper_notes(scene)
+            + hand_notes(robot),
             trays=list(self.required),
             parameters=pm.Parameters(
                 sigma=self.sigma,
@@ -639,4 +713,5 @@ class _Planning:
                 for i, c in enumerate(cands)
             ],
             timings=pm.Timings(**self.t, total=time.perf_counter() - t_start),
+            verified=not self.preview,
         )

@@ -190,3 +190,9 @@ class Plan(BaseModel):
     optimal: bool  # the stop selection was proven optimal
     candidates: list[CandidateInfo]
     timings: Timings
+    verified: bool = Field(
+        default=True,
+        description="false for a preview drawn while a layout is edited: the regions are "
+        "known ones carried with the moved trays and clipped where the base no longer fits; "
+        "nothing is verified, stops carry no witnesses and no success rate",
+    )

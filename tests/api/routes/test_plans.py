@@ -104,3 +104,43 @@ def test_inline_plan_and_infeasible_explanation(client, paper_doc):
     body = titled_problem(client.post("/api/v1/plans", json={"scene": paper_doc, "options":
                     {"target": 2}}, headers=AUTH), 422)  # fmt: skip
     assert body["field"] == "options.target"
+
+
+def test_a_preview_carries_known_regions_and_says_it_is_not_verified(client):
+    """While a tray is dragged: the regions planned before, carried with the tray; no
+    witnesses, no Monte Carlo, verified false; the exact plan of the same layout afterwards
+    is verified. A stored preview is refused."""
+    doc = paper()
+    exact = client.post(PLANS, json={"scene": doc, "options": {"samples": 0}, "store": False},
+                        headers=AUTH)  # fmt: skip
+    assert exact.status_code == 200 and exact.json()["plan"]["verified"] is True
+    moved = copy.deepcopy(doc)
+    moved["trays"][0]["pose"]["x"] += 0.05
+    req = {"scene": moved, "options": {"samples": 200}, "mode": "preview", "store": False}
+    r = client.post(PLANS, json=req, headers=AUTH)
+    assert r.status_code == 200, r.text
+    plan = r.json()["plan"]
+    assert plan["verified"] is False and plan["notes"][0].startswith("preview:")
+    assert plan["stops"] and all(s["witnesses"] == [] for s in plan["stops"])
+    assert all(s["success"] is None for s in plan["stops"]) and plan["totals"]["success"] is None
+    assert plan["timings"]["verification"] == 0.0
+
+    # Tray 1's region moved with the tray: within its region as planned, moved by the 5 cm,
+    # less the cells where the base no longer fits.
+    from shapely import affinity
+    from shapely.geometry import Polygon
+    from shapely.ops import unary_union
+
+    def region(p):
+        polys = [Polygon(c["polygon"][0], c["polygon"][1:]) for c in p["candidates"]
+                 if c["trays"] == ["tray_1"]]  # fmt: skip
+        return unary_union(polys)
+
+    was = affinity.translate(region(exact.json()["plan"]), 0.05, 0.0)
+    carried = region(plan)
+    assert carried.difference(was).area < 1e-6 and carried.area > 0.5 * was.area
+    problem(client.post(PLANS, json={**req, "store": True}, headers=AUTH), 422, "store")
+    after = client.post(PLANS, json={**req, "mode": "sync", "options": {"samples": 0}},
+                        headers=AUTH)  # fmt: skip
+    assert after.json()["plan"]["verified"] is True
+    assert all(s["witnesses"] for s in after.json()["plan"]["stops"])

@@ -41,8 +41,12 @@ async def create_plan(
         response.status_code = 202
         response.headers["Location"] = f"{API_PREFIX}/jobs/{job['id']}"
         return Job.of(job)
+    if body.mode == "preview" and body.store:
+        raise Problem(422, "Invalid request", "a preview is never stored: send store: false "
+                      "with mode: preview", field="store")  # fmt: skip
     scene_doc, revision, scene = await run_in_threadpool(service.prepare, body)
-    plan = await compute(service.pool, service.plan, scene, body.options, body.database,
+    work = service.preview if body.mode == "preview" else service.plan
+    plan = await compute(service.pool, work, scene, body.options, body.database,
                          deadline=service.settings.request_deadline, request=request)  # fmt: skip
     options = body.options.model_dump()
     if not body.store:

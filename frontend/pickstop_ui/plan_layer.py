@@ -1,0 +1,164 @@
+"""The plan's nodes in the viser scene, made once and then updated in place.
+
+Every redraw sets the arrays and colours of the nodes already there (regions, outlines,
+circles, centres, route, stop labels, ghost robots): with a software renderer, removing and
+adding nodes costs hundreds of milliseconds a frame. The ghosts' meshes are sent once, when a
+ghost is first needed; later plans only move them and set their joints.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import viser
+
+from pickstop_ui.geometry import yaw_quat
+from pickstop_ui.plan_view import MAX_LABELS, PlanDrawing
+
+_NOWHERE = np.zeros((1, 2, 3), np.float32) - 10.0  # a placeholder segment below the floor
+
+
+def _set(h: Any, **props: Any) -> None:
+    """Assign only the properties that changed: each assignment is a message to every
+    browser, and each message costs the page a render."""
+    for name, value in props.items():
+        old = getattr(h, name)
+        if isinstance(value, np.ndarray) or isinstance(old, np.ndarray):
+            old_a, new_a = np.asarray(old), np.asarray(value)
+            if old_a.shape == new_a.shape and np.array_equal(old_a, new_a.astype(old_a.dtype)):
+                continue
+        elif old == value:
+            continue
+        setattr(h, name, value)
+
+
+class PlanLayer:
+    """Scene nodes under ``/plan`` and ``/ghosts`` for one planner window."""
+
+    def __init__(self, server: viser.ViserServer, urdf: Any = None) -> None:
+        self.server = server
+        self.urdf = urdf
+        self.show_ghosts = True
+        self._regions: dict[str, Any] = {}
+        self._lines: dict[str, Any] = {}
+        self._centres: Any = None
+        self._labels: list[Any] = []
+        self.ghosts: list[tuple[Any, Any]] = []  # (frame, ViserUrdf)
+        self._n_ghosts = 0
+
+    # -- one kind of node each ------------------------------------------------------------------
+    def _region(self, tid: str, v: np.ndarray, f: np.ndarray, colour: Any, opacity: float) -> None:
+        h = self._regions.get(tid)
+        if not len(f):
+            if h is not None:
+                h.visible = False
+            return
+        if h is None:
+            self._regions[tid] = self.server.scene.add_mesh_simple(
+                f"/plan/regions/{tid}", v, f, color=colour, opacity=opacity, side="double",
+                cast_shadow=False, receive_shadow=False,
+            )  # fmt: skip
+            return
+        _set(h, vertices=v, faces=f, color=tuple(colour), opacity=opacity, visible=True)
+
+    def _segments(self, name: str, pts: np.ndarray, colour: Any, width: float) -> None:
+        h = self._lines.get(name)
+        empty = not len(pts)
+        pts = _NOWHERE if empty else pts
+        colours = np.broadcast_to(np.asarray(colour, np.uint8), (*pts.shape[:2], 3)).copy()
+        if h is None:
+            h = self._lines[name] = self.server.scene.add_line_segments(
+                name, pts, colors=colours, thickness=width
+            )
+        else:
+            _set(h, points=pts, colors=colours, thickness=width)
+        _set(h, visible=not empty)
+
+    def _points(self, pts: np.ndarray, colours: np.ndarray) -> None:
+        empty = not len(pts)
+        if empty:
+            pts, colours = np.array([[0, 0, -1]], np.float32), np.zeros((1, 3), np.uint8)
+        if self._centres is None:
+            self._centres = self.server.scene.add_point_cloud(
+                "/plan/circles/centres", pts, colors=colours, point_size=0.04
+            )
+        else:
+            _set(self._centres, points=pts, colors=colours)
+        _set(self._centres, visible=not empty)
+
+    def _label(self, k: int, text: str | None, pos: tuple[float, float, float]) -> None:
+        while len(self._labels) <= k:
+            i = len(self._labels)
+            self._labels.append(
+                self.server.scene.add_label(f"/plan/route/stop{i}", "", position=(0, 0, -5))
+            )
+        h = self._labels[k]
+        if text is None:
+            _set(h, visible=False)
+            return
+        _set(h, text=text, position=np.asarray(pos, float), visible=True)
+
+    # -- the whole plan ---------------------------------------------------------------------------
+    def show(self, d: PlanDrawing) -> None:
+        """Draw ``d`` into the existing nodes (created on first use), in one atomic update."""
+        st = d.style
+        with self.server.atomic():
+            for tid, (v, f, colour) in d.regions.items():
+                self._region(tid, v, f, colour, st.region_opacity)
+            for tid in self._regions.keys() - d.regions.keys():
+                self._regions[tid].visible = False
+            self._segments("/plan/outlines/intersections", d.outlines, st.outline, 0.012)
+            self._segments("/plan/circles/kept", d.circles_kept, st.kept, 0.012)
+            self._segments("/plan/circles/rejected", d.circles_rejected, st.rejected, 0.008)
+            self._points(d.centres, d.centre_colours)
+            self._segments("/plan/route/line", d.route, st.route, 0.025)
+            for k in range(max(len(d.labels), len(self._labels))):
+                text, pos = d.labels[k] if k < len(d.labels) else (None, (0.0, 0.0, 0.0))
+                if k < MAX_LABELS:
+                    self._label(k, text, pos)
+            self.place_ghosts(d if st.ghosts else None)
+
+    def place_ghosts(self, d: PlanDrawing | None) -> None:
+        """Ghost robots at the drawing's stops (None: hide them all)."""
+        ghosts = [] if d is None else d.ghosts
+        if self.urdf is not None:
+            while len(self.ghosts) < len(ghosts):
+                self._add_ghost()
+        for k, (frame, urdf) in enumerate(self.ghosts):
+            if k >= len(ghosts):
+                _set(frame, visible=False)
+                continue
+            g = ghosts[k]
+            _set(frame, position=np.array([g.x, g.y, 0.0]), wxyz=np.array(yaw_quat(g.yaw)))
+            _set(frame, visible=self.show_ghosts)
+            if g.cfg is not None:
+                urdf.update_cfg(g.cfg)
+        self._n_ghosts = len(ghosts)
+
+    def ghosts_visible(self, visible: bool) -> None:
+        self.show_ghosts = visible
+        for k, (frame, _) in enumerate(self.ghosts):
+            frame.visible = visible and k < self._n_ghosts
+
+    def _add_ghost(self) -> None:
+        from viser.extras import ViserUrdf
+
+        k = len(self.ghosts)
+        frame = self.server.scene.add_frame(f"/ghosts/{k}", show_axes=False)
+        # Ghosts show the collision meshes: far fewer triangles than the visual ones, so a
+        # browser without a GPU keeps up while sigma or a tray moves.
+        ghost = ViserUrdf(
+            self.server,
+            self.urdf,
+            root_node_name=f"/ghosts/{k}",
+            load_meshes=False,
+            load_collision_meshes=True,
+            collision_mesh_color_override=(0.55, 0.6, 0.95, 0.5),
+        )
+        self.ghosts.append((frame, ghost))
+
+    def forget(self) -> None:
+        """The scene was reset: every node is gone."""
+        self._regions, self._lines, self._centres, self._labels = {}, {}, None, []
+        self.ghosts, self._n_ghosts = [], 0
