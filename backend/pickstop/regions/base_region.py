@@ -164,6 +164,7 @@ class RegionPlanner:
         yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
         hit = self._cached(scene, tray_id, yaw)
         if hit is not None:
+            self._remember(scene, hit)
             return hit
         region = compute_tray_region(self, scene, tray, yaw, self.own_key(scene, tray, yaw))
         self._store(scene, region)
@@ -185,6 +186,8 @@ class RegionPlanner:
         )
         hit = self._layouts.get(layout)
         if hit is not None:
+            for region in hit.values():
+                self._remember(scene, region)
             return dict(hit)
         workers = self.workers if workers is None else workers
         todo = [(t, y) for t, y in pairs if self._cached(scene, t, y) is None]
@@ -246,11 +249,16 @@ class RegionPlanner:
         carried = carried_regions(self.robot, scene, [k for _, k in known])
         return {p: r for (p, _), r in zip(known, carried, strict=True)}
 
-    def _store(self, scene: Scene, region: TrayRegion) -> None:
+    def _remember(self, scene: Scene, region: TrayRegion) -> None:
+        """Keep ``region`` as its tray's last (what a preview carries), the newest last."""
         key = (region.tray_id, region.yaw, _carry_key(scene, region.tray_id))
+        self._last.pop(key, None)
         self._last[key] = (scene.tray(region.tray_id), region)
         if len(self._last) > 4 * self.cache_size:
             self._last.pop(next(iter(self._last)))
+
+    def _store(self, scene: Scene, region: TrayRegion) -> None:
+        self._remember(scene, region)
         entries = self.cache.setdefault(region.key, [])
         entries.insert(0, _CacheEntry(region, _snapshot(scene, region.tray_id)))
         del entries[4:]  # a few layouts per tray and yaw
