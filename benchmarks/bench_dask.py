@@ -24,9 +24,10 @@ import numpy as np
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.distributed import client_for, dask_runner, plan_batch, plan_task
-from pickstop.reach.build import BuildParams, build
+from pickstop.reach.build import BuildParams
 from pickstop.robot.model import load
 from pickstop.settings import data_dir
+from pickstop.store.reach_build import build
 
 SCENE = Path(__file__).parents[1] / "examples" / "scenes" / "paper_experiment.json"
 

@@ -23,10 +23,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 
-from pickstop.reach.build import BuildParams, build
-from pickstop.reach.database import list_databases
+from pickstop.loader import planner_for
+from pickstop.reach.build import BuildParams
 from pickstop.regions.arm import screen_arm
-from pickstop.regions.loader import planner_for
 from pickstop.robot.floor import FLOOR_CLEARANCE, ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa
 from pickstop.scene.model import parse_scene
@@ -35,6 +34,8 @@ from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.settings import data_dir
+from pickstop.store.reach_build import build
+from pickstop.store.reach_catalog import list_databases
 
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"
 

@@ -203,8 +203,9 @@ def main() -> int:
     args = ap.parse_args()
     folder = Path(args.data_dir or tempfile.mkdtemp(prefix="pickstop-hostile-"))
     if not args.data_dir:
-        from pickstop.reach.build import BuildParams, build
+        from pickstop.reach.build import BuildParams
         from pickstop.robot.model import load
+        from pickstop.store.reach_build import build
 
         print(f"building a {args.samples:,}-sample TIAGo database in {folder} ...", flush=True)
         build(load("tiago"), BuildParams(samples=args.samples), folder, workers=2)

@@ -33,8 +33,8 @@ BREAKDOWN = r"""
 import json, os, sys, time
 t0 = time.perf_counter()
 from pathlib import Path
-from pickstop.reach.database import open_database
-from pickstop.regions.loader import robot_for
+from pickstop.store.reach_catalog import open_database
+from pickstop.loader import robot_for
 from pickstop.regions.base_region import RegionPlanner
 from pickstop.robot.config import resolve_robot
 from pickstop.scene.model import load_scene

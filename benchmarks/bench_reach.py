@@ -21,10 +21,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 
-from pickstop.reach.build import BuildParams, build
-from pickstop.reach.database import list_databases, open_database
+from pickstop.reach.build import BuildParams
 from pickstop.robot.kinematics import Chain, fk, manipulability
 from pickstop.robot.model import load
+from pickstop.store.reach_build import build
+from pickstop.store.reach_catalog import list_databases, open_database
 
 
 def _rss_mb(who: int) -> float:

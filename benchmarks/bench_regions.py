@@ -27,7 +27,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 
 from pickstop.reach.batch_ik import refine_batch
-from pickstop.reach.database import RANK_LENGTH, open_database
+from pickstop.reach.database import RANK_LENGTH
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import nearby, screen_arm
 from pickstop.regions.base_region import CellGrid, RegionPlanner
@@ -45,6 +45,7 @@ from pickstop.robot.model import load
 from pickstop.scene.model import Scene, load_scene, parse_scene
 from pickstop.scene.world import BoxArrays, scene_solids
 from pickstop.settings import cache_dir, data_dir
+from pickstop.store.reach_catalog import open_database
 
 SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
 

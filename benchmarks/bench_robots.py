@@ -28,11 +28,12 @@ ROBOTS = [
 
 
 def bench(ref: str, samples: int, folder: Path) -> None:
-    from pickstop.reach.build import BuildParams, build
+    from pickstop.reach.build import BuildParams
     from pickstop.robot.artifacts import _MEMO, _QUALITY
     from pickstop.robot.check import check_robot
     from pickstop.robot.model import load
     from pickstop.settings import cache_dir
+    from pickstop.store.reach_build import build
 
     _MEMO.clear()
     _QUALITY.clear()
@@ -58,13 +59,13 @@ def bench(ref: str, samples: int, folder: Path) -> None:
 
 def paper(ref: str, robot, row: dict, folder: Path) -> None:
     """Regions and plan of the paper-like scene with ``robot`` (its database of ``row``)."""
-    from pickstop.reach.database import open_database
     from pickstop.regions.base_region import RegionPlanner
     from pickstop.scene.model import parse_scene
     from pickstop.sequence.cover import InfeasiblePlanError
     from pickstop.sequence.plan import StopPlanner
     from pickstop.sequence.plan_model import PlanOptions
     from pickstop.settings import cache_dir
+    from pickstop.store.reach_catalog import open_database
 
     doc = json.loads((ROOT / "examples/scenes/paper_experiment.json").read_text())
     doc["robot"] = {"preset": ref} if ref == "tiago" else {"config": str(Path(ref).resolve())}
@@ -97,8 +98,9 @@ def dense(folder: Path) -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "robot"))
     from synthetic import write_dense_robot
 
-    from pickstop.reach.build import BuildParams, build
+    from pickstop.reach.build import BuildParams
     from pickstop.robot.model import load
+    from pickstop.store.reach_build import build
 
     t0 = time.perf_counter()
     config = write_dense_robot(folder / "robot", triangles=100_000)

@@ -38,8 +38,9 @@ def pr2():
 
 @pytest.fixture(scope="session")
 def region_db(tmp_path_factory, tiago):
-    from pickstop.reach.build import BuildParams, build
-    from pickstop.reach.database import open_database
+    from pickstop.reach.build import BuildParams
+    from pickstop.store.reach_build import build
+    from pickstop.store.reach_catalog import open_database
 
     """A 2M-sample TIAGo database for region tests: (data folder, database)."""
     folder = tmp_path_factory.mktemp("regiondata")

@@ -12,8 +12,9 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 from pickstop.distributed import dask_runner, plan_batch  # noqa: E402
-from pickstop.reach.build import BuildParams, build  # noqa: E402
+from pickstop.reach.build import BuildParams  # noqa: E402
 from pickstop.store.catalog import Catalog  # noqa: E402
+from pickstop.store.reach_build import build  # noqa: E402
 
 SCENE = Path(__file__).parents[1] / "examples" / "scenes" / "paper_experiment.json"
 

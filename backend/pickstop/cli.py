@@ -110,10 +110,11 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def cmd_reach_build(args: argparse.Namespace) -> int:
-    from pickstop.reach.build import BuildParams, build
-    from pickstop.reach.database import list_databases
+    from pickstop.reach.build import BuildParams
     from pickstop.robot.model import load
     from pickstop.settings import data_dir
+    from pickstop.store.reach_build import build
+    from pickstop.store.reach_catalog import list_databases
 
     params = BuildParams(
         samples=args.samples,
@@ -170,8 +171,8 @@ def cmd_robot_check(args: argparse.Namespace) -> int:
 
 
 def cmd_reach_info(args: argparse.Namespace) -> int:
-    from pickstop.reach.database import list_databases
     from pickstop.settings import data_dir
+    from pickstop.store.reach_catalog import list_databases
 
     rows = list_databases(data_dir(args.data_dir), args.robot)
     if args.id:
@@ -183,8 +184,8 @@ def cmd_reach_info(args: argparse.Namespace) -> int:
 
 
 def cmd_reach_verify(args: argparse.Namespace) -> int:
-    from pickstop.reach.database import verify_databases
     from pickstop.settings import data_dir
+    from pickstop.store.reach_catalog import verify_databases
 
     reports = verify_databases(data_dir(args.data_dir), args.id)
     _emit(reports)
@@ -200,9 +201,10 @@ def cmd_reach_verify(args: argparse.Namespace) -> int:
 
 
 def cmd_reach_query(args: argparse.Namespace) -> int:
-    from pickstop.reach.database import check_poses, open_database
+    from pickstop.reach.database import check_poses
     from pickstop.robot.model import load
     from pickstop.settings import data_dir
+    from pickstop.store.reach_catalog import open_database
 
     x, y, z, qw, qx, qy, qz = args.pose
     ps, qs = check_poses([[x, y, z]], [[qw, qx, qy, qz]])
@@ -260,8 +262,8 @@ def cmd_reach_query(args: argparse.Namespace) -> int:
 
 
 def cmd_regions(args: argparse.Namespace) -> int:
+    from pickstop.loader import planner_for
     from pickstop.regions.geojson import regions_geojson
-    from pickstop.regions.loader import planner_for
     from pickstop.scene.model import load_scene
     from pickstop.settings import data_dir
 
@@ -314,7 +316,7 @@ def _plan_options(args: argparse.Namespace) -> Any:
 
 
 def _plan_one(path: Path, args: argparse.Namespace, options: Any) -> Any:
-    from pickstop.regions.loader import stop_planner_for
+    from pickstop.loader import stop_planner_for
     from pickstop.scene.model import load_scene
     from pickstop.settings import data_dir
 
@@ -536,9 +538,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """The embedded default: the bundled TIAGo's database (built once), the paper-like scene,
     the API and the 3D planner; prints the URLs and a first plan."""
     from pickstop import stack
-    from pickstop.reach.build import BuildParams, build
+    from pickstop.reach.build import BuildParams
     from pickstop.robot.model import load
     from pickstop.settings import Settings, data_dir
+    from pickstop.store.reach_build import build
 
     t0 = time.perf_counter()
     folder = data_dir(args.data_dir)

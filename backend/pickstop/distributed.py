@@ -87,7 +87,7 @@ def plan_task(
     import os
 
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    from pickstop.regions.loader import stop_planner_for
+    from pickstop.loader import stop_planner_for
     from pickstop.scene.model import parse_scene, resolve_mesh_paths
     from pickstop.sequence.plan_model import PlanOptions
 

@@ -2,7 +2,8 @@ from __future__ import annotations
 
 import pytest
 
-from pickstop.reach.build import BuildParams, build
+from pickstop.reach.build import BuildParams
+from pickstop.store.reach_build import build
 
 
 @pytest.fixture(scope="session")
@@ -16,7 +17,7 @@ def small_db(tmp_path_factory, tiago):
 
 @pytest.fixture(scope="session")
 def small_loaded(small_db, tiago):
-    from pickstop.reach.database import open_database
+    from pickstop.store.reach_catalog import open_database
 
     folder, row, _ = small_db
     return open_database(folder, tiago, row["id"])

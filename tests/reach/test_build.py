@@ -11,9 +11,10 @@ from pickstop.errors import (
     DatabaseNotFoundError,
     InputError,
 )
-from pickstop.reach.build import BuildParams, build, dequantise
-from pickstop.reach.database import list_databases, open_database
+from pickstop.reach.build import BuildParams, dequantise
 from pickstop.robot.kinematics import Chain, fk
+from pickstop.store.reach_build import build
+from pickstop.store.reach_catalog import list_databases, open_database
 from pickstop.store.shards import read_shard
 
 

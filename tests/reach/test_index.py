@@ -14,11 +14,13 @@ import pytest
 
 from pickstop.cli import main
 from pickstop.errors import CorruptShardError, DatabaseError
-from pickstop.reach.build import BuildParams, build, dequantise
-from pickstop.reach.database import ReachDatabase, list_databases, open_database
+from pickstop.reach.build import BuildParams, dequantise
+from pickstop.reach.database import ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.robot.kinematics import Chain, fk
 from pickstop.store.catalog import Catalog
+from pickstop.store.reach_build import build
+from pickstop.store.reach_catalog import list_databases, open_database
 from pickstop.store.shards import read_shard
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -176,7 +178,7 @@ SHARER = textwrap.dedent(
     """
     import sys
     from pathlib import Path
-    from pickstop.reach.database import open_database
+    from pickstop.store.reach_catalog import open_database
     from pickstop.robot.model import load
 
     db = open_database(Path(sys.argv[1]), load("tiago"), sys.argv[2])

@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 
 from pickstop.errors import RobotConfigError
-from pickstop.reach.build import BuildParams, build
-from pickstop.reach.database import list_databases, open_database
+from pickstop.reach.build import BuildParams
 from pickstop.robot.artifacts import screen_quality, self_collision
 from pickstop.robot.exact import ExactSelfCollision
 from pickstop.robot.link_geometry import LinkShape, collision_links
 from pickstop.robot.model import load
+from pickstop.store.reach_build import build
+from pickstop.store.reach_catalog import list_databases, open_database
 from tests.robot.synthetic import sphere_triangles, write_dense_robot
 
 

@@ -159,10 +159,11 @@ def test_derived_footprint_holds_the_base_outline(name, robots):
 @pytest.fixture(scope="module", params=["ur5_amr", "tiago_pro"])
 def planned(request, robots, tmp_path_factory):
     """A small database of the robot, its region planner and the paper-like scene."""
-    from pickstop.reach.build import BuildParams, build
-    from pickstop.reach.database import open_database
+    from pickstop.reach.build import BuildParams
     from pickstop.regions.base_region import RegionPlanner
     from pickstop.settings import cache_dir
+    from pickstop.store.reach_build import build
+    from pickstop.store.reach_catalog import open_database
 
     robot = robots[request.param]
     folder = tmp_path_factory.mktemp(f"{request.param}-data")

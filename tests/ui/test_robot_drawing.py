@@ -23,8 +23,9 @@ PR2 = Path(__file__).parents[2] / "examples" / "robots" / "pr2.yaml"
 
 @pytest.fixture(scope="module")
 def pr2_app(live_api, region_db):
-    from pickstop.reach.build import BuildParams, build
+    from pickstop.reach.build import BuildParams
     from pickstop.robot.model import load
+    from pickstop.store.reach_build import build
     from pickstop_ui.app import PlannerApp
     from pickstop_ui.client import PickStopClient
 

@@ -26,10 +26,8 @@ import shapely
 from pickstop.api import limits as lim
 from pickstop.api.body import type_errors
 from pickstop.api.problems import Problem
-from pickstop.api.store import ServiceStore
 from pickstop.api.work import Cancelled, Work
 from pickstop.errors import InputError, PickStopError, RobotConfigError
-from pickstop.reach.database import list_databases, open_database
 from pickstop.regions.base_region import RegionPlanner
 from pickstop.robot.config import (
     RobotConfig,
@@ -44,6 +42,9 @@ from pickstop.sequence.plan import StopPlanner, route_points
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
 from pickstop.settings import Settings, cache_dir
+from pickstop.store import reach_catalog
+from pickstop.store.reach_catalog import list_databases, open_database
+from pickstop.store.records import ServiceStore
 
 log = logging.getLogger("pickstop.api")
 
@@ -71,7 +72,7 @@ _INHERITED: dict[tuple[str, str], Any] = {}
 
 def load_default_database(data_dir: Path) -> None:
     """Load the default robot's database into this process for forked workers to inherit."""
-    from pickstop.regions.loader import robot_for
+    from pickstop.loader import robot_for
 
     robot = robot_for(*resolve_robot("tiago"))
     if any(r["robot_hash"] == robot.robot_hash and r["state"] == "complete"
@@ -125,13 +126,13 @@ class Service:
         """A preset or a registered robot, by name."""
         if name in preset_names():
             return resolve_robot(name)
-        rows = self.store.rows("SELECT config FROM robots WHERE name = ?", [name])
-        if not rows:
+        row = self.store.robot(name)
+        if row is None:
             known = preset_names() + [r["name"] for r in self.store.robots()]
             raise InputError(
                 f"unknown robot {name!r}; known: {', '.join(known)}", field="robot.preset"
             )
-        config = parse_config(json.loads(rows[0]["config"]), f"robot {name}")
+        config = parse_config(json.loads(row["config"]), f"robot {name}")
         self.confine(config)  # at every open: a file swapped for a symlink since is refused
         return config, self.robot_dir
 
@@ -141,9 +142,7 @@ class Service:
         if strict:
             raise RobotConfigError("; ".join(f"{f}: {m}" for f, m in strict), field=strict[0][0])
         config = parse_config(data, "robot")
-        if config.name in preset_names() or self.store.rows(
-            "SELECT 1 FROM robots WHERE name = ?", [config.name]
-        ):
+        if config.name in preset_names() or self.store.robot(config.name) is not None:
             raise InputError(f"robot {config.name!r} already exists", field="name")
         self.confine(config)
         robot = load_robot(config, self.robot_dir)
@@ -329,7 +328,7 @@ class Service:
         return self.submit("build", params)
 
     def slot(self, scene: Scene, db_id: str | None = None) -> _Slot:
-        from pickstop.regions.loader import robot_for
+        from pickstop.loader import robot_for
 
         config, root = self.robot_config(scene.robot.ref)
         robot = robot_for(config, root)
@@ -345,7 +344,7 @@ class Service:
     def preload(self) -> None:
         """Load the default robot's planner if it has a database (at start-up)."""
         try:
-            from pickstop.regions.loader import robot_for
+            from pickstop.loader import robot_for
 
             config, root = resolve_robot("tiago")
             robot = robot_for(config, root)
@@ -557,7 +556,8 @@ class Service:
             raise JobCancelled(job_id)
 
     def _run_build(self, job_id: str, params: dict[str, Any]) -> dict[str, Any]:
-        from pickstop.reach.build import BuildParams, build
+        from pickstop.reach.build import BuildParams
+        from pickstop.store.reach_build import build
 
         config, root = self.robot_config(params.pop("robot"))
         robot = load_robot(config, root)
@@ -615,8 +615,7 @@ class Service:
 
     def delete_database(self, db_id: str) -> bool:
         cat = self.store.catalog
-        rows = cat.query("SELECT id FROM reach_databases WHERE id = ?", [db_id])
-        if not rows:
+        if reach_catalog.database_row(cat, db_id) is None:
             return False
         for key, db in list(_INHERITED.items()):
             if db.id == db_id:
@@ -626,9 +625,6 @@ class Service:
                 if slot.planner.regions.db.id == db_id:
                     slot.planner.regions.close()
                     del self._slots[key]
-        with self.store.transaction() as c:
-            c.execute("DELETE FROM reach_shards WHERE db_id = ?", [db_id])
-            c.execute("DELETE FROM reach_arrays WHERE db_id = ?", [db_id])
-            c.execute("DELETE FROM reach_databases WHERE id = ?", [db_id])
+        reach_catalog.delete_database(cat, db_id)
         shutil.rmtree(self.data_dir / "reach" / db_id, ignore_errors=True)
         return True

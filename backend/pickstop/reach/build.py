@@ -6,6 +6,9 @@ one shard, so a chunk's content depends on nothing but its index: an interrupted
 with the missing chunks and ends byte-identical to an uninterrupted one, and chunks can run in
 any process (or on any cluster worker) in any order. Once every chunk is in, the shards are
 indexed (:mod:`pickstop.reach.index`): what opening the database maps.
+
+This module computes; :func:`pickstop.store.reach_build.build` runs a build, recording its
+database, shards and index in the catalog as they are made.
 """
 
 from __future__ import annotations
@@ -18,15 +21,13 @@ import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
-from datetime import UTC, datetime
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-import pickstop
-from pickstop.errors import CorruptShardError, DatabaseError, InputError
+from pickstop.errors import InputError
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
 from pickstop.robot.floor import (
@@ -34,12 +35,9 @@ from pickstop.robot.floor import (
     MAX_CLEARANCE,
     FloorSpheres,
     below_floor,
-    floor_identity,
 )
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa, manipulability_soa
 from pickstop.robot.model import RobotModel
-from pickstop.store.catalog import Catalog
-from pickstop.store.reach_index import INDEX_FORMAT, check_file, file_sha256, index_files
 from pickstop.store.shards import ShardData, write_shard
 
 #: Bumped whenever a change alters what a build stores for the same inputs
@@ -250,31 +248,6 @@ def make_kernel(robot: RobotModel, params: BuildParams, data_dir: Path) -> Build
     )
 
 
-def builder_tag() -> str:
-    """``"host pid"`` of this process, recorded on a database while it builds it."""
-    import socket
-
-    return f"{socket.gethostname()} {os.getpid()}"
-
-
-def builder_alive(tag: str | None) -> bool:
-    """Is the process of a builder tag still running? (Another host's: assumed so.)"""
-    import socket
-
-    if not tag:
-        return False
-    host, _, pid = tag.rpartition(" ")
-    if host != socket.gethostname():
-        return True
-    try:
-        os.kill(int(pid), 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, ValueError):
-        return True
-    return True
-
-
 def screen_figures(robot: RobotModel, data_dir: Path) -> dict[str, Any]:
     """The self-collision screen's false rejection for ``robot``, as catalog columns."""
     from pickstop.robot.artifacts import screen_quality
@@ -286,88 +259,6 @@ def screen_figures(robot: RobotModel, data_dir: Path) -> dict[str, Any]:
         "screen_flagged": q["flagged"],
         "screen_samples": int(q["n"]),
     }
-
-
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="seconds")
-
-
-def _register(catalog: Catalog, db_id: str, robot: RobotModel, params: BuildParams) -> dict:
-    rows = catalog.query("SELECT * FROM reach_databases WHERE id = ?", [db_id])
-    if rows:
-        return rows[0]
-    row = {
-        "id": db_id,
-        "robot": robot.name,
-        "robot_hash": robot.robot_hash,
-        "dof": robot.dof,
-        "resolution": params.resolution,
-        "orientation": params.orientation,
-        "samples": params.samples,
-        "seed": params.seed,
-        "chunk_size": params.chunk_size,
-        "thinning": params.thinning,
-        "floor_clearance": params.floor_clearance,
-        "code_version": f"{pickstop.__version__}+format{FORMAT_VERSION}",
-        "joint_lower": json.dumps(robot.lower.tolist()),
-        "joint_upper": json.dumps(robot.upper.tolist()),
-        "state": "building",
-        "created": _now(),
-    }
-    catalog.table("reach_databases").insert(row)
-    return row
-
-
-def _chunks_done(catalog: Catalog, db_id: str, data_dir: Path) -> set[int]:
-    """Chunks whose shard is recorded and present with the recorded size and checksum."""
-    done = set()
-    for r in catalog.query(
-        "SELECT chunk, path, bytes, sha256 FROM reach_shards WHERE db_id = ?", [db_id]
-    ):
-        f = data_dir / r["path"]
-        if f.is_file() and f.stat().st_size == r["bytes"] and file_sha256(f) == r["sha256"]:
-            done.add(r["chunk"])
-        else:  # a vanished or altered shard is computed again
-            catalog.db.execute(
-                "DELETE FROM reach_shards WHERE db_id = ? AND chunk = ?", [db_id, r["chunk"]]
-            )
-    return done
-
-
-def _record(catalog: Catalog, db_id: str, res: ChunkResult) -> None:
-    catalog.table("reach_shards").insert(
-        {
-            "db_id": db_id,
-            "chunk": res.chunk,
-            "path": shard_relpath(db_id, res.chunk),
-            "sha256": res.sha256,
-            "bytes": res.bytes,
-            "rows": res.rows,
-            "samples": res.samples,
-            "rejected_self_collision": res.rejected_self_collision,
-            "rejected_thinning": res.rejected_thinning,
-            "rejected_floor": res.rejected_floor,
-            "seconds": res.seconds,
-        },
-        replace=True,
-    )
-
-
-def _row(catalog: Catalog, db_id: str) -> dict[str, Any]:
-    return catalog.query("SELECT * FROM reach_databases WHERE id = ?", [db_id])[0]
-
-
-def _index_intact(catalog: Catalog, row: dict[str, Any], data_dir: Path) -> bool:
-    """Is the database's voxel index of this format, present and unaltered?"""
-    files = index_files(catalog, row["id"])
-    if row.get("index_format") != INDEX_FORMAT or not files:
-        return False
-    try:
-        for f in files:
-            check_file(data_dir, f, full=False)
-    except CorruptShardError:
-        return False
-    return True
 
 
 ChunkRunner = Callable[[BuildKernel, list[int], Path, str], Iterable[ChunkResult]]
@@ -404,96 +295,3 @@ def run_local(
         finally:
             for f in pending:
                 f.cancel()
-
-
-def build(
-    robot: RobotModel,
-    params: BuildParams,
-    data_dir: Path,
-    *,
-    workers: int | None = None,
-    progress: Callable[[int, int], None] | None = None,
-    max_chunks: int | None = None,
-    runner: ChunkRunner | None = None,
-    nice: int = 0,
-) -> dict[str, Any]:
-    """Build (or resume) the database of ``robot`` with ``params``; return its catalog row.
-
-    progress: called with (samples done, samples total). max_chunks: stop after computing that
-    many chunks (the database stays 'building' and resumes on the next call).
-    """
-    params.validate()
-    data_dir = Path(data_dir)
-    catalog = Catalog(data_dir)
-    db_id = database_id(robot.robot_hash, params, floor_identity(robot))
-    row = _register(catalog, db_id, robot, params)
-    t0 = time.perf_counter()
-    done = _chunks_done(catalog, db_id, data_dir)
-    if (
-        row["state"] == "complete"
-        and len(done) == params.n_chunks
-        and _index_intact(catalog, row, data_dir)
-    ):
-        catalog.close()
-        return row
-    # Building (again): a shard that went missing or was altered is recomputed (the content is
-    # deterministic); the row names this process until the build ends, complete or not.
-    catalog.table("reach_databases").update(
-        db_id, {"state": "building", "completed": None, "builder": builder_tag()}
-    )
-    todo = [c for c in range(params.n_chunks) if c not in done]
-    if max_chunks is not None:
-        todo = todo[:max_chunks]
-    samples_done = sum(params.chunk_samples(c) for c in done)
-    if progress:
-        progress(samples_done, params.samples)
-    workers = workers or os.cpu_count() or 1
-    run = runner or (
-        lambda k, c, d, i: run_local(k, c, d, i, min(workers, max(len(c), 1)), nice=nice)
-    )
-    try:
-        kernel = make_kernel(robot, params, data_dir)
-        catalog.table("reach_databases").update(db_id, screen_figures(robot, data_dir))
-        for res in run(kernel, todo, data_dir, db_id):
-            _record(catalog, db_id, res)
-            done.add(res.chunk)
-            samples_done += res.samples
-            if progress:
-                progress(samples_done, params.samples)
-        if len(done) == params.n_chunks:
-            from pickstop.reach.index import index_database
-
-            index_database(data_dir, _row(catalog, db_id), kernel.chain, workers, nice)
-    finally:
-        elapsed = time.perf_counter() - t0
-        # Whatever stopped it (Ctrl-C, an error, a chunk limit), an unfinished build is
-        # 'interrupted' until the same command resumes it; a killed one is found out by
-        # list_databases from its builder tag.
-        catalog.db.execute(
-            "UPDATE reach_databases SET build_seconds = build_seconds + ?, builder = NULL, "
-            "state = CASE WHEN state = 'building' THEN 'interrupted' ELSE state END "
-            "WHERE id = ?",
-            [elapsed, db_id],
-        )
-    if len(done) == params.n_chunks:
-        totals = catalog.query(
-            "SELECT SUM(rows) s, SUM(rejected_self_collision) c, SUM(rejected_thinning) t, "
-            "SUM(rejected_floor) f FROM reach_shards WHERE db_id = ?",
-            [db_id],
-        )[0]
-        catalog.table("reach_databases").update(
-            db_id,
-            {
-                "state": "complete",
-                "completed": _now(),
-                "stored": totals["s"],
-                "rejected_self_collision": totals["c"],
-                "rejected_thinning": totals["t"],
-                "rejected_floor": totals["f"],
-            },
-        )
-    out = catalog.query("SELECT * FROM reach_databases WHERE id = ?", [db_id])[0]
-    catalog.close()
-    if out["state"] != "complete" and max_chunks is None:
-        raise DatabaseError(f"database {db_id}: build ended with missing chunks")
-    return out

@@ -4,7 +4,8 @@ Rows are sorted by voxel key; ``unique_keys[i]`` owns rows ``offsets[i]:offsets[
 tool pose of every row was computed when the database was indexed, so candidates are ranked by
 how close their pose is to a target without any kinematics at open. The arrays are memory-mapped
 read-only (:mod:`pickstop.store.reach_index`): processes share them through the page cache and a
-query reads only the voxels it touches.
+query reads only the voxels it touches. Finding and opening a database by id reads the catalog:
+:func:`pickstop.store.reach_catalog.open_database`.
 """
 
 from __future__ import annotations
@@ -13,28 +14,15 @@ import json
 import shlex
 from dataclasses import dataclass
 from functools import cached_property
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from pickstop.errors import (
-    DatabaseError,
-    DatabaseMismatchError,
-    DatabaseNotFoundError,
-    QueryError,
-)
-from pickstop.reach.build import builder_alive, dequantise
+from pickstop.errors import QueryError
+from pickstop.reach.build import dequantise
 from pickstop.reach.voxels import VoxelGrid
 from pickstop.robot.model import RobotModel
-from pickstop.store.catalog import Catalog
-from pickstop.store.reach_index import (
-    INDEX_FORMAT,
-    OpenStats,
-    index_files,
-    map_index,
-    verify_files,
-)
+from pickstop.store.reach_index import OpenStats
 
 #: Length that turns a rotation error into a distance when ranking candidates [m/rad].
 RANK_LENGTH = 0.1
@@ -247,143 +235,6 @@ class ReachDatabase:
             score = pos_err + RANK_LENGTH * 2.0 * np.arccos(np.minimum(dot, 1.0))
             rows = rows[np.lexsort((score, owner))]
         return CandidateSet(offsets=offsets, rows=rows.astype(np.int64))
-
-
-def list_databases(data_dir: Path, robot: str | None = None) -> list[dict[str, Any]]:
-    """Catalog rows of every database (of ``robot`` if given), newest first."""
-    cat = Catalog(data_dir)
-    try:
-        sql = "SELECT * FROM reach_databases"
-        args: list[Any] = []
-        if robot:
-            sql += " WHERE robot = ?"
-            args.append(robot)
-        rows = cat.query(sql + " ORDER BY created DESC, id", args)
-        for r in rows:
-            if r["state"] == "building" and not builder_alive(r.get("builder")):
-                # Its process was killed before it could say so.
-                cat.db.execute(
-                    "UPDATE reach_databases SET state = 'interrupted', builder = NULL "
-                    "WHERE id = ? AND state = 'building'",
-                    [r["id"]],
-                )
-                r["state"], r["builder"] = "interrupted", None
-            r["shards"] = cat.query(
-                "SELECT chunk, path, sha256, bytes, rows FROM reach_shards WHERE db_id = ? "
-                "ORDER BY chunk",
-                [r["id"]],
-            )
-            r["index"] = cat.query(
-                "SELECT name, path, dtype, shape, sha256, bytes FROM reach_arrays "
-                "WHERE db_id = ? ORDER BY name",
-                [r["id"]],
-            )
-        return rows
-    finally:
-        cat.close()
-
-
-def verify_databases(data_dir: Path, db_id: str | None = None) -> list[dict[str, Any]]:
-    """Hash every shard and index file of every database (or of ``db_id``, an id or prefix).
-
-    One report a database: ``{"id", "state", "ok", "files": [{"path", "ok", ...}]}``; a file
-    that passes is recorded as verified at its current modification time."""
-    data_dir = Path(data_dir)
-    rows = list_databases(data_dir)
-    if db_id is not None:
-        rows = [r for r in rows if r["id"].startswith(db_id)]
-        if not rows:
-            raise DatabaseNotFoundError(f"no reachability database with id {db_id!r} in {data_dir}")
-    cat = Catalog(data_dir)
-    try:
-        out = []
-        for r in rows:
-            files = verify_files(data_dir, r["id"], cat)
-            indexed = r.get("index_format") == INDEX_FORMAT
-            out.append({"id": r["id"], "state": r["state"], "indexed": indexed,
-                        "ok": all(f["ok"] for f in files), "files": files})  # fmt: skip
-        return out
-    finally:
-        cat.close()
-
-
-def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -> dict[str, Any]:
-    """The catalog row to use for ``robot``: ``db_id`` if given (checked), else the complete
-    database with the most configurations (the newest of equals)."""
-    rows = list_databases(data_dir)
-    if db_id is not None:
-        match = [r for r in rows if r["id"] == db_id or r["id"].startswith(db_id)]
-        if not match:
-            raise DatabaseNotFoundError(f"no reachability database with id {db_id!r} in {data_dir}")
-        if len(match) > 1:
-            raise DatabaseNotFoundError(f"database id prefix {db_id!r} is ambiguous")
-        row = match[0]
-        if row["robot_hash"] != robot.robot_hash:
-            raise DatabaseMismatchError(
-                f"database {row['id']} was built for robot {row['robot']!r} (config hash "
-                f"{row['robot_hash'][:12]}), not for {robot.name!r} (config hash "
-                f"{robot.robot_hash[:12]}); build one with `pickstop reach build --robot ...`"
-            )
-        if row["state"] != "complete":
-            raise DatabaseError(
-                f"database {row['id']} is still {row['state']}: run the same "
-                "`pickstop reach build` again to resume it"
-            )
-        return row
-    ok = [r for r in rows if r["robot_hash"] == robot.robot_hash and r["state"] == "complete"]
-    # The most capable database first (most stored configurations), the newest among equals.
-    ok.sort(key=lambda r: -(r["stored"] or 0))  # stable: rows come newest first
-    if not ok:
-        same_name = [r["id"] for r in rows if r["robot"] == robot.name]
-        hint = (
-            f" (databases {', '.join(same_name)} are named {robot.name!r} but were built for "
-            "another config or are incomplete)"
-            if same_name
-            else ""
-        )
-        raise DatabaseNotFoundError(
-            f"no complete reachability database for robot {robot.name!r} in {data_dir}{hint}; "
-            f"build one with `pickstop reach build --robot {robot.source or robot.name}`"
-        )
-    return ok[0]
-
-
-def open_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -> ReachDatabase:
-    """Open a complete database of ``robot``: map its voxel index read-only.
-
-    Nothing is decoded or recomputed; only files whose size or modification time changed
-    since they were last verified are hashed (a corrupted one is refused)."""
-    data_dir = Path(data_dir)
-    row = find_database(data_dir, robot, db_id)
-    if row.get("index_format") != INDEX_FORMAT:
-        raise DatabaseError(
-            f"database {row['id']} has no voxel index of the format this PickStop reads "
-            f"(it was built by {row['code_version']}); index it from its shards with "
-            f"`{build_command(row, robot)}` (about a second per million configurations)"
-        )
-    cat = Catalog(data_dir)
-    try:
-        files = index_files(cat, row["id"])
-    finally:
-        cat.close()
-    arrays, stats = map_index(data_dir, row["id"], files)
-    if len(arrays["manip"]) != row["stored"]:
-        raise DatabaseError(
-            f"database {row['id']}: its index holds {len(arrays['manip'])} configurations, "
-            f"the catalog records {row['stored']}; index it again with "
-            f"`{build_command(row, robot)}`"
-        )
-    return ReachDatabase(
-        row,
-        unique_keys=arrays["keys"],
-        offsets=arrays["starts"],
-        joints=arrays["joints"],
-        manip=arrays["manip"],
-        positions=arrays["positions"],
-        quats=arrays["quats"],
-        reach_xy=row["reach_xy"],
-        stats=stats,
-    )
 
 
 def build_command(row: dict[str, Any], robot: RobotModel) -> str:

@@ -3,7 +3,8 @@
 The shards hold quantised joints in build order; queries need rows grouped by voxel and the
 tool pose of each row to rank candidates. Both follow from the joints by FK, so they are
 computed here, once, when a build completes (or for a database built before indices existed),
-and written as the memory-mapped index of :mod:`pickstop.store.reach_index`.
+and written as the memory-mapped index of :mod:`pickstop.store.reach_index` (the build records
+it in the catalog).
 
 Memory is bounded: each shard is posed and sorted on its own (pass 1, to temporary files),
 then the shards are merged one key range at a time (pass 2) straight into the mapped output.
@@ -28,16 +29,15 @@ from typing import Any
 import numpy as np
 
 from pickstop.errors import DatabaseError
+from pickstop.reach.build import dequantise
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
 from pickstop.robot.kinematics import Chain, fk
-from pickstop.store.catalog import Catalog
 from pickstop.store.reach_index import (
     ARRAYS,
     ArrayFile,
     create_array,
     index_relpath,
-    record_index,
     seal_array,
 )
 from pickstop.store.shards import read_shard
@@ -67,28 +67,26 @@ def tool_poses(
 
 
 def index_database(
-    data_dir: Path, row: dict[str, Any], chain: Chain, workers: int = 1, nice: int = 0
-) -> dict[str, Any]:
-    """Build the voxel index of the complete database ``row`` from its (verified) shards.
+    data_dir: Path,
+    row: dict[str, Any],
+    shards: list[dict[str, Any]],
+    chain: Chain,
+    workers: int = 1,
+    nice: int = 0,
+) -> tuple[list[ArrayFile], dict[str, Any]]:
+    """Build the voxel index of the complete database ``row`` from its ``shards`` (catalog
+    rows ``chunk, path, sha256``, in chunk order; each is verified as it is read).
 
     workers: processes posing the shards (pass 1), their priority lowered by ``nice`` (a
-    service building in the background). Written to a temporary folder, then moved
-    in place and recorded in the catalog; returns the figures recorded (voxels, reach_xy,
-    seconds).
+    service building in the background). Written to a temporary folder, then moved in
+    place; returns the files written and the figures (voxels, reach_xy, seconds) for the
+    catalog to record.
     """
     t0 = time.perf_counter()
     data_dir = Path(data_dir)
     db_id, dof = row["id"], row["dof"]
     voxel = VoxelGrid(row["resolution"], row["orientation"])
     lower, upper = _joint_range(row)
-    cat = Catalog(data_dir)
-    try:
-        shards = cat.query(
-            "SELECT chunk, path, sha256, rows FROM reach_shards WHERE db_id = ? ORDER BY chunk",
-            [db_id],
-        )
-    finally:
-        cat.close()
     if len(shards) != math.ceil(row["samples"] / row["chunk_size"]):
         raise DatabaseError(f"database {db_id}: catalog lists {len(shards)} shards, expected more")
     final = data_dir / index_relpath(db_id)
@@ -170,12 +168,7 @@ def index_database(
         shutil.rmtree(old, ignore_errors=True)
         figures = {"voxels": len(all_keys), "reach_xy": reach_xy,
                    "seconds": time.perf_counter() - t0}  # fmt: skip
-        cat = Catalog(data_dir)
-        try:
-            record_index(cat, db_id, files, figures)
-        finally:
-            cat.close()
-        return figures
+        return files, figures
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -208,8 +201,6 @@ def _init_worker(nice: int) -> None:
 
 
 def _pose_shard(job: _PoseJob) -> None:
-    from pickstop.reach.build import dequantise
-
     data = read_shard(job.shard, job.sha256, job.dof)
     j = data.joints
     pos, quat, keys = tool_poses(

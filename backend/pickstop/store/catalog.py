@@ -85,10 +85,23 @@ class Catalog:
     def table(self, name: str) -> sqlite_utils.db.Table:
         return self.db.table(name)
 
+    def insert(self, table: str, row: dict[str, Any], *, replace: bool = False) -> None:
+        """Insert ``row`` (column: value; the columns are the code's, never a user's) into
+        ``table``; ``replace``: over a row with the same primary key."""
+        names = ", ".join(row)
+        values = ", ".join(f":{n}" for n in row)
+        verb = "INSERT OR REPLACE" if replace else "INSERT"
+        self.conn.execute(f"{verb} INTO {table} ({names}) VALUES ({values})", row)
+
     def query(self, sql: str, params: Any = ()) -> list[dict[str, Any]]:
         cur = self.conn.execute(sql, params)
         names = [d[0] for d in cur.description]
         return [dict(zip(names, r, strict=True)) for r in cur]
+
+    def one(self, sql: str, params: Any = ()) -> dict[str, Any] | None:
+        """The first row of a query, or None."""
+        rows = self.query(sql, params)
+        return rows[0] if rows else None
 
     def close(self) -> None:
         self.conn.close()

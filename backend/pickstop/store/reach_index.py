@@ -1,6 +1,7 @@
-"""The memory-mapped voxel index of a reachability database: its files, checksums, catalog rows.
+"""The memory-mapped voxel index of a reachability database: its files and their checksums.
 
-A database's index lives in ``reach/<id>/index/``, one uncompressed ``.npy`` file an array, rows
+The catalog rows that describe the files are :mod:`pickstop.store.reach_catalog`'s. A
+database's index lives in ``reach/<id>/index/``, one uncompressed ``.npy`` file an array, rows
 sorted by voxel key. The files are mapped read-only (``np.load(mmap_mode="r")``): every process
 on a machine shares one copy in the page cache, opening reads only the headers, and a query
 reads only the pages of the voxels it touches.
@@ -28,7 +29,6 @@ from typing import Any
 import numpy as np
 
 from pickstop.errors import CorruptShardError
-from pickstop.store.catalog import Catalog
 
 #: Bumped whenever the index files change meaning; an index of another format is rebuilt.
 INDEX_FORMAT = 1
@@ -107,64 +107,15 @@ def seal_array(name: str, path: Path, relpath: str) -> ArrayFile:
     )
 
 
-def record_index(
-    catalog: Catalog, db_id: str, files: list[ArrayFile], figures: dict[str, Any]
-) -> None:
-    """Record a new index of ``db_id`` (replacing any older one) with its ``figures``."""
-    conn = catalog.conn
-    conn.execute("BEGIN IMMEDIATE")
-    try:
-        conn.execute("DELETE FROM reach_arrays WHERE db_id = ?", [db_id])
-        for f in files:
-            conn.execute(
-                "INSERT INTO reach_arrays (db_id, name, path, dtype, shape, sha256, bytes, "
-                "mtime_ns) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                [db_id, f.name, f.path, f.dtype, json.dumps(list(f.shape)), f.sha256, f.bytes,
-                 f.mtime_ns],
-            )  # fmt: skip
-        conn.execute(
-            "UPDATE reach_databases SET index_format = ?, voxels = ?, reach_xy = ?, "
-            "index_seconds = ? WHERE id = ?",
-            [INDEX_FORMAT, figures["voxels"], figures["reach_xy"], figures["seconds"], db_id],
-        )
-        conn.execute("COMMIT")
-    except Exception:
-        conn.execute("ROLLBACK")
-        raise
-
-
-def index_files(catalog: Catalog, db_id: str) -> list[ArrayFile]:
-    """The index files the catalog records for ``db_id`` (empty if it has none)."""
-    rows = catalog.query("SELECT * FROM reach_arrays WHERE db_id = ? ORDER BY name", [db_id])
-    return [ArrayFile.of_row(r) for r in rows]
-
-
-def mark_verified(data_dir: Path, db_id: str, verified: dict[str, int]) -> None:
-    """Record the modification times ``{name: mtime_ns}`` at which files were verified.
-
-    Best effort: on a read-only data folder the next open verifies them again."""
-    try:
-        cat = Catalog(data_dir)
-    except Exception:
-        return
-    try:
-        for name, mtime_ns in verified.items():
-            cat.conn.execute(
-                "UPDATE reach_arrays SET mtime_ns = ? WHERE db_id = ? AND name = ?",
-                [mtime_ns, db_id, name],
-            )
-    except Exception:  # read-only catalog: verified again next time
-        pass
-    finally:
-        cat.close()
-
-
 @dataclass
 class OpenStats:
     """Work done opening an index: what was hashed because it changed since last verified."""
 
     bytes_hashed: int = 0
     files_hashed: list[str] = field(default_factory=list)
+    #: ``{name: mtime_ns}``: the modification time each hashed file was verified at (for the
+    #: catalog to record, so the next open need not hash it again).
+    verified: dict[str, int] = field(default_factory=dict)
 
 
 def check_file(data_dir: Path, f: ArrayFile, *, full: bool) -> int | None:
@@ -197,19 +148,19 @@ def check_file(data_dir: Path, f: ArrayFile, *, full: bool) -> int | None:
 def map_index(
     data_dir: Path, db_id: str, files: list[ArrayFile]
 ) -> tuple[dict[str, np.ndarray], OpenStats]:
-    """Map an index read-only after checking its files (hashing those that changed)."""
+    """Map an index read-only after checking its files (hashing those that changed; their
+    verification times are in ``stats.verified`` for the catalog to record)."""
     stats = OpenStats()
     by_name = {f.name: f for f in files}
     missing = sorted(set(ARRAYS) - set(by_name))
     if missing:
         raise CorruptShardError(f"database {db_id}: the catalog lists no index file {missing}")
-    verified: dict[str, int] = {}
     arrays: dict[str, np.ndarray] = {}
     for name in ARRAYS:
         f = by_name[name]
         t = check_file(data_dir, f, full=False)
         if t is not None:
-            verified[name] = t
+            stats.verified[name] = t
             stats.bytes_hashed += f.bytes
             stats.files_hashed.append(f.path)
         try:
@@ -228,28 +179,11 @@ def map_index(
         raise CorruptShardError(f"database {db_id}: the voxel index does not cover its {n} rows")
     if any(len(arrays[k]) != n for k in ("joints", "positions", "quats")):
         raise CorruptShardError(f"database {db_id}: index arrays of unequal length")
-    if verified:
-        mark_verified(data_dir, db_id, verified)
     return arrays, stats
 
 
-def verify_files(data_dir: Path, db_id: str, catalog: Catalog) -> list[dict[str, Any]]:
-    """Hash every file of a database (its shards and its index): one report row a file."""
-    out: list[dict[str, Any]] = []
-    verified: dict[str, int] = {}
-    for r in catalog.query(
-        "SELECT path, sha256, bytes FROM reach_shards WHERE db_id = ? ORDER BY chunk", [db_id]
-    ):
-        f = ArrayFile("shard", r["path"], "", (), r["sha256"], r["bytes"], -1)
-        out.append(_verify_one(data_dir, f, None))
-    for f in index_files(catalog, db_id):
-        out.append(_verify_one(data_dir, f, verified))
-    if verified:
-        mark_verified(data_dir, db_id, verified)
-    return out
-
-
-def _verify_one(data_dir: Path, f: ArrayFile, verified: dict[str, int] | None) -> dict[str, Any]:
+def verify_one(data_dir: Path, f: ArrayFile, verified: dict[str, int] | None) -> dict[str, Any]:
+    """Hash one file in full: its report row; its verification time goes into ``verified``."""
     try:
         t = check_file(data_dir, f, full=True)
     except CorruptShardError as e:

@@ -8,8 +8,8 @@ import time
 from fastapi.testclient import TestClient
 
 from pickstop.api.app import create_app
-from pickstop.api.store import ServiceStore
 from pickstop.settings import Settings
+from pickstop.store.records import ServiceStore
 
 from ..conftest import AUTH
 from ..factories import paper, titled_problem, wait_job

@@ -9,7 +9,7 @@ from pickstop.api.deps import JsonBody, ReadKey, ServiceDep, WriteKey
 from pickstop.api.openapi import json_request
 from pickstop.api.problems import Problem
 from pickstop.api.schemas import API_PREFIX, BuildRequest, DatabaseInfo, Job
-from pickstop.reach.database import list_databases
+from pickstop.store.reach_catalog import list_databases
 
 router = APIRouter(tags=["databases"])
 

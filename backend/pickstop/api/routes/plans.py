@@ -13,8 +13,8 @@ from pickstop.api.deps import JsonBody, ReadKey, ServiceDep, WriteKey
 from pickstop.api.openapi import json_request
 from pickstop.api.problems import Problem
 from pickstop.api.schemas import API_PREFIX, Job, PlanRecord, PlanRequest, PlanSummary
-from pickstop.api.store import now
 from pickstop.api.work import compute
+from pickstop.store.records import now
 
 router = APIRouter(tags=["plans"])
 

@@ -11,9 +11,9 @@ from pickstop.api.deps import JsonBody, ReadKey, SceneRow, ServiceDep, WriteKey
 from pickstop.api.openapi import json_request
 from pickstop.api.problems import Problem
 from pickstop.api.schemas import API_PREFIX, PlanSummary, Regions, SceneRecord
-from pickstop.api.store import Conflict
 from pickstop.api.work import compute
 from pickstop.sequence.rules import RuleName
+from pickstop.store.records import Conflict
 
 router = APIRouter(tags=["scenes"])
 

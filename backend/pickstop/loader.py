@@ -5,12 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pickstop.reach.database import open_database
 from pickstop.regions.base_region import RegionPlanner
 from pickstop.robot.config import RobotConfig, load_config, resolve_robot
 from pickstop.robot.model import RobotModel, load_robot
 from pickstop.scene.model import Scene
 from pickstop.settings import cache_dir
+from pickstop.store.reach_catalog import open_database
 
 if TYPE_CHECKING:  # the stop planner (and its solver, ortools) loads only when a plan is made
     from pickstop.sequence.plan import StopPlanner

@@ -36,6 +36,8 @@ class Conflict(Exception):
 
 
 class ServiceStore:
+    """The service's records in ``catalog.sqlite``: scenes, plans, jobs and robots."""
+
     def __init__(self, data_dir: Path) -> None:
         self.data_dir = Path(data_dir)
         self._local = threading.local()
@@ -50,7 +52,7 @@ class ServiceStore:
 
     @contextmanager
     def transaction(self) -> Iterator[Any]:
-        conn = self.catalog.db.conn
+        conn = self.catalog.conn
         conn.execute("BEGIN IMMEDIATE")
         try:
             yield conn
@@ -74,17 +76,11 @@ class ServiceStore:
             "created": t,
             "updated": t,
         }
-        with self.transaction() as c:
-            c.execute(
-                "INSERT INTO scenes (id, name, doc, etag, revision, created, updated) "
-                "VALUES (:id, :name, :doc, :etag, :revision, :created, :updated)",
-                row,
-            )
+        self.catalog.insert("scenes", row)
         return row
 
     def scene(self, scene_id: str) -> dict[str, Any] | None:
-        rows = self.rows("SELECT * FROM scenes WHERE id = ?", [scene_id])
-        return rows[0] if rows else None
+        return self.catalog.one("SELECT * FROM scenes WHERE id = ?", [scene_id])
 
     def scenes(self, limit: int, offset: int) -> list[dict[str, Any]]:
         return self.rows(
@@ -99,11 +95,9 @@ class ServiceStore:
         """Replace the document if its ETag is still one of ``if_match`` (None: any); None if
         the scene is gone."""
         with self.transaction() as c:
-            cur = c.execute("SELECT etag, revision FROM scenes WHERE id = ?", [scene_id]).fetchone()
+            cur = _matching_scene(c, scene_id, if_match)
             if cur is None:
                 return None
-            if if_match is not None and cur[0] not in if_match:
-                raise Conflict(cur[0])
             etag, rev, t = _etag(), cur[1] + 1, now()
             c.execute(
                 "UPDATE scenes SET doc = ?, name = ?, etag = ?, revision = ?, updated = ? "
@@ -115,11 +109,8 @@ class ServiceStore:
     def delete_scene(self, scene_id: str, if_match: Collection[str] | None) -> bool:
         """Delete the scene if its ETag is one of ``if_match`` (None: any); False if gone."""
         with self.transaction() as c:
-            cur = c.execute("SELECT etag FROM scenes WHERE id = ?", [scene_id]).fetchone()
-            if cur is None:
+            if _matching_scene(c, scene_id, if_match) is None:
                 return False
-            if if_match is not None and cur[0] not in if_match:
-                raise Conflict(cur[0])
             c.execute("DELETE FROM scenes WHERE id = ?", [scene_id])
         return True
 
@@ -141,18 +132,11 @@ class ServiceStore:
             "doc": json.dumps(doc),
             "created": now(),
         }
-        with self.transaction() as c:
-            c.execute(
-                "INSERT INTO plans (id, scene_id, scene_revision, scene_doc, options, doc, "
-                "created) VALUES (:id, :scene_id, :scene_revision, :scene_doc, :options, :doc, "
-                ":created)",
-                row,
-            )
+        self.catalog.insert("plans", row)
         return row
 
     def plan(self, plan_id: str) -> dict[str, Any] | None:
-        rows = self.rows("SELECT * FROM plans WHERE id = ?", [plan_id])
-        return rows[0] if rows else None
+        return self.catalog.one("SELECT * FROM plans WHERE id = ?", [plan_id])
 
     def plans(self, scene_id: str | None, limit: int, offset: int) -> list[dict[str, Any]]:
         where, params = ("WHERE scene_id = ?", [scene_id]) if scene_id else ("", [])
@@ -176,19 +160,13 @@ class ServiceStore:
             "created": t,
             "updated": t,
         }
-        with self.transaction() as c:
-            c.execute(
-                "INSERT INTO jobs (id, kind, state, progress, params, created, updated) "
-                "VALUES (:id, :kind, :state, :progress, :params, :created, :updated)",
-                row,
-            )
+        self.catalog.insert("jobs", row)
         job = self.job(str(row["id"]))
         assert job is not None
         return job
 
     def job(self, job_id: str) -> dict[str, Any] | None:
-        rows = self.rows("SELECT * FROM jobs WHERE id = ?", [job_id])
-        return rows[0] if rows else None
+        return self.catalog.one("SELECT * FROM jobs WHERE id = ?", [job_id])
 
     def jobs(self, limit: int, offset: int) -> list[dict[str, Any]]:
         return self.rows(
@@ -231,8 +209,23 @@ class ServiceStore:
                 [name, json.dumps(config), now()],
             )
 
+    def robot(self, name: str) -> dict[str, Any] | None:
+        """The registered robot ``name`` (``name, config, created``), or None."""
+        return self.catalog.one("SELECT name, config, created FROM robots WHERE name = ?", [name])
+
     def robots(self) -> list[dict[str, Any]]:
         return self.rows("SELECT name, config, created FROM robots ORDER BY name")
+
+
+def _matching_scene(
+    conn: Any, scene_id: str, if_match: Collection[str] | None
+) -> tuple[str, int] | None:
+    """``(etag, revision)`` of a scene inside a transaction, or None if it is gone; raises
+    :class:`Conflict` if its ETag is not one of ``if_match`` (None: any)."""
+    cur = conn.execute("SELECT etag, revision FROM scenes WHERE id = ?", [scene_id]).fetchone()
+    if cur is not None and if_match is not None and cur[0] not in if_match:
+        raise Conflict(cur[0])
+    return None if cur is None else (str(cur[0]), int(cur[1]))
 
 
 def _etag() -> str:
