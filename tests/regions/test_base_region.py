@@ -193,7 +193,7 @@ def test_touching_cells_merge_into_one_polygon():
     """Cells share bit-identical edges, so a solid block is one polygon with its holes."""
     import numpy as np
 
-    from pickstop.regions.base_region import CellGrid
+    from pickstop.regions.cells import CellGrid
 
     grid = CellGrid(x0=-1.1, y0=0.37, res=0.025, nx=40, ny=30)
     mask = np.ones((30, 40), bool)

@@ -13,7 +13,8 @@ from collections import OrderedDict
 
 import numpy as np
 
-from pickstop.regions.base_region import RegionPlanner, TrayRegion, feasible_near
+from pickstop.regions.base_region import RegionPlanner, feasible_near
+from pickstop.regions.cells import TrayRegion
 from pickstop.scene.model import Scene
 
 CACHE = 4096  # results kept per checker (poses repeat across runs only by chance)

@@ -18,12 +18,12 @@ from typing import Any
 
 import numpy as np
 import shapely
-from shapely.geometry.base import BaseGeometry
 
 from pickstop.reach.batch_ik import BatchSolver
 from pickstop.reach.database import ReachDatabase
 from pickstop.regions import solve
 from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm, nearby, screen_arm
+from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import blocked_by, footprint_check, footprint_free
 from pickstop.regions.reuse import ReuseCache, TrayAnchor, grasps_digest
@@ -36,63 +36,6 @@ from pickstop.scene.model import Part, Scene, Tray
 from pickstop.scene.world import BoxArrays, Solid, scene_solids, tray_body_solids
 
 Bounds = list[tuple[np.ndarray, np.ndarray]]  # axis-aligned (lo, hi) boxes [m]
-
-
-@dataclass(frozen=True)
-class CellGrid:
-    """Base cells: centre of cell (ix, iy) is ``(x0 + (ix + .5) res, y0 + (iy + .5) res)``."""
-
-    x0: float
-    y0: float
-    res: float  # [m]
-    nx: int
-    ny: int
-
-    @classmethod
-    def of(cls, scene: Scene) -> CellGrid:
-        ext, res = scene.grid_extent, scene.base_grid.resolution
-        nx = math.floor((ext.max[0] - ext.min[0]) / res + 1e-9)
-        ny = math.floor((ext.max[1] - ext.min[1]) / res + 1e-9)
-        return cls(ext.min[0], ext.min[1], res, nx, ny)
-
-    def centres(self, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
-        return np.stack([self.x0 + (ix + 0.5) * self.res, self.y0 + (iy + 0.5) * self.res], -1)
-
-    def cells_polygon(self, iy: np.ndarray, ix: np.ndarray) -> BaseGeometry:
-        """Union of the cells' squares: polygons with holes, touching cells merged."""
-        if len(ix) == 0:
-            return shapely.Polygon()
-        # Neighbouring cells must share bit-identical edges for the coverage union to merge
-        # them: compute every edge as x0 + i * res, never as x + res.
-        x, x1 = self.x0 + ix * self.res, self.x0 + (ix + 1) * self.res
-        y, y1 = self.y0 + iy * self.res, self.y0 + (iy + 1) * self.res
-        boxes = shapely.box(x, y, x1, y1)
-        return shapely.coverage_union_all(boxes)
-
-
-@dataclass(frozen=True)
-class TrayRegion:
-    """Where the base can stand to pick every part of one tray, at one yaw."""
-
-    tray_id: str
-    yaw: float  # [rad]
-    grid: CellGrid
-    mask: np.ndarray  # (ny, nx) bool feasible cells
-    cells: np.ndarray  # (K, 2) int (iy, ix) of feasible cells
-    part_ids: tuple[str, ...]
-    thetas: np.ndarray  # (K, P, dof) verified witness configuration per cell and part
-    grasp_index: np.ndarray  # (K, P) which grasp of the part's grasp set
-    polygon: BaseGeometry
-    counts: dict[str, int]
-    reason: str | None  # why the region is empty, if it is
-    seconds: float
-    key: str = ""
-    envelope: Envelope | None = field(default=None, repr=False, compare=False)
-
-    @property
-    def area(self) -> float:
-        """[m^2]"""
-        return float(len(self.cells)) * self.grid.res**2
 
 
 @dataclass

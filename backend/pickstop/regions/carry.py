@@ -16,7 +16,7 @@ import time
 import numpy as np
 import shapely
 
-from pickstop.regions.base_region import CellGrid, TrayRegion
+from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.footprint import footprint_free
 from pickstop.robot.model import RobotModel
 from pickstop.scene.model import Scene, Tray

@@ -7,7 +7,7 @@ from typing import Any
 import shapely
 from shapely.geometry import mapping, shape
 
-from pickstop.regions.base_region import TrayRegion
+from pickstop.regions.cells import TrayRegion
 
 
 def region_feature(region: TrayRegion, name: str = "") -> dict[str, Any]:

@@ -24,12 +24,8 @@ import shapely
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
 from pickstop.regions.arm import screen_arm
-from pickstop.regions.base_region import (
-    CellGrid,
-    RegionPlanner,
-    TrayRegion,
-    tray_world,
-)
+from pickstop.regions.base_region import RegionPlanner, tray_world
+from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.footprint import footprint_free
 from pickstop.robot.kinematics import fk, fk_soa
 from pickstop.robot.screen import screen

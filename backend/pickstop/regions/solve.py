@@ -15,14 +15,14 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import screen_arm
+from pickstop.regions.arm import ArmSpheres, ExactArm, screen_arm
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.reuse import RefineMemo
 from pickstop.robot.floor import FLOOR_CLEARANCE
@@ -30,9 +30,6 @@ from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.world import BoxArrays, Solid
-
-if TYPE_CHECKING:
-    from pickstop.regions.base_region import RegionPlanner
 
 WINDOW = 4  # candidates screened per (cell, part) at a time
 MAX_ROUNDS = 2  # refinement rounds per part (1, then 2 candidates per open cell)
@@ -44,6 +41,18 @@ GROW_ITERATIONS = 20  # a seed for another grasp turns the wrist: 0.3 rad per st
 REFINE_GIVE_UP = ((3, 0.01),)  # after 3 iterations, candidates still 1 cm off stop
 GROW_GIVE_UP = ((5, 0.02), (10, 0.003))
 GROW_WAVES = 12  # rings of cells grown at most
+
+
+class RegionKit(Protocol):
+    """What solving needs of a region planner (:class:`~pickstop.regions.base_region.
+    RegionPlanner` is one): the database, the IK solver and the collision checks."""
+
+    db: ReachDatabase
+    solver: BatchSolver
+    arm: ArmSpheres
+    exact_arm: ExactArm
+    self_spheres: Any
+    exact_self: Any
 
 
 @dataclass(frozen=True)
@@ -137,7 +146,7 @@ def served(db: ReachDatabase, targets: list[Targets]) -> np.ndarray:
 
 
 def solve_part(
-    planner: RegionPlanner, world: ArmWorld, tg: Targets, cen: np.ndarray
+    planner: RegionKit, world: ArmWorld, tg: Targets, cen: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,)).
 
@@ -209,7 +218,7 @@ def _gather(
 
 
 def _rounds(
-    planner: RegionPlanner,
+    planner: RegionKit,
     world: ArmWorld,
     tg: Targets,
     cen: np.ndarray,
@@ -292,7 +301,7 @@ def _rounds(
 
 
 def verify(
-    planner: RegionPlanner,
+    planner: RegionKit,
     world: ArmWorld,
     thetas: np.ndarray,
     base_xy: np.ndarray,
@@ -333,7 +342,7 @@ def verify(
 
 
 def seeded(
-    planner: RegionPlanner,
+    planner: RegionKit,
     world: ArmWorld,
     seeds: np.ndarray,
     Rs_target: np.ndarray,
@@ -379,7 +388,7 @@ _NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 
 
 
 def grow(
-    planner: RegionPlanner,
+    planner: RegionKit,
     world: ArmWorld,
     targets: list[Targets],
     cen: np.ndarray,
