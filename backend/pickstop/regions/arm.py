@@ -188,13 +188,17 @@ class ExactArm:
         self.gdata = pin.GeometryData(robot.geom_model)
         self.ids = arm_geometry_ids(robot)
         names = {g: lk.name for lk in arm_links(robot) for g in lk.geometry_ids}
-        self.hand = [is_hand_link(robot, names[i]) for i in self.ids]
-        self.local_boxes = []
+        self.hand = np.array([is_hand_link(robot, names[i]) for i in self.ids], bool)
+        centres, halves = [], []
         for i in self.ids:
             geom = robot.geom_model.geometryObjects[i].geometry
             geom.computeLocalAABB()
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
-            self.local_boxes.append(((lo + hi) / 2, (hi - lo) / 2))
+            centres.append((lo + hi) / 2)
+            halves.append((hi - lo) / 2)
+        # (G, 3) each: the local bounding box of every checked geometry
+        self.local_c = np.array(centres).reshape(-1, 3)
+        self.local_h = np.array(halves).reshape(-1, 3)
 
     def colliding(
         self,
@@ -207,25 +211,33 @@ class ExactArm:
     ) -> bool:
         """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``?
 
-        target: the part being grasped, no obstacle for the hand links.
+        target: the part being grasped, no obstacle for the hand links. Only the (geometry,
+        solid) pairs whose world bounding boxes overlap go to coal.
         """
+        if not solids or not self.ids:
+            return False
         q = self.robot.angles_to_q(theta)
         pin.forwardKinematics(self.robot.model, self.data, q)
         pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
         T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
-        boxes = [(s, *s.aabb()) for s in solids]
-        for i, hand, (c_local, h_local) in zip(self.ids, self.hand, self.local_boxes, strict=True):
-            g = self.robot.geom_model.geometryObjects[i]
-            M = T_wb * self.gdata.oMg[i]
-            c = M.rotation @ c_local + M.translation
-            h = np.abs(M.rotation) @ h_local
-            tf = coal.Transform3s(M.rotation, M.translation)
-            for s, lo, hi in boxes:
-                if np.any(c - h > hi) or np.any(c + h < lo) or (hand and s.owner == target):
-                    continue
-                gs, ts = _coal(s)
-                if collide(g.geometry, tf, gs, ts):
-                    return True
+        Ms = [T_wb * self.gdata.oMg[i] for i in self.ids]
+        R = np.array([M.rotation for M in Ms])  # (G, 3, 3)
+        c = np.einsum("gij,gj->gi", R, self.local_c) + np.array([M.translation for M in Ms])
+        h = np.einsum("gij,gj->gi", np.abs(R), self.local_h)
+        bounds = [s.aabb() for s in solids]
+        lo = np.array([b[0] for b in bounds])  # (S, 3)
+        hi = np.array([b[1] for b in bounds])
+        near = ~(
+            ((c - h)[:, None] > hi[None]).any(axis=2) | ((c + h)[:, None] < lo[None]).any(axis=2)
+        )  # (G, S)
+        if target is not None:
+            near &= ~(self.hand[:, None] & (np.array([s.owner for s in solids]) == target)[None])
+        for k, j in zip(*np.nonzero(near), strict=True):
+            g = self.robot.geom_model.geometryObjects[self.ids[k]]
+            M = Ms[k]
+            gs, ts = _coal(solids[j])
+            if collide(g.geometry, coal.Transform3s(M.rotation, M.translation), gs, ts):
+                return True
         return False
 
 
