@@ -222,11 +222,17 @@ def test_a_mesh_obstacle_from_a_relative_path_blocks_base_cells(planner, tmp_pat
     after = planner.tray_region(load_scene(tmp_path / "scene.json"), "tray_4")
     assert 0 < len(after.cells) < len(before.cells)
     centres = after.grid.centres(after.cells[:, 1], after.cells[:, 0])
-    # The footprint (radius 0.275 m) stays clear of the pillar (2 mm: the buffer's polygon).
+    # The footprint (TIAGo's derived outline) stays clear of the pillar at every cell (2 mm:
+    # the buffer's polygon).
     import shapely
+    from shapely import affinity
 
-    pillar = shapely.box(3.45, 0.65, 3.75, 0.95)
-    assert shapely.distance(pillar, shapely.points(centres)).min() > 0.275 - 2e-3
+    pillar = shapely.box(3.45 + 2e-3, 0.65 + 2e-3, 3.75 - 2e-3, 0.95 - 2e-3)
+    outline = affinity.rotate(
+        shapely.Polygon(planner.robot.footprint.polygon), after.yaw, origin=(0, 0), use_radians=True
+    )
+    for x, y in centres:
+        assert not affinity.translate(outline, x, y).intersects(pillar)
 
 
 def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_doc):

@@ -128,11 +128,11 @@ def _surface_points(geom) -> np.ndarray:
     raise AssertionError(f"no points for {type(geom).__name__}")
 
 
-@pytest.mark.parametrize("name", ["ur5_amr", "tiago_pro"])
-def test_derived_footprint_holds_the_base_outline(name, robots):
+@pytest.mark.parametrize("name", ["ur5_amr", "tiago_pro", "tiago"])
+def test_derived_footprint_holds_the_base_outline(name, robots, tiago):
     """Every point of the collision geometry fixed to the base below the footprint height,
     placed with pinocchio, lies inside the outline derived from the URDF."""
-    robot = robots[name]
+    robot = tiago if name == "tiago" else robots[name]
     fp = robot.footprint
     assert fp.derived and fp.polygon is not None and fp.clearance == 0.02
     outline = shapely.Polygon(fp.polygon).buffer(1e-9)
@@ -154,6 +154,9 @@ def test_derived_footprint_holds_the_base_outline(name, robots):
         bounds = shapely.Polygon(fp.polygon).bounds
         assert bounds == pytest.approx((-0.47, -0.32, 0.47, 0.32), abs=1e-6)
         assert {"amr_chassis_link_0", "amr_wheel_left_link_0", "amr_caster_fl_link_0"} <= checked
+    if name == "tiago":  # the PMB2's 0.25 m round base and its wheels, plus 2 cm
+        assert 0.265 < max(np.hypot(*v) for v in fp.polygon) < 0.28
+        assert {"base_link_0", "wheel_left_link_0"} <= checked
 
 
 @pytest.fixture(scope="module", params=["ur5_amr", "tiago_pro"])
@@ -230,19 +233,21 @@ def test_paper_scene_plan_witnesses_pass_exact_checks_with_the_hand(planned):
         assert_stop_verified(planner, scene, stop)
 
 
-def test_tiago_dual_hey5_cannot_grasp_the_paper_scene_parts(robots):
-    """The real Hey5, open, reaches 95 mm past its grasp frame: no top-down grasp of these
-    low parts, and every side grasp touches the tray; the scene is infeasible for this hand."""
+def test_tiago_dual_hey5_pinches_every_paper_scene_part_from_above(robots):
+    """The right Hey5 in the tiago preset's open pinch: its hand reaches 12 mm past the grasp
+    point (95 mm straight and open), and every part of the paper-like scene has top-down
+    grasps clear of the tray."""
     from pickstop.robot.hand import hand_shape
     from pickstop.scene.grasps import grasps_for_part
 
     robot = robots["tiago_dual"]
     hand = hand_shape(robot)
-    assert hand.reach == pytest.approx(0.095, abs=0.002)
+    assert hand.reach < 0.015
+    assert hand.joints["hand_right_thumb_abd_joint"] == pytest.approx(1.5707)
     assert not any("safety_box" in name for name, _, _ in hand.geometries)
     scene = paper_scene(CONFIGS["tiago_dual"])
     for tray_id in scene.task_trays:
         tray = scene.tray(tray_id)
         for part in tray.parts:
             grasps = grasps_for_part(scene, tray, part, hand)
-            assert len(grasps.Ts_world_tool) == 0 and grasps.too_low, part.id
+            assert "top" in grasps.kinds and not grasps.too_low, part.id
