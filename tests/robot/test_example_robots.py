@@ -157,6 +157,10 @@ def test_derived_footprint_holds_the_base_outline(name, robots, tiago):
     if name == "tiago":  # the PMB2's 0.25 m round base and its wheels, plus 2 cm
         assert 0.265 < max(np.hypot(*v) for v in fp.polygon) < 0.28
         assert {"base_link_0", "wheel_left_link_0"} <= checked
+        from pickstop.robot.check import _footprint_line
+
+        line = _footprint_line(fp.model_dump())  # what `robot check` prints
+        assert "derived from the base's collision geometry below 0.35 m plus 0.02 m" in line
 
 
 @pytest.fixture(scope="module", params=["ur5_amr", "tiago_pro"])
