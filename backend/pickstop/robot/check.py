@@ -162,7 +162,7 @@ def _hand(robot: RobotModel, links: Any) -> dict[str, Any]:
 
 
 def _footprint_line(fp: dict[str, Any]) -> str:
-    if "radius" in fp:
+    if fp.get("radius") is not None:
         return f"radius {fp['radius']} m"
     xs, ys = zip(*fp["polygon"], strict=True)
     how = (
