@@ -316,3 +316,40 @@ def test_grasps_are_reused_while_nothing_reaches_into_the_hands(planner, paper_d
     after = planner.grasps(covered, covered.tray("tray_2"))
     assert all(a is not b for a, b in zip(after, before, strict=True))
     assert sum(len(g.Ts_world_tool) for g in after) < sum(len(g.Ts_world_tool) for g in before)
+
+
+def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, monkeypatch):
+    """The sphere screen is conservative: a database candidate it flags may well be free.
+    With a screen that flags everything, the cells are still solved, by coal alone, and each
+    witness holds exactly: on its grasp, free of the scene and of itself."""
+    from pickstop.regions import solve
+    from pickstop.regions.base_region import tray_world
+    from pickstop.regions.envelope import Envelope
+    from pickstop.regions.reference import pose_ok
+
+    scene = parse_scene(paper_doc)
+    tray = scene.tray("tray_4")
+    region = planner.tray_region(scene, "tray_4")
+    ij = region.cells[:: max(1, len(region.cells) // 30)]
+    cen = region.grid.centres(ij[:, 1], ij[:, 0])
+    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, region.yaw)
+    world = solve.ArmWorld(
+        boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max)
+    )
+    gs = planner.grasps(scene, tray)[0]
+    tg = solve.Targets.of(gs, cen, Rz_T)
+
+    def flag_all(spheres, boxes, frames, base_xy, *args, **kwargs):
+        return np.ones(len(base_xy), bool)
+
+    monkeypatch.setattr(solve, "screen_arm", flag_all)
+    found, thetas, grasp = solve.solve_part(planner, world, tg, cen)
+    # Two rounds of at most three candidates per cell, no growth: about half the region's
+    # cells (none when flagged candidates were dropped).
+    assert found.sum() >= len(ij) // 3
+    th = thetas[found]
+    Rs, ps = tg.R_bt[grasp[found]], tg.p_bt[np.flatnonzero(found), grasp[found]]
+    assert pose_ok(planner.solver, th, Rs, ps).all()
+    assert not planner.exact_self.colliding(th).any()
+    for t, (x, y) in zip(th, cen[found], strict=True):
+        assert not planner.exact_arm.colliding(t, x, y, region.yaw, solids, gs.part_id)
