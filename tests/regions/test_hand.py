@@ -136,7 +136,7 @@ def test_boxes_stand_in_for_a_hand_without_geometry():
 
 
 def test_tiago_pinches_a_3cm_part_with_every_finger_above_the_tray_floor(tiago):
-    """The Hey5's pre-grasp pinch (thumb opposed, index flexed, middle-ring-little curled):
+    """The Hey5's pre-grasp pinch (thumb opposed, index flexed, middle-ring-little relaxed):
     top-down grasps of the paper scene's 3 cm parts in trays with 5 cm walls exist, and every
     collision mesh of the hand keeps at least the floor clearance off the tray floor (coal
     distances). Straight and open, the same fingers reach 95 mm past the grasp frame: no
@@ -149,7 +149,7 @@ def test_tiago_pinches_a_3cm_part_with_every_finger_above_the_tray_floor(tiago):
     shape = hand_shape(tiago)
     assert tiago.config.hand.geometry == "links" and len(shape.geometries) >= 30
     assert shape.joints["hand_thumb_abd_joint"] == pytest.approx(1.5707)
-    assert shape.joints["hand_mrl_joint"] == pytest.approx(9.25)
+    assert shape.joints["hand_mrl_joint"] == pytest.approx(1.5)
     assert shape.reach < 0.015  # along the approach, past the grasp point
     # The thumb and index pads lie on either side of the grasp point, max_opening apart.
     pads = {}

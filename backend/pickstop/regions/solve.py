@@ -433,4 +433,4 @@ def grow(
 
 
 #: Changes whenever the algorithm's answer may change (part of a cached region's key).
-VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 8]
+VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 9]
