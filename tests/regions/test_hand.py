@@ -143,8 +143,8 @@ def test_tiago_pinches_a_3cm_part_with_every_finger_above_the_tray_floor(tiago):
     top-down grasp at all."""
     import coal
 
-    from pickstop.scene.grasps import FLOOR_CLEARANCE
-    from pickstop.scene.world import _coal, tray_body_solids
+    from pickstop.scene.grasps import FLOOR_CLEARANCE, PART_CLEARANCE
+    from pickstop.scene.world import _coal, part_solid, tray_body_solids
 
     shape = hand_shape(tiago)
     assert tiago.config.hand.geometry == "links" and len(shape.geometries) >= 30
@@ -172,15 +172,32 @@ def test_tiago_pinches_a_3cm_part_with_every_finger_above_the_tray_floor(tiago):
             top = [T for T, k in zip(gs.Ts_part_tcp, gs.kinds, strict=True) if k == "top"]
             assert top, part.id
             T_wp = world_part_transform(tray, part)
+            gp, tp = _coal(part_solid(tray, part))
             for T in top:
                 T_wt = T_wp @ T
                 for _, geom, T_tg in shape.geometries:
                     M = T_wt @ T_tg
-                    req, res = coal.DistanceRequest(), coal.DistanceResult()
-                    d = coal.distance(geom, coal.Transform3s(M[:3, :3], M[:3, 3]), gf, tf, req, res)
+                    tg = coal.Transform3s(M[:3, :3], M[:3, 3])
+                    d = coal.distance(
+                        geom, tg, gf, tf, coal.DistanceRequest(), coal.DistanceResult()
+                    )
                     assert d >= FLOOR_CLEARANCE - 1e-4, (part.id, d)
+                    # On approach the open hand keeps off the part it is to grasp, too.
+                    d = coal.distance(
+                        geom, tg, gp, tp, coal.DistanceRequest(), coal.DistanceResult()
+                    )
+                    assert d >= PART_CLEARANCE - 1e-4, (part.id, d)
                 kept += 1
     assert kept >= 8
+    # Curled into the palm, the middle, ring and little fingers would lie inside the part.
+    curled = {k: 0.6283 for k in tiago.config.hand.pregrasp if k.startswith("hand_middle_")}
+    curled.update({k: 0.6837 for k in tiago.config.hand.pregrasp if k.startswith(("hand_ring_",
+                   "hand_little_")) and "abd" not in k})  # fmt: skip
+    fist = _tiago_variant(
+        pregrasp={**tiago.config.hand.pregrasp, **curled, "hand_middle_abd_joint": 0.0}
+    )
+    tray = scene.tray("tray_1")
+    assert len(grasps_for_part(scene, tray, tray.parts[0], hand_shape(fist)).kinds) == 0
 
     straight = hand_shape(_tiago_variant(pregrasp={}, tool_offset={}, approach_axis=[1, 0, 0],
                                          closing_axis=[0, 1, 0]))  # fmt: skip
