@@ -149,8 +149,11 @@ def test_environment_screen_is_conservative(planner, tiago, seed):
 
 def test_top_down_grasp_targets_point_down(planner, paper_doc):
     scene = parse_scene(paper_doc)
+    hand = planner.hand  # the approach axis is the hand's, in the grasp point's frame
+    a_tool = hand.T_tcp_tool[:3, :3].T @ hand.approach
     for gs in planner.grasps(scene, scene.tray("tray_1")):
-        approach = gs.Ts_world_tool[:, :3, 0]
+        assert set(gs.kinds) == {"top"}
+        approach = gs.Ts_world_tool[:, :3, :3] @ a_tool
         assert np.allclose(approach, [0, 0, -1], atol=1e-9)
     assert quats_to_matrices(np.array([0.70710678, 0, 0.70710678, 0]))[2, 0] == pytest.approx(
         -1, abs=1e-6
