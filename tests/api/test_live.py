@@ -55,8 +55,9 @@ def test_no_server_errors_and_responses_match_the_spec(case):
 
 def test_health_answers_while_heavy_requests_run(live_api):
     """The event loop never computes: /health answers within 100 ms while a regions request
-    of four 48-part trays, a plan with 20,000 Monte Carlo samples per stop and a 2,000-tray
-    body are in flight."""
+    of four 48-part trays, a plan with 5,000 Monte Carlo samples per stop and a 2,000-tray
+    body are in flight. (Each sample checks TIAGo's 37 hand meshes exactly: 20,000 per stop
+    outlast the server's 20 s deadline here.)"""
     import threading
     import time
 
@@ -72,7 +73,7 @@ def test_health_answers_while_heavy_requests_run(live_api):
             with httpx.Client(base_url=live_api, timeout=120) as h:
                 answers.append(h.get(f"/api/v1/scenes/{sid}/regions").status_code)
                 seed = time.time_ns() % 2**31  # nothing cached
-                plan = {"scene": paper(), "options": {"samples": 20000, "seed": seed},
+                plan = {"scene": paper(), "options": {"samples": 5000, "seed": seed},
                         "store": False}  # fmt: skip
                 answers.append(h.post("/api/v1/plans", json=plan, headers=AUTH).status_code)
                 big = many_trays(2000)

@@ -149,8 +149,11 @@ def test_environment_screen_is_conservative(planner, tiago, seed):
 
 def test_top_down_grasp_targets_point_down(planner, paper_doc):
     scene = parse_scene(paper_doc)
+    hand = planner.hand  # the approach axis is the hand's, in the grasp point's frame
+    a_tool = hand.T_tcp_tool[:3, :3].T @ hand.approach
     for gs in planner.grasps(scene, scene.tray("tray_1")):
-        approach = gs.Ts_world_tool[:, :3, 0]
+        assert set(gs.kinds) == {"top"}
+        approach = gs.Ts_world_tool[:, :3, :3] @ a_tool
         assert np.allclose(approach, [0, 0, -1], atol=1e-9)
     assert quats_to_matrices(np.array([0.70710678, 0, 0.70710678, 0]))[2, 0] == pytest.approx(
         -1, abs=1e-6
@@ -222,11 +225,17 @@ def test_a_mesh_obstacle_from_a_relative_path_blocks_base_cells(planner, tmp_pat
     after = planner.tray_region(load_scene(tmp_path / "scene.json"), "tray_4")
     assert 0 < len(after.cells) < len(before.cells)
     centres = after.grid.centres(after.cells[:, 1], after.cells[:, 0])
-    # The footprint (radius 0.275 m) stays clear of the pillar (2 mm: the buffer's polygon).
+    # The footprint (TIAGo's derived outline) stays clear of the pillar at every cell (2 mm:
+    # the buffer's polygon).
     import shapely
+    from shapely import affinity
 
-    pillar = shapely.box(3.45, 0.65, 3.75, 0.95)
-    assert shapely.distance(pillar, shapely.points(centres)).min() > 0.275 - 2e-3
+    pillar = shapely.box(3.45 + 2e-3, 0.65 + 2e-3, 3.75 - 2e-3, 0.95 - 2e-3)
+    outline = affinity.rotate(
+        shapely.Polygon(planner.robot.footprint.polygon), after.yaw, origin=(0, 0), use_radians=True
+    )
+    for x, y in centres:
+        assert not affinity.translate(outline, x, y).intersects(pillar)
 
 
 def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_doc):
@@ -310,3 +319,40 @@ def test_grasps_are_reused_while_nothing_reaches_into_the_hands(planner, paper_d
     after = planner.grasps(covered, covered.tray("tray_2"))
     assert all(a is not b for a, b in zip(after, before, strict=True))
     assert sum(len(g.Ts_world_tool) for g in after) < sum(len(g.Ts_world_tool) for g in before)
+
+
+def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, monkeypatch):
+    """The sphere screen is conservative: a database candidate it flags may well be free.
+    With a screen that flags everything, the cells are still solved, by coal alone, and each
+    witness holds exactly: on its grasp, free of the scene and of itself."""
+    from pickstop.regions import solve
+    from pickstop.regions.base_region import tray_world
+    from pickstop.regions.envelope import Envelope
+    from pickstop.regions.reference import pose_ok
+
+    scene = parse_scene(paper_doc)
+    tray = scene.tray("tray_4")
+    region = planner.tray_region(scene, "tray_4")
+    ij = region.cells[:: max(1, len(region.cells) // 30)]
+    cen = region.grid.centres(ij[:, 1], ij[:, 0])
+    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, region.yaw)
+    world = solve.ArmWorld(
+        boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max)
+    )
+    gs = planner.grasps(scene, tray)[0]
+    tg = solve.Targets.of(gs, cen, Rz_T)
+
+    def flag_all(spheres, boxes, frames, base_xy, *args, **kwargs):
+        return np.ones(len(base_xy), bool)
+
+    monkeypatch.setattr(solve, "screen_arm", flag_all)
+    found, thetas, grasp = solve.solve_part(planner, world, tg, cen)
+    # Two rounds of at most three candidates per cell, no growth: about half the region's
+    # cells (none when flagged candidates were dropped).
+    assert found.sum() >= len(ij) // 3
+    th = thetas[found]
+    Rs, ps = tg.R_bt[grasp[found]], tg.p_bt[np.flatnonzero(found), grasp[found]]
+    assert pose_ok(planner.solver, th, Rs, ps).all()
+    assert not planner.exact_self.colliding(th).any()
+    for t, (x, y) in zip(th, cen[found], strict=True):
+        assert not planner.exact_arm.colliding(t, x, y, region.yaw, solids, gs.part_id)

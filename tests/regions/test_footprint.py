@@ -16,7 +16,7 @@ from pickstop.scene.world import _coal, collide, scene_solids
 
 def _fixed_body_hits(robot, solids, x: float, y: float, yaw: float) -> bool:
     """coal: do the base-fixed links above the footprint touch any of ``solids``?"""
-    fp = robot.config.footprint
+    fp = robot.footprint
     T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
     for link in collision_links(robot):
         if link.joint != 0:
@@ -61,7 +61,7 @@ def test_an_overhang_blocks_the_torso_not_the_footprint(tiago, paper_doc):
 
 def test_upper_body_of_tiago_is_its_torso_column_and_antennas(tiago):
     body = upper_body(tiago)
-    fp = tiago.config.footprint
+    fp = tiago.footprint  # derived from the base's collision geometry
     assert len(body.boxes) >= 3 and (body.boxes[:, 0, 2] >= fp.height).all()
     assert 0.8 < body.top < 0.9  # the torso column's top
     assert body.radius == fp.bounding_radius  # inside the base's circle from above

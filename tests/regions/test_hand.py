@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from pickstop.regions.arm import ArmSpheres, ExactArm, arm_links, screen_arm
-from pickstop.robot.config import parse_config
+from pickstop.robot.config import PRESET_DIR, parse_config
 from pickstop.robot.hand import hand_shape
 from pickstop.robot.kinematics import Chain, fk_soa
 from pickstop.robot.model import load_robot
@@ -121,7 +121,87 @@ def test_tool_offset_moves_the_grasp_point(pr2):
     assert not np.allclose(a.Ts_world_tool[0, :3, 3], b.Ts_world_tool[0, :3, 3])
 
 
-def test_boxes_stand_in_for_a_hand_without_geometry(tiago):
+def _tiago_variant(**hand):
+    """The tiago preset with its hand block changed."""
+    doc = yaml.safe_load((PRESET_DIR / "tiago.yaml").read_text())
+    doc["hand"].update(hand)
+    return load_robot(parse_config(doc), PRESET_DIR)
+
+
+def test_boxes_stand_in_for_a_hand_without_geometry():
+    robot = _tiago_variant(geometry="boxes")
+    shape = hand_shape(robot)
+    assert len(shape.geometries) == 3
+    assert not any(lk.name.startswith("hand_") for lk in arm_links(robot))
+
+
+def test_tiago_pinches_a_3cm_part_with_every_finger_above_the_tray_floor(tiago):
+    """The Hey5's pre-grasp pinch (thumb opposed, index flexed, middle-ring-little relaxed):
+    top-down grasps of the paper scene's 3 cm parts in trays with 5 cm walls exist, and every
+    collision mesh of the hand keeps at least the floor clearance off the tray floor (coal
+    distances). Straight and open, the same fingers reach 95 mm past the grasp frame: no
+    top-down grasp at all."""
+    import coal
+
+    from pickstop.scene.grasps import FLOOR_CLEARANCE, PART_CLEARANCE
+    from pickstop.scene.world import _coal, part_solid, tray_body_solids
+
     shape = hand_shape(tiago)
-    assert tiago.config.hand.geometry == "boxes" and len(shape.geometries) == 3
-    assert not any(lk.name.startswith("hand_") for lk in arm_links(tiago))
+    assert tiago.config.hand.geometry == "links" and len(shape.geometries) >= 30
+    assert shape.joints["hand_thumb_abd_joint"] == pytest.approx(1.5707)
+    assert shape.joints["hand_mrl_joint"] == pytest.approx(1.5)
+    assert shape.reach < 0.015  # along the approach, past the grasp point
+    # The thumb and index pads lie on either side of the grasp point, max_opening apart.
+    pads = {}
+    for name, geom, T in shape.geometries:
+        if name.startswith(("hand_thumb_flex_2", "hand_index_flex_3")):
+            pts = np.asarray(geom.vertices()) @ T[:3, :3].T + T[:3, 3]
+            pads[name.split("_")[1]] = pts @ shape.closing
+    assert pads["index"].min() - pads["thumb"].max() >= shape.max_opening - 1e-3
+    assert pads["thumb"].max() < 0 < pads["index"].min()
+
+    scene = parse_scene(PAPER)
+    kept = 0
+    for tray_id in ("tray_1", "tray_3"):
+        tray = scene.tray(tray_id)
+        gf, tf = _coal(tray_body_solids(tray)[0])  # the tray's floor board
+        for part in tray.parts:
+            if part.geometry.shape != "box" or part.geometry.size[2] > 0.03:
+                continue
+            gs = grasps_for_part(scene, tray, part, shape)
+            top = [T for T, k in zip(gs.Ts_part_tcp, gs.kinds, strict=True) if k == "top"]
+            assert top, part.id
+            T_wp = world_part_transform(tray, part)
+            gp, tp = _coal(part_solid(tray, part))
+            for T in top:
+                T_wt = T_wp @ T
+                for _, geom, T_tg in shape.geometries:
+                    M = T_wt @ T_tg
+                    tg = coal.Transform3s(M[:3, :3], M[:3, 3])
+                    d = coal.distance(
+                        geom, tg, gf, tf, coal.DistanceRequest(), coal.DistanceResult()
+                    )
+                    assert d >= FLOOR_CLEARANCE - 1e-4, (part.id, d)
+                    # On approach the open hand keeps off the part it is to grasp, too.
+                    d = coal.distance(
+                        geom, tg, gp, tp, coal.DistanceRequest(), coal.DistanceResult()
+                    )
+                    assert d >= PART_CLEARANCE - 1e-4, (part.id, d)
+                kept += 1
+    assert kept >= 8
+    # Curled into the palm, the middle, ring and little fingers would lie inside the part.
+    curled = {k: 0.6283 for k in tiago.config.hand.pregrasp if k.startswith("hand_middle_")}
+    curled.update({k: 0.6837 for k in tiago.config.hand.pregrasp if k.startswith(("hand_ring_",
+                   "hand_little_")) and "abd" not in k})  # fmt: skip
+    fist = _tiago_variant(
+        pregrasp={**tiago.config.hand.pregrasp, **curled, "hand_middle_abd_joint": 0.0}
+    )
+    tray = scene.tray("tray_1")
+    assert len(grasps_for_part(scene, tray, tray.parts[0], hand_shape(fist)).kinds) == 0
+
+    straight = hand_shape(_tiago_variant(pregrasp={}, tool_offset={}, approach_axis=[1, 0, 0],
+                                         closing_axis=[0, 1, 0]))  # fmt: skip
+    assert straight.reach == pytest.approx(0.095, abs=0.002)
+    tray = scene.tray("tray_1")
+    gs = grasps_for_part(scene, tray, tray.parts[0], straight)
+    assert gs.too_low and "top" not in gs.kinds

@@ -144,6 +144,10 @@ def test_robot_check_reports_and_errors(tmp_path, capsys):
     assert report["self_collision"]["source"] == "computed"
     assert 0 <= report["screen"]["false_rejection"] <= 0.05
     assert set(report["seconds"]) >= {"config", "model", "screen"}
+    assert {"pregrasp", "tool_offset", "closing_axis", "max_opening"} <= set(report["hand"])
+    assert main(["--data-dir", str(tmp_path / "d"), "robot", "check", str(config)]) == 0
+    text = capsys.readouterr().out
+    assert "footprint radius 0.34 m" in text and "pre-grasp posture:" in text
     config.write_text(config.read_text().replace("tool_frame: tool_link", "tool_frame: tcp"))
     assert main(["robot", "check", str(config)]) == 2
     err = capsys.readouterr().err

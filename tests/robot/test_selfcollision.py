@@ -61,7 +61,9 @@ def test_collision_links_group_geometries(tiago):
     assert len(links) == len(set(links))
     assert len(links["torso_lift_link"].geometry_ids) == 3
     assert links["base_link"].joint == 0 and links["arm_1_link"].joint == 2
-    assert links["hand_safety_box"].joint == tiago.dof  # the whole hand rides on arm_7
+    assert links["hand_palm_link"].joint == tiago.dof  # the whole hand rides on arm_7
+    assert links["hand_index_flex_3_link"].joint == tiago.dof
+    assert "hand_safety_box" not in links  # a padding volume the preset ignores
 
 
 def test_adjacent_pairs_present(tiago_pairs):
@@ -83,7 +85,7 @@ def test_default_never_and_enabled(tiago, tiago_pairs):
     assert reasons[("arm_1_link", "torso_fixed_column_link")] == "default"
     assert reasons[("arm_2_link", "wheel_left_link")] == "never"
     enabled = set(tiago_pairs.enabled_pairs())
-    assert ("base_link", "hand_safety_box") in enabled
+    assert any(a == "base_link" and b.startswith("hand_") for a, b in enabled)  # it reaches down
     counts = tiago_pairs.counts()
     assert counts["enabled"] + len(tiago_pairs.pairs) == counts["candidates"]
     assert tiago_pairs.source == "computed" and tiago_pairs.samples == 2000
@@ -176,7 +178,7 @@ def test_sphere_cover_holds_every_point(tiago):
     """Points on meshes and inside solids (box, cylinder, sphere) lie in some sphere."""
     rng = np.random.default_rng(0)
     links = {lk.name: lk for lk in collision_links(tiago)}
-    for name in ["arm_4_link", "hand_safety_box", "wheel_left_link", "caster_back_left_2_link"]:
+    for name in ["arm_4_link", "hand_palm_link", "wheel_left_link", "caster_back_left_2_link"]:
         shape = LinkShape.of(tiago, links[name].geometry_ids)
         spheres = cover(shape, excess=0.01)
         pts = []

@@ -49,14 +49,15 @@ def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planne
         assert_stop_verified(planner, scene, s)
         # Each witness carries the hand's joint values, so it can be replayed.
         assert all(
-            w.hand == planner.hand.joints and "hand_thumb_joint" in w.hand for w in s.witnesses
+            w.hand == planner.hand.joints and w.hand["hand_thumb_abd_joint"] == 1.5707
+            for w in s.witnesses
         )
         assert all(w.T_part_tcp is not None for w in s.witnesses)
         assert s.success is not None and s.success.samples == 300
         lo, hi = s.success.interval
         assert lo <= s.success.rate <= hi
-    # The bundled TIAGo still checks boxes in place of its hand, and the plan says so.
-    assert any("hand.boxes" in n for n in plan.notes)
+    # The bundled TIAGo is checked with its Hey5's own meshes: no stand-in note.
+    assert not any("hand.boxes" in n for n in plan.notes)
 
 
 def test_rack_cell_plans_every_level_from_verified_stops(stop_planner, planner):

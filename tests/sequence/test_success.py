@@ -102,5 +102,9 @@ def test_wilson_interval_and_plan_product():
     assert Rate(100, 100).interval[1] == 1.0 and Rate(100, 0).interval[0] == pytest.approx(
         0.0, abs=1e-12
     )
+    for n in (1, 7, 100, 300, 1000):  # the interval holds the observed rate at both ends
+        for k in (0, n):
+            lo, hi = Rate(n, k).interval
+            assert lo <= k / n <= hi
     p, (plo, phi) = combined([Rate(100, 90), Rate(100, 50)])
     assert p == pytest.approx(0.45) and plo < p < phi

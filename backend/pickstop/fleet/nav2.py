@@ -34,13 +34,29 @@ NOTES = [
     "<checker>.yaw_goal_tolerance, stateful: true), e.g. with `ros2 param set "
     "/controller_server general_goal_checker.xy_goal_tolerance <value>`, or give one goal "
     "checker per stop and select it with the behaviour tree's goal_checker_id.",
-    "The default xy_goal_tolerance (0.25 m) is larger than the stops' guaranteed radii: "
-    "leaving it unchanged lets the robot stop where a part may be out of reach.",
     "Intermediate poses (floor path corners) carry no orientation of their own: their yaw "
     "points along the next segment of the path.",
     "The localisation error (AMCL) counts against the tolerance: the stop is only "
     "guaranteed if the true base lies within xy_goal_tolerance of the stop.",
 ]
+
+
+DEFAULT_XY_TOLERANCE = 0.25  # [m] nav2_controller::SimpleGoalChecker's default
+
+
+def _tolerance_note(radii: list[float]) -> str:
+    """What the default goal checker means for stops guaranteed within ``radii`` [m]."""
+    tight = sum(r < DEFAULT_XY_TOLERANCE for r in radii)
+    if tight:
+        return (
+            f"The default xy_goal_tolerance ({DEFAULT_XY_TOLERANCE} m) is larger than the "
+            f"guaranteed radius of {tight} of the {len(radii)} stops: leaving it unchanged lets "
+            "the robot stop where a part may be out of reach."
+        )
+    return (
+        f"Every stop is guaranteed within at least the default xy_goal_tolerance "
+        f"({DEFAULT_XY_TOLERANCE} m); its own xy_goal_tolerance is that guaranteed radius."
+    )
 
 
 def quaternion(yaw: float) -> dict[str, float]:
@@ -135,7 +151,7 @@ def build_nav2(
         "goal": goal,
         "segments": segments,
         "picks": picks,
-        "notes": NOTES,
+        "notes": [*NOTES, _tolerance_note([s.inscribed_radius for s in plan.stops])],
     }
 
 

@@ -178,13 +178,17 @@ class ExactArm:
         self.gdata = pin.GeometryData(robot.geom_model)
         self.ids = arm_geometry_ids(robot)
         names = {g: lk.name for lk in arm_links(robot) for g in lk.geometry_ids}
-        self.hand = [is_hand_link(robot, names[i]) for i in self.ids]
-        self.local_boxes = []
+        self.hand = np.array([is_hand_link(robot, names[i]) for i in self.ids], bool)
+        centres, halves = [], []
         for i in self.ids:
             geom = robot.geom_model.geometryObjects[i].geometry
             geom.computeLocalAABB()
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
-            self.local_boxes.append(((lo + hi) / 2, (hi - lo) / 2))
+            centres.append((lo + hi) / 2)
+            halves.append((hi - lo) / 2)
+        # (G, 3) each: the local bounding box of every checked geometry
+        self.local_c = np.array(centres).reshape(-1, 3)
+        self.local_h = np.array(halves).reshape(-1, 3)
         self.floor = ExactFloor(robot)
 
     def below_floor(self, clearance: float) -> list[str]:
@@ -211,40 +215,32 @@ class ExactArm:
         """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``, or
         come within ``floor`` [m] of the floor (None: the floor is not checked)?
 
-        target: the part being grasped, no obstacle for the hand links.
+        target: the part being grasped, no obstacle for the hand links. Only the (geometry,
+        solid) pairs whose world bounding boxes overlap go to coal.
         """
         self.place(theta)
         if floor is not None and self.below_floor(floor):
             return True
-        if not solids:
+        if not solids or not self.ids:
             return False
         T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
+        Ms = [T_wb * self.gdata.oMg[i] for i in self.ids]
+        R = np.array([M.rotation for M in Ms])  # (G, 3, 3)
+        c = np.einsum("gij,gj->gi", R, self.local_c) + np.array([M.translation for M in Ms])
+        h = np.einsum("gij,gj->gi", np.abs(R), self.local_h)
         bounds = [s.aabb() for s in solids]
-        lo = np.array([b[0] for b in bounds])  # (K, 3)
+        lo = np.array([b[0] for b in bounds])  # (S, 3)
         hi = np.array([b[1] for b in bounds])
-        placed = [T_wb * self.gdata.oMg[i] for i in self.ids]
-        c = np.array(
-            [
-                M.rotation @ cl + M.translation
-                for M, (cl, _) in zip(placed, self.local_boxes, strict=True)
-            ]
-        )
-        h = np.array(
-            [np.abs(M.rotation) @ hl for M, (_, hl) in zip(placed, self.local_boxes, strict=True)]
-        )
-        # Geometry g and solid k can touch only where their world bounding boxes overlap.
         near = ~(
-            (c[:, None] - h[:, None] > hi[None]).any(-1)
-            | (c[:, None] + h[:, None] < lo[None]).any(-1)
-        )
+            ((c - h)[:, None] > hi[None]).any(axis=2) | ((c + h)[:, None] < lo[None]).any(axis=2)
+        )  # (G, S)
         if target is not None:
-            own = np.array([s.owner == target for s in solids])
-            near &= ~(np.array(self.hand)[:, None] & own[None])
-        for g, k in zip(*np.nonzero(near), strict=True):
-            M = placed[g]
-            geom = self.robot.geom_model.geometryObjects[self.ids[g]].geometry
-            gs, ts = _coal(solids[k])
-            if collide(geom, coal.Transform3s(M.rotation, M.translation), gs, ts):
+            near &= ~(self.hand[:, None] & (np.array([s.owner for s in solids]) == target)[None])
+        for k, j in zip(*np.nonzero(near), strict=True):
+            g = self.robot.geom_model.geometryObjects[self.ids[k]]
+            M = Ms[k]
+            gs, ts = _coal(solids[j])
+            if collide(g.geometry, coal.Transform3s(M.rotation, M.translation), gs, ts):
                 return True
         return False
 

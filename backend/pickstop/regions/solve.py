@@ -5,7 +5,10 @@ a translation, so all cells x grasps are looked up in the reachability database 
 paper's IK by query). Per (cell, part) the candidates are ranked by pose distance and screened
 in windows against the scene with conservative spheres; the best free one is refined to an
 exact IK solution (batched damped least squares) and checked again: screen-free is guaranteed,
-anything the screen flags goes to coal.
+anything the screen flags goes to coal. Where a cell's window holds no screen-free candidate,
+its best flagged ones are refined and checked exactly instead: the spheres hold the robot with
+a margin, so next to a tray wall or with a bulky hand they flag many free configurations, and
+dropping those left whole trays without a region.
 
 Where the database's voxels hold no usable candidate (the edge of the sampled set), the
 witnesses of solved neighbouring cells, 2.5 cm away, seed the refinement instead: the region
@@ -233,7 +236,7 @@ def _rounds(
     """Screen, refine and verify candidates per cell in widening rounds."""
     db, solver = planner.db, planner.solver
     M = len(cen)
-    state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done
+    state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done, 3 flagged
     screened = np.zeros(M, np.int64)
     per_cell = np.bincount(cell, minlength=M)
     found = np.zeros(M, bool)
@@ -263,8 +266,13 @@ def _rounds(
                     tg.grasps.part_id,
                     world.floor,
                 )
-                state[sel] = np.where(hit, 2, 1)
-        cand = np.flatnonzero((state == 1) & ~found[cell])
+                state[sel] = np.where(hit, 3, 1)
+        # Screen-free candidates first; a cell whose screened candidates are all flagged tries
+        # its best flagged ones (exactly checked by verify).
+        free = (state == 1) & ~found[cell]
+        has_free = np.zeros(M, bool)
+        has_free[cell[free]] = True
+        cand = np.flatnonzero(free | ((state == 3) & ~found[cell] & ~has_free[cell]))
         if len(cand) == 0:
             continue
         # The best untried free candidates per cell (entries are sorted by cell then score):
@@ -501,4 +509,4 @@ def grow(
 
 
 #: Changes whenever the algorithm's answer may change (part of a cached region's key).
-VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 8]
+VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 10]

@@ -11,6 +11,7 @@ exact coal checks.
 from __future__ import annotations
 
 import fnmatch
+import math
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -19,6 +20,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from pickstop.robot.config import RobotConfig, resolve_robot
+from pickstop.robot.hand import hand_joints, hand_shape
 from pickstop.robot.model import RobotModel, load_robot
 
 T = TypeVar("T")
@@ -142,7 +144,38 @@ def _hand(robot: RobotModel, links: Any) -> dict[str, Any]:
     pats = robot.config.hand.links
     matched = sorted(lk.name for lk in links if any(fnmatch.fnmatch(lk.name, p) for p in pats))
     unmatched = [p for p in pats if not any(fnmatch.fnmatch(n, p) for n in matched)]
-    return {"patterns": pats, "links": matched, "patterns_matching_nothing": unmatched}
+    cfg = robot.config.hand
+    out: dict[str, Any] = {
+        "patterns": pats,
+        "links": matched,
+        "patterns_matching_nothing": unmatched,
+        "geometry": cfg.geometry,
+        "tool_offset": cfg.tool_offset.model_dump(mode="json"),
+        "approach_axis": list(cfg.approach_axis),
+        "closing_axis": list(cfg.closing_axis),
+        "max_opening": cfg.max_opening,
+        "pregrasp": hand_joints(robot),  # every joint moving a hand link, as the hand is checked
+    }
+    if not unmatched:
+        out["reach"] = round(hand_shape(robot).reach, 6)  # past the grasp point [m]
+    return out
+
+
+def _footprint_line(fp: dict[str, Any]) -> str:
+    if fp.get("radius") is not None:
+        return f"radius {fp['radius']} m"
+    xs, ys = zip(*fp["polygon"], strict=True)
+    how = (
+        f"derived from the base's collision geometry below {fp['height']} m plus "
+        f"{fp['clearance']} m"
+        if fp.get("derived")
+        else "given"
+    )
+    return (
+        f"polygon of {len(xs)} vertices ({how}): x {min(xs):.3f}..{max(xs):.3f} m, "
+        f"y {min(ys):.3f}..{max(ys):.3f} m, bounding radius "
+        f"{max(math.hypot(x, y) for x, y in fp['polygon']):.3f} m"
+    )
 
 
 def format_report(report: dict[str, Any]) -> str:
@@ -164,7 +197,13 @@ def format_report(report: dict[str, Any]) -> str:
             if hand["patterns_matching_nothing"]
             else ""
         ),
-        f"  footprint {report['footprint']}",
+        f"  hand: {hand['geometry']}; grasp point {hand['tool_offset']['position']} (rpy "
+        f"{hand['tool_offset']['rpy']}) in the tool frame; approach {hand['approach_axis']}, "
+        f"closing {hand['closing_axis']}; opening {hand['max_opening']} m"
+        + (f"; reaches {hand['reach']} m past the grasp point" if "reach" in hand else ""),
+        "  pre-grasp posture: "
+        + (", ".join(f"{k} {v:.4g}" for k, v in hand["pregrasp"].items()) or "none"),
+        f"  footprint {_footprint_line(report['footprint'])}",
         f"  locked joints: {len(report['locked_joints'])}",
         f"  collision links: {len(report['collision_links'])}"
         + "".join(

@@ -6,10 +6,14 @@ its closing direction (the robot config says which TCP axes those are). Top-down
 approach along -z at several angles about the vertical; side grasps approach horizontally with
 the closing direction horizontal or vertical. A grasp whose open hand (the robot's own hand
 geometry, at its pre-grasp joint values) would touch the tray walls, the tray floor, the table
-or a neighbouring part, or come within the scene's floor clearance of the floor, is dropped; the
-target part itself is never an obstacle for the fingers. Grasps live in the part frame, which
-sits on the tray's floor: in a tilted tray they approach along its tilted normal.
-The scene's ``gripper`` block tunes which grasps are generated, never the hand's geometry.
+or a neighbouring part, or come within the scene's floor clearance of the floor, is dropped. On
+approach the open hand also keeps clear of the part it is to grasp (the pads close on it
+afterwards): a top-down grasp whose palm or curled fingers would enter the part is raised, 5 mm
+at a time, while the grasp point stays at least 5 mm below the part's top, and dropped if it
+cannot clear it. The witnesses' exact checks then leave the target part out for the hand links
+only (IK reaches the grasp to within a millimetre). Grasps live in the part frame, which sits on
+the tray's floor: in a tilted tray they approach along its tilted normal. The scene's
+``gripper`` block tunes which grasps are generated, never the hand's geometry.
 """
 
 from __future__ import annotations
@@ -17,13 +21,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import coal
 import numpy as np
 
 from pickstop.robot.hand import HandShape
 from pickstop.scene.model import Box, Cylinder, Gripper, Mesh, Part, Scene, Tray
 from pickstop.scene.world import (
     Solid,
+    _coal,
     _Offset,
+    part_solid,
     solid_below,
     solids_overlap,
     tray_solids,
@@ -31,6 +38,9 @@ from pickstop.scene.world import (
 )
 
 FLOOR_CLEARANCE = 0.003  # [m] between the lowest point of a top-down hand and the tray floor
+PART_CLEARANCE = 0.0005  # [m] between the open hand and the part it is to grasp, on approach
+LIFT_STEP = 0.005  # [m] a top-down grasp blocked by its own part is raised by this much
+MIN_HOLD = 0.005  # [m] a raised grasp point stays at least this far below the part's top
 
 
 @dataclass(frozen=True)
@@ -149,13 +159,47 @@ def _candidates(
     return cands
 
 
+def _heights(T_part_tcp: np.ndarray, kind: str, part: Part) -> list[np.ndarray]:
+    """The grasp, then for a top-down one the same raised by ``LIFT_STEP`` up to ``MIN_HOLD``
+    below the part's top."""
+    out = [T_part_tcp]
+    if kind == "top":
+        top = _height(part.geometry) - MIN_HOLD
+        z = T_part_tcp[2, 3] + LIFT_STEP
+        while z <= top + 1e-9:
+            T = T_part_tcp.copy()
+            T[2, 3] = z
+            out.append(T)
+            z += LIFT_STEP
+    return out
+
+
+def clear_of(solids: list[Solid], target: Solid, margin: float) -> bool:
+    """Do ``solids`` all keep at least ``margin`` [m] from ``target`` (coal distances)?"""
+    lo_t, hi_t = target.aabb()
+    gt, tt = _coal(target)
+    for s in solids:
+        lo, hi = s.aabb()
+        if np.any(lo > hi_t + margin) or np.any(lo_t > hi + margin):
+            continue
+        g, t = _coal(s)
+        d = coal.distance(g, t, gt, tt, coal.DistanceRequest(), coal.DistanceResult())
+        if d < margin:
+            return False
+    return True
+
+
 def hand_space(
     scene: Scene, tray: Tray, part: Part, hand: HandShape
 ) -> tuple[np.ndarray, np.ndarray]:
-    """World bounds ``(lo, hi)`` [m] of the open hand at every candidate grasp of ``part``:
-    only what reaches into them can change its grasps."""
+    """World bounds ``(lo, hi)`` [m] of the open hand at every candidate grasp of ``part`` (at
+    every height it may be raised to): only what reaches into them can change its grasps."""
     T_world_part = world_part_transform(tray, part)
-    corners = [hand.corners(T_world_part @ T) for T, _ in _candidates(scene, tray, part, hand)]
+    corners = [
+        hand.corners(T_world_part @ T)
+        for T0, kind in _candidates(scene, tray, part, hand)
+        for T in _heights(T0, kind, part)
+    ]
     if not corners:
         centre = T_world_part[:3, 3]
         return centre, centre
@@ -169,16 +213,24 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
     T_world_part = world_part_transform(tray, part)
     cands = _candidates(scene, tray, part, hand)
     obstacles = tray_solids(scene, tray, exclude_part=part.id)
+    target = part_solid(tray, part)
     kept, kinds = [], []
     near_floor = 0
-    for T_part_tcp, kind in cands:
-        solids = hand_solids(hand, T_world_part @ T_part_tcp)
-        if any(solid_below(a, scene.floor_clearance) for a in solids):
-            near_floor += 1
-            continue
-        if not any(solids_overlap(a, b) for a in solids for b in obstacles):
-            kept.append(T_part_tcp)
-            kinds.append(kind)
+    for T0, kind in cands:
+        low = False
+        for T_part_tcp in _heights(T0, kind, part):
+            solids = hand_solids(hand, T_world_part @ T_part_tcp)
+            if any(solid_below(a, scene.floor_clearance) for a in solids):
+                low = True
+                continue
+            if any(solids_overlap(a, b) for a in solids for b in obstacles):
+                continue
+            if clear_of(solids, target, PART_CLEARANCE):
+                kept.append(T_part_tcp)
+                kinds.append(kind)
+                break
+        else:
+            near_floor += low
     Ts = np.array(kept).reshape(-1, 4, 4)
     too_low = (
         part.grasps is None

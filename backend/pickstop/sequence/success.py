@@ -86,7 +86,9 @@ class Rate:
         p, z2 = k / n, Z95 * Z95
         centre = (p + z2 / (2 * n)) / (1 + z2 / n)
         half = Z95 * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
-        return (max(0.0, centre - half), min(1.0, centre + half))
+        # It holds the observed rate; at 0 or all successes its end is exactly 0 or 1, which
+        # rounding would otherwise leave a hair inside.
+        return (min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half)))
 
 
 #: Feasibility of base poses: ``evaluate(xy (M, 2), yaw) -> ok (M,)``.
