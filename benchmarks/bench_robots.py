@@ -60,7 +60,7 @@ def paper(ref: str, robot, row: dict, folder: Path) -> None:
     """Regions and plan of the paper-like scene with ``robot`` (its database of ``row``)."""
     from pickstop.reach.database import open_database
     from pickstop.regions.base_region import RegionPlanner
-    from pickstop.scene.model import parse_scene
+    from pickstop.scene.load import parse_scene
     from pickstop.sequence.cover import InfeasiblePlanError
     from pickstop.sequence.plan import StopPlanner
     from pickstop.sequence.plan_model import PlanOptions

@@ -15,7 +15,7 @@ from pickstop.reach.so3 import quats_to_matrices
 from pickstop.regions.arm import ExactArm, screen_arm
 from pickstop.regions.geojson import read_polygons, regions_geojson
 from pickstop.robot.kinematics import Chain, fk, fk_soa
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from pickstop.scene.world import BoxArrays, scene_solids
 
 
@@ -125,7 +125,7 @@ def test_moving_a_tray_recomputes_only_what_it_affects(planner, paper_doc):
 @given(seed=st.integers(0, 2**32 - 1))
 def test_environment_screen_is_conservative(planner, tiago, seed):
     """Screen 'free' is guaranteed: coal finds no collision where the screen finds none."""
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
     from tests.regions.conftest import EXAMPLES
 
     scene = load_scene(EXAMPLES / "paper_experiment.json")
@@ -207,7 +207,7 @@ def test_touching_cells_merge_into_one_polygon():
 def test_a_mesh_obstacle_from_a_relative_path_blocks_base_cells(planner, tmp_path):
     import json as _json
 
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
     from tests.scene.test_scene_model import write_box_stl
 
     doc = _json.loads(

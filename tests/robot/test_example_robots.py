@@ -21,7 +21,7 @@ CONFIGS = {name: ROBOTS / f"{name}.yaml" for name in ("ur5_amr", "tiago_pro", "t
 
 def paper_scene(config: Path):
     """The paper-like scene with its robot replaced by ``config``."""
-    from pickstop.scene.model import parse_scene
+    from pickstop.scene.load import parse_scene
 
     doc = json.loads((ROOT / "examples/scenes/paper_experiment.json").read_text())
     doc["robot"] = {"config": str(config)}
