@@ -24,18 +24,17 @@ import numpy as np
 import viser
 from shapely.geometry import Polygon
 
+from pickstop.frames import quat_yaw, yaw_quat
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.geometry import (
     circle_segments,
     patch_mesh,
     polyline_at,
-    quat_yaw,
     ring_segments,
     route_segments,
     tilt_quat,
     tray_boxes,
-    yaw_quat,
 )
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 

@@ -247,11 +247,11 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
     found = (ij[:, 1] < mid) | (ij[:, 1] >= mid + 4)
     thetas = np.where(found[:, None, None], region.thetas, 0.0)
     grasp = np.where(found[:, None], region.grasp_index, 0)
-    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, region.yaw)
+    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, region.yaw)
     world = solve.ArmWorld(
         boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max)
     )
-    targets = [solve.Targets.of(gs, cen, Rz_T) for gs in planner.grasps(scene, tray)]
+    targets = [solve.Targets.of(gs, cen, R_base_world) for gs in planner.grasps(scene, tray)]
     forgotten = int((~found).sum())
     added = solve.grow(planner, world, targets, cen, ij, found, thetas, grasp)
     assert added == int(found.sum()) - (len(ij) - forgotten)

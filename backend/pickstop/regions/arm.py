@@ -17,6 +17,8 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from pickstop import frames
+from pickstop.frames import rot2
 from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
@@ -99,10 +101,10 @@ def _to_world(
     R = np.stack([frames[j - 1][0] for j in joint])  # (P, 3, 3, B)
     p = np.stack([frames[j - 1][1] for j in joint])  # (P, 3, B)
     pts = np.einsum("pikb,pk->bpi", R, local) + p.transpose(2, 0, 1)
-    c, s = np.cos(yaw), np.sin(yaw)
+    R = rot2(yaw)  # written out per entry: twice as fast as a stacked matmul
     out = np.empty_like(pts)
-    out[..., 0] = c * pts[..., 0] - s * pts[..., 1] + base_xy[:, None, 0]
-    out[..., 1] = s * pts[..., 0] + c * pts[..., 1] + base_xy[:, None, 1]
+    out[..., 0] = R[0, 0] * pts[..., 0] + R[0, 1] * pts[..., 1] + base_xy[:, None, 0]
+    out[..., 1] = R[1, 0] * pts[..., 0] + R[1, 1] * pts[..., 1] + base_xy[:, None, 1]
     out[..., 2] = pts[..., 2]
     return out
 
@@ -218,19 +220,22 @@ class ExactArm:
             return True
         if not solids:
             return False
-        T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
+        T_world_base = pin.SE3(frames.T_world_base(x, y, yaw))
         bounds = [s.aabb() for s in solids]
         lo = np.array([b[0] for b in bounds])  # (K, 3)
         hi = np.array([b[1] for b in bounds])
-        placed = [T_wb * self.gdata.oMg[i] for i in self.ids]
+        Ts_world_geom = [T_world_base * self.gdata.oMg[i] for i in self.ids]
         c = np.array(
             [
-                M.rotation @ cl + M.translation
-                for M, (cl, _) in zip(placed, self.local_boxes, strict=True)
+                T.rotation @ cl + T.translation
+                for T, (cl, _) in zip(Ts_world_geom, self.local_boxes, strict=True)
             ]
         )
         h = np.array(
-            [np.abs(M.rotation) @ hl for M, (_, hl) in zip(placed, self.local_boxes, strict=True)]
+            [
+                np.abs(T.rotation) @ hl
+                for T, (_, hl) in zip(Ts_world_geom, self.local_boxes, strict=True)
+            ]
         )
         # Geometry g and solid k can touch only where their world bounding boxes overlap.
         near = ~(
@@ -241,10 +246,12 @@ class ExactArm:
             own = np.array([s.owner == target for s in solids])
             near &= ~(np.array(self.hand)[:, None] & own[None])
         for g, k in zip(*np.nonzero(near), strict=True):
-            M = placed[g]
+            T_world_geom = Ts_world_geom[g]
             geom = self.robot.geom_model.geometryObjects[self.ids[g]].geometry
             gs, ts = _coal(solids[k])
-            if collide(geom, coal.Transform3s(M.rotation, M.translation), gs, ts):
+            if collide(
+                geom, coal.Transform3s(T_world_geom.rotation, T_world_geom.translation), gs, ts
+            ):
                 return True
         return False
 

@@ -12,9 +12,11 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from pickstop.errors import InputError
+from pickstop.frames import R_axis
 from pickstop.robot.floor import FLOOR_CLEARANCE, MAX_CLEARANCE
 
 FORMAT = "pickstop.scene"
@@ -123,12 +125,9 @@ class Tilt(_Strict):
     axis: Literal["x", "y"]
     angle: Annotated[float, Field(ge=-MAX_TILT, le=MAX_TILT, allow_inf_nan=False)]
 
-    def matrix(self) -> list[list[float]]:
-        """``R_yawed_tray`` (3 x 3): the tilt, applied after the tray's yaw."""
-        c, s = math.cos(self.angle), math.sin(self.angle)
-        if self.axis == "x":
-            return [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]
-        return [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
+    def matrix(self) -> np.ndarray:
+        """``R_yawed_tray`` (3, 3): the tilt, applied after the tray's yaw."""
+        return R_axis(self.axis, self.angle)
 
 
 class Tray(_Strict):
