@@ -33,7 +33,7 @@ from pickstop.fleet.pickcheck import PickChecker
 from pickstop.fleet.sim_node import VehicleNode
 from pickstop.fleet.tracker import OrderTracker
 from pickstop.loader import stop_planner_for
-from pickstop.scene.model import load_scene
+from pickstop.scene.load import load_scene
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.settings import data_dir

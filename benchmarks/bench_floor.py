@@ -28,7 +28,7 @@ from pickstop.reach.build import BuildParams
 from pickstop.regions.arm import screen_arm
 from pickstop.robot.floor import FLOOR_CLEARANCE, ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from pickstop.scene.world import BoxArrays
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan import StopPlanner

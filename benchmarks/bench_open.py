@@ -37,7 +37,7 @@ from pickstop.store.reach_catalog import open_database
 from pickstop.loader import robot_for
 from pickstop.regions.base_region import RegionPlanner
 from pickstop.robot.config import resolve_robot
-from pickstop.scene.model import load_scene
+from pickstop.scene.load import load_scene
 from pickstop.settings import cache_dir
 t1 = time.perf_counter()
 scene = load_scene(sys.argv[1])

@@ -24,7 +24,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.loader import planner_for
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import Plan, PlanOptions

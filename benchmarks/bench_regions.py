@@ -43,7 +43,8 @@ from pickstop.regions.reference import (
 from pickstop.regions.solve import MAX_ROUNDS, REFINE_ITERATIONS, WINDOW
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import load
-from pickstop.scene.model import Scene, load_scene, parse_scene
+from pickstop.scene.load import load_scene, parse_scene
+from pickstop.scene.model import Scene
 from pickstop.scene.world import BoxArrays, scene_solids
 from pickstop.settings import cache_dir, data_dir
 from pickstop.store.reach_catalog import open_database

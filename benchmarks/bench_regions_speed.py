@@ -20,7 +20,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.loader import planner_for
 from pickstop.regions.base_region import compute_tray_region
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from pickstop.settings import data_dir
 
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"

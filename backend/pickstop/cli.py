@@ -264,7 +264,7 @@ def cmd_reach_query(args: argparse.Namespace) -> int:
 def cmd_regions(args: argparse.Namespace) -> int:
     from pickstop.loader import planner_for
     from pickstop.regions.geojson import regions_geojson
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
     from pickstop.settings import data_dir
 
     scene = load_scene(args.scene)
@@ -317,7 +317,7 @@ def _plan_options(args: argparse.Namespace) -> Any:
 
 def _plan_one(path: Path, args: argparse.Namespace, options: Any) -> Any:
     from pickstop.loader import stop_planner_for
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
     from pickstop.settings import data_dir
 
     scene = load_scene(path)
@@ -472,7 +472,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         print("pickstop: no API keys configured (PICKSTOP_API_KEYS): the API refuses writes; "
               "make one with `pickstop api-key`", file=sys.stderr)  # fmt: skip
     if args.scene_file:
-        from pickstop.scene.model import load_scene
+        from pickstop.scene.load import load_scene
 
         load_scene(args.scene_file)  # a bad file fails here, naming its field
     run = stack.start(
@@ -499,7 +499,7 @@ def cmd_ui(args: argparse.Namespace) -> int:
     key = args.key or os.environ.get("PICKSTOP_UI_KEY")
     scene_id = args.scene
     if args.scene_file:
-        from pickstop.scene.model import load_scene
+        from pickstop.scene.load import load_scene
 
         load_scene(args.scene_file)  # a bad file fails here, with its field
         doc = json.loads(Path(args.scene_file).read_text(encoding="utf-8"))

@@ -88,7 +88,8 @@ def plan_task(
 
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from pickstop.loader import stop_planner_for
-    from pickstop.scene.model import parse_scene, resolve_mesh_paths
+    from pickstop.scene.load import parse_scene
+    from pickstop.scene.model import resolve_mesh_paths
     from pickstop.sequence.plan_model import PlanOptions
 
     try:

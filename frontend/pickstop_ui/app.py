@@ -28,15 +28,14 @@ from typing import Any
 import numpy as np
 import viser
 
+from pickstop.frames import quat_yaw, yaw_quat
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui import edits
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.geometry import (
     polyline_at,
-    quat_yaw,
     tilt_quat,
     tray_boxes,
-    yaw_quat,
 )
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, status_line, style_of

@@ -10,25 +10,14 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-
-def yaw_quat(yaw: float) -> tuple[float, float, float, float]:
-    """wxyz of a rotation about the vertical."""
-    return (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
-
-
-def quat_yaw(wxyz: tuple[float, float, float, float] | np.ndarray) -> float:
-    """The rotation about the vertical of a (near-vertical-axis) quaternion."""
-    w, x, y, z = (float(v) for v in wxyz)
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+from pickstop.frames import axis_quat, rot2
 
 
 def tilt_quat(tilt: dict[str, Any] | None) -> tuple[float, float, float, float]:
     """wxyz of a tray's tilt about its own x or y axis (identity without one)."""
     if not tilt:
         return (1.0, 0.0, 0.0, 0.0)
-    a = float(tilt["angle"])
-    c, s = math.cos(a / 2), math.sin(a / 2)
-    return (c, s, 0.0, 0.0) if tilt["axis"] == "x" else (c, 0.0, s, 0.0)
+    return axis_quat("x" if tilt["axis"] == "x" else "y", float(tilt["angle"]))
 
 
 def tray_boxes(tray: dict[str, Any]) -> list[tuple[str, tuple[float, float, float], tuple]]:
@@ -97,8 +86,7 @@ def route_segments(line: list[tuple[float, float]], z: float, arrow: float = 0.1
             continue
         u = d / L
         m = a + 0.5 * d
-        left = m - arrow * (u * math.cos(0.5) - np.array([-u[1], u[0]]) * math.sin(0.5))
-        right = m - arrow * (u * math.cos(0.5) + np.array([-u[1], u[0]]) * math.sin(0.5))
+        left, right = (m - arrow * (rot2(a) @ u) for a in (-0.5, 0.5))
         for q in (left, right):
             segs.append(np.array([[[q[0], q[1], z], [m[0], m[1], z]]]))
     return np.concatenate(segs) if segs else np.zeros((0, 2, 3))

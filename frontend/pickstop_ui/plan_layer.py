@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import viser
 
-from pickstop_ui.geometry import yaw_quat
+from pickstop.frames import yaw_quat
 from pickstop_ui.plan_view import MAX_LABELS, PlanDrawing
 
 _NOWHERE = np.zeros((1, 2, 3), np.float32) - 10.0  # a placeholder segment below the floor

@@ -13,7 +13,7 @@ SCENES = ["paper_experiment", "five_trays", "factory_cell", "rack_cell"]
 
 
 def scene_of(name: str):
-    from pickstop.scene.model import parse_scene
+    from pickstop.scene.load import parse_scene
 
     return parse_scene(json.loads((EXAMPLES / f"{name}.json").read_text()))
 

@@ -15,6 +15,7 @@ from pickstop.errors import InputError
 from pickstop.fleet import order as od
 from pickstop.fleet import route as rt
 from pickstop.fleet import vda5050 as v
+from pickstop.frames import wrap_angle
 from tests.fleet.conftest import SCENES
 
 SCHEMAS = Path(v.__file__).parent / "schemas"
@@ -44,7 +45,7 @@ def test_orders_of_every_example_validate_and_keep_the_rules(example_plans, name
     assert len(stops) == len(plan.stops)
     for n, s in zip(stops, plan.stops, strict=True):
         p = n.node_position
-        assert (p.x, p.y) == (s.x, s.y) and p.theta == pytest.approx(rt.wrap(s.yaw))
+        assert (p.x, p.y) == (s.x, s.y) and p.theta == pytest.approx(wrap_angle(s.yaw))
         dev = p.allowed_deviation_xy
         radius = dev if version == "2.1" else dev.a
         assert radius == s.inscribed_radius >= plan.parameters.sigma > 0
@@ -89,8 +90,8 @@ def test_check_order_names_each_broken_rule(example_plans):
 
 
 def test_theta_stays_in_the_schema_range():
-    assert rt.wrap(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
-    assert abs(rt.wrap(math.pi)) <= v.PI_THETA
+    assert wrap_angle(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
+    assert abs(wrap_angle(math.pi)) <= v.PI_THETA
 
 
 @pytest.mark.parametrize(

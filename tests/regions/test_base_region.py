@@ -15,7 +15,7 @@ from pickstop.reach.so3 import quats_to_matrices
 from pickstop.regions.arm import ExactArm, screen_arm
 from pickstop.regions.geojson import read_polygons, regions_geojson
 from pickstop.robot.kinematics import Chain, fk, fk_soa
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from pickstop.scene.world import BoxArrays, scene_solids
 
 
@@ -125,7 +125,7 @@ def test_moving_a_tray_recomputes_only_what_it_affects(planner, paper_doc):
 @given(seed=st.integers(0, 2**32 - 1))
 def test_environment_screen_is_conservative(planner, tiago, seed):
     """Screen 'free' is guaranteed: coal finds no collision where the screen finds none."""
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
     from tests.regions.conftest import EXAMPLES
 
     scene = load_scene(EXAMPLES / "paper_experiment.json")
@@ -210,7 +210,7 @@ def test_touching_cells_merge_into_one_polygon():
 def test_a_mesh_obstacle_from_a_relative_path_blocks_base_cells(planner, tmp_path):
     import json as _json
 
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
     from tests.scene.test_scene_model import write_box_stl
 
     doc = _json.loads(
@@ -256,11 +256,11 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
     found = (ij[:, 1] < mid) | (ij[:, 1] >= mid + 4)
     thetas = np.where(found[:, None, None], region.thetas, 0.0)
     grasp = np.where(found[:, None], region.grasp_index, 0)
-    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, region.yaw)
+    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, region.yaw)
     world = solve.ArmWorld(
         boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max)
     )
-    targets = [solve.Targets.of(gs, cen, Rz_T) for gs in planner.grasps(scene, tray)]
+    targets = [solve.Targets.of(gs, cen, R_base_world) for gs in planner.grasps(scene, tray)]
     forgotten = int((~found).sum())
     added = solve.grow(planner, world, targets, cen, ij, found, thetas, grasp)
     assert added == int(found.sum()) - (len(ij) - forgotten)
@@ -335,12 +335,12 @@ def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, m
     region = planner.tray_region(scene, "tray_4")
     ij = region.cells[:: max(1, len(region.cells) // 30)]
     cen = region.grid.centres(ij[:, 1], ij[:, 0])
-    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, region.yaw)
+    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, region.yaw)
     world = solve.ArmWorld(
         boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max)
     )
     gs = planner.grasps(scene, tray)[0]
-    tg = solve.Targets.of(gs, cen, Rz_T)
+    tg = solve.Targets.of(gs, cen, R_base_world)
 
     def flag_all(spheres, boxes, frames, base_xy, *args, **kwargs):
         return np.ones(len(base_xy), bool)
@@ -351,7 +351,7 @@ def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, m
     # cells (none when flagged candidates were dropped).
     assert found.sum() >= len(ij) // 3
     th = thetas[found]
-    Rs, ps = tg.R_bt[grasp[found]], tg.p_bt[np.flatnonzero(found), grasp[found]]
+    Rs, ps = tg.Rs_base_tool[grasp[found]], tg.ps_base_tool[np.flatnonzero(found), grasp[found]]
     assert pose_ok(planner.solver, th, Rs, ps).all()
     assert not planner.exact_self.colliding(th).any()
     for t, (x, y) in zip(th, cen[found], strict=True):

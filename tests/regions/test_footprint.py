@@ -10,7 +10,7 @@ import pinocchio as pin
 
 from pickstop.regions.footprint import footprint_free, upper_body
 from pickstop.robot.link_geometry import collision_links
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from pickstop.scene.world import _coal, collide, scene_solids
 
 

@@ -16,7 +16,8 @@ from pickstop.robot.hand import hand_shape
 from pickstop.robot.kinematics import Chain, fk_soa
 from pickstop.robot.model import load_robot
 from pickstop.scene.grasps import grasps_for_part, hand_solids
-from pickstop.scene.model import Box, Part, parse_scene
+from pickstop.scene.load import parse_scene
+from pickstop.scene.model import Box, Part
 from pickstop.scene.world import BoxArrays, Solid, solids_overlap, tray_solids, world_part_transform
 
 ROOT = Path(__file__).parents[2]

@@ -11,7 +11,7 @@ import pytest
 from pickstop.regions.reference import comparison_cells, oracle_region, verify_witnesses
 from pickstop.robot.floor import ExactFloor
 from pickstop.robot.kinematics import fk
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 
 RACK = Path(__file__).parents[2] / "examples" / "scenes" / "rack_cell.json"
 

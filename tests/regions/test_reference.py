@@ -18,7 +18,7 @@ from pickstop.regions.reference import (
     verify_witnesses,
 )
 from pickstop.robot.kinematics import fk, reference_fk
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from tests.utils import random_thetas
 
 PAPER = Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.json"

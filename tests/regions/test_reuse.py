@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 
 from pickstop.regions.base_region import compute_tray_region
 from pickstop.regions.reuse import ReuseCache, TrayAnchor
-from pickstop.scene.model import SceneError, parse_scene
+from pickstop.scene.load import parse_scene
+from pickstop.scene.model import SceneError
 from tests.utils import assert_cells_verified
 
 

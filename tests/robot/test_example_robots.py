@@ -26,7 +26,7 @@ def paper_scene(config: Path):
     The UR5 AMR's goal moves 10 cm in from the floor's edge: the route takes the base as its
     bounding circle (0.57 m for the 0.94 x 0.64 m outline), and the scene's goal lies 0.50 m
     from the edge (x 4.5 of 5.0)."""
-    from pickstop.scene.model import parse_scene
+    from pickstop.scene.load import parse_scene
 
     doc = json.loads((ROOT / "examples/scenes/paper_experiment.json").read_text())
     doc["robot"] = {"config": str(config)}

@@ -10,7 +10,8 @@ import pytest
 
 from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.scene.grasps import candidate_grasps, grasps_for_part, hand_solids
-from pickstop.scene.model import Box, Cylinder, Gripper, Part, Pose, parse_scene
+from pickstop.scene.load import parse_scene
+from pickstop.scene.model import Box, Cylinder, Gripper, Part, Pose
 from pickstop.scene.world import solids_overlap, tray_solids, world_part_transform
 
 PAPER = json.loads(

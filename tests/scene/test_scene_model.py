@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from pickstop.scene.model import SceneError, load_scene, parse_scene, scene_json_schema
+from pickstop.scene.load import load_scene, parse_scene
+from pickstop.scene.model import SceneError, scene_json_schema
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 PAPER = json.loads((EXAMPLES / "paper_experiment.json").read_text())
@@ -190,7 +191,7 @@ def write_box_stl(path, sx, sy, sz):
 
 
 def test_relative_mesh_paths_start_at_the_scene_file(tmp_path):
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
 
     (tmp_path / "meshes").mkdir()
     write_box_stl(tmp_path / "meshes" / "pillar.stl", 0.3, 0.3, 1.5)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import shapely
 
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import Plan, PlanOptions

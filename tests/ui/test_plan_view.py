@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pickstop.scene.model import parse_scene
+from pickstop.scene.load import parse_scene
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop_ui import edits

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 import viser.transforms as vtf
 
-from pickstop.scene.model import parse_scene
+from pickstop.frames import yaw_quat
+from pickstop.scene.load import parse_scene
 from pickstop.scene.world import tray_body_solids
-from pickstop_ui.geometry import tilt_quat, tray_boxes, yaw_quat
+from pickstop_ui.geometry import tilt_quat, tray_boxes
 
 RACK = Path(__file__).parents[2] / "examples" / "scenes" / "rack_cell.json"
 

@@ -1,7 +1,7 @@
 """Request and response bodies of the REST API (pydantic): the OpenAPI document shows these.
 
 Scene and robot documents stay plain mappings in the request models (they are validated by
-:func:`pickstop.scene.model.parse_scene` and :func:`pickstop.robot.config.parse_config`, after
+:func:`pickstop.scene.load.parse_scene` and :func:`pickstop.robot.config.parse_config`, after
 the size limits), but the OpenAPI document types them by the scene and robot schemas.
 """
 

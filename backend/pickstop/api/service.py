@@ -37,7 +37,8 @@ from pickstop.robot.config import (
     resolve_robot,
 )
 from pickstop.robot.model import RobotModel, _mesh_refs, load_robot, resolve_path
-from pickstop.scene.model import Scene, parse_scene
+from pickstop.scene.load import parse_scene
+from pickstop.scene.model import Scene
 from pickstop.sequence.plan import StopPlanner, route_points
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.sequence.rules import Rule, RuleName, cut_off, judge

@@ -40,7 +40,7 @@ def read_plan(path: str) -> pm.Plan:
 def _scene(path: str | None, plan: pm.Plan | None = None) -> Any:
     if path is None:
         return None
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
     from pickstop.sequence.plan import scene_hash
 
     scene = load_scene(path)

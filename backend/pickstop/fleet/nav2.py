@@ -19,6 +19,7 @@ import yaml
 
 from pickstop.errors import InputError
 from pickstop.fleet import route as rt
+from pickstop.frames import quat_yaw, yaw_quat
 from pickstop.sequence import plan_model as pm
 
 Distro = Literal["humble", "jazzy", "kilted"]
@@ -61,12 +62,13 @@ def _tolerance_note(radii: list[float]) -> str:
 
 def quaternion(yaw: float) -> dict[str, float]:
     """Rotation about z by ``yaw`` [rad] as a geometry_msgs quaternion (x, y, z, w)."""
-    return {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2.0), "w": math.cos(yaw / 2.0)}
+    w, x, y, z = yaw_quat(yaw)
+    return {"x": x, "y": y, "z": z, "w": w}
 
 
 def yaw_of(q: dict[str, float]) -> float:
-    """Inverse of :func:`quaternion` for rotations about z."""
-    return 2.0 * math.atan2(q["z"], q["w"])
+    """Inverse of :func:`quaternion`: the heading [rad] of a geometry_msgs quaternion."""
+    return quat_yaw((q["w"], q["x"], q["y"], q["z"]))
 
 
 def _yaws(wps: list[rt.Waypoint]) -> list[float]:

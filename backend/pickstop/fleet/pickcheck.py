@@ -7,12 +7,12 @@ the one its stop centres and Monte Carlo samples pass, at the real pose instead 
 
 from __future__ import annotations
 
-import math
 import threading
 from collections import OrderedDict
 
 import numpy as np
 
+from pickstop.frames import angle_gap
 from pickstop.regions.base_region import RegionPlanner, feasible_near
 from pickstop.regions.cells import TrayRegion
 from pickstop.scene.model import Scene
@@ -37,10 +37,7 @@ class PickChecker:
         if not mine:
             return None
 
-        def gap(y: float) -> float:
-            return abs(math.atan2(math.sin(y - yaw), math.cos(y - yaw)))
-
-        return self.regions[min(mine, key=lambda k: gap(k[1]))]
+        return self.regions[min(mine, key=lambda k: angle_gap(k[1], yaw))]
 
     def __call__(self, tray_id: str, x: float, y: float, yaw: float) -> tuple[bool, str]:
         key = (tray_id, round(x, 6), round(y, 6), round(yaw, 6))

@@ -18,6 +18,7 @@ from typing import Any, Literal
 from pydantic import ValidationError
 
 from pickstop.errors import InputError
+from pickstop.frames import wrap_angle
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.success import YAW_LATTICE
 
@@ -52,11 +53,6 @@ class Waypoint:
     stop: int | None = None  # stop index for kind "stop"
     picks: tuple[Pick, ...] = ()
     predicted_success: float | None = None
-
-
-def wrap(angle: float) -> float:
-    """``angle`` [rad] into [-pi, pi]."""
-    return math.atan2(math.sin(angle), math.cos(angle))
 
 
 def guaranteed_radius(stop: pm.Stop) -> float:
@@ -133,7 +129,7 @@ def waypoints(
                     "stop",
                     s.x,
                     s.y,
-                    wrap(s.yaw),
+                    wrap_angle(s.yaw),
                     guaranteed_radius(s),
                     tols[k],
                     stop=k,
@@ -143,7 +139,7 @@ def waypoints(
             )
         else:
             out.append(
-                Waypoint("goal", "goal", x, y, None if goal_yaw is None else wrap(goal_yaw),
+                Waypoint("goal", "goal", x, y, None if goal_yaw is None else wrap_angle(goal_yaw),
                          VIA_TOLERANCE, None)
             )  # fmt: skip
     return out

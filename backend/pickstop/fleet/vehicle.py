@@ -21,6 +21,7 @@ import numpy as np
 
 from pickstop.fleet import order as orders
 from pickstop.fleet import vda5050 as v
+from pickstop.frames import wrap_angle
 from pickstop.sequence.success import Kind, sample_errors
 from pickstop.sequence.timing import leg_time
 
@@ -273,7 +274,7 @@ class SimVehicle:
                 dx, dy, dyaw = self.forced_error or self.error(self.rng)
             self.x, self.y = node.x + dx, node.y + dy
             if node.theta is not None:
-                self.theta = orders.rt.wrap(node.theta + dyaw)
+                self.theta = wrap_angle(node.theta + dyaw)
             self.last_node = ph.node
             self.stopped_at[node.id] = (self.x, self.y, self.theta)
         elif ph.kind == "pick":
@@ -342,7 +343,7 @@ class SimVehicle:
             ]
         else:
             errors = self.errors
-        pos = {"x": self.x, "y": self.y, "theta": orders.rt.wrap(self.theta), "mapId": self.map_id}
+        pos = {"x": self.x, "y": self.y, "theta": wrap_angle(self.theta), "mapId": self.map_id}
         driving = bool(self.phases) and self.phases[0].kind == "drive"
         doc: dict[str, Any] = {
             "headerId": self.header_id,

@@ -161,8 +161,8 @@ class Refiner:
     def pose(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Tool pose by pinocchio FK: ``R_base_tool: (3, 3)``, ``p_base_tool: (3,)`` [m]."""
         pin.framesForwardKinematics(self.model, self.data, self._q(theta))
-        M = self.data.oMf[self.frame_id]
-        return M.rotation.copy(), M.translation.copy()
+        T_base_tool = self.data.oMf[self.frame_id]
+        return T_base_tool.rotation.copy(), T_base_tool.translation.copy()
 
     def _eval(
         self, theta: np.ndarray, oMdes: pin.SE3

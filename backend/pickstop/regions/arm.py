@@ -17,6 +17,8 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from pickstop import frames
+from pickstop.frames import rot2
 from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
@@ -99,10 +101,10 @@ def _to_world(
     R = np.stack([frames[j - 1][0] for j in joint])  # (P, 3, 3, B)
     p = np.stack([frames[j - 1][1] for j in joint])  # (P, 3, B)
     pts = np.einsum("pikb,pk->bpi", R, local) + p.transpose(2, 0, 1)
-    c, s = np.cos(yaw), np.sin(yaw)
+    R = rot2(yaw)  # written out per entry: twice as fast as a stacked matmul
     out = np.empty_like(pts)
-    out[..., 0] = c * pts[..., 0] - s * pts[..., 1] + base_xy[:, None, 0]
-    out[..., 1] = s * pts[..., 0] + c * pts[..., 1] + base_xy[:, None, 1]
+    out[..., 0] = R[0, 0] * pts[..., 0] + R[0, 1] * pts[..., 1] + base_xy[:, None, 0]
+    out[..., 1] = R[1, 0] * pts[..., 0] + R[1, 1] * pts[..., 1] + base_xy[:, None, 1]
     out[..., 2] = pts[..., 2]
     return out
 
@@ -223,24 +225,29 @@ class ExactArm:
             return True
         if not solids or not self.ids:
             return False
-        T_wb = pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), np.array([x, y, 0.0]))
-        Ms = [T_wb * self.gdata.oMg[i] for i in self.ids]
-        R = np.array([M.rotation for M in Ms])  # (G, 3, 3)
-        c = np.einsum("gij,gj->gi", R, self.local_c) + np.array([M.translation for M in Ms])
+        T_world_base = pin.SE3(frames.T_world_base(x, y, yaw))
+        Ts_world_geom = [T_world_base * self.gdata.oMg[i] for i in self.ids]
+        R = np.array([T.rotation for T in Ts_world_geom])  # (G, 3, 3)
+        c = np.einsum("gij,gj->gi", R, self.local_c) + np.array(
+            [T.translation for T in Ts_world_geom]
+        )
         h = np.einsum("gij,gj->gi", np.abs(R), self.local_h)
         bounds = [s.aabb() for s in solids]
         lo = np.array([b[0] for b in bounds])  # (S, 3)
         hi = np.array([b[1] for b in bounds])
+        # Geometry g and solid k can touch only where their world bounding boxes overlap.
         near = ~(
             ((c - h)[:, None] > hi[None]).any(axis=2) | ((c + h)[:, None] < lo[None]).any(axis=2)
         )  # (G, S)
         if target is not None:
             near &= ~(self.hand[:, None] & (np.array([s.owner for s in solids]) == target)[None])
-        for k, j in zip(*np.nonzero(near), strict=True):
-            g = self.robot.geom_model.geometryObjects[self.ids[k]]
-            M = Ms[k]
-            gs, ts = _coal(solids[j])
-            if collide(g.geometry, coal.Transform3s(M.rotation, M.translation), gs, ts):
+        for g, k in zip(*np.nonzero(near), strict=True):
+            T_world_geom = Ts_world_geom[g]
+            geom = self.robot.geom_model.geometryObjects[self.ids[g]].geometry
+            gs, ts = _coal(solids[k])
+            if collide(
+                geom, coal.Transform3s(T_world_geom.rotation, T_world_geom.translation), gs, ts
+            ):
                 return True
         return False
 

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import shapely
 
+from pickstop import frames
 from pickstop.reach.batch_ik import BatchSolver
 from pickstop.reach.database import ReachDatabase
 from pickstop.regions import solve
@@ -375,7 +376,7 @@ def compute_tray_region(
     if not tray.parts:
         return empty(f"tray {tray.id!r} has no parts")
     tc = np.array([tray.pose.x, tray.pose.y])
-    reach, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
+    reach, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
     # Cells within reach of the tray (a bounding window, then the disc).
     lo = np.floor((tc - reach - [grid.x0, grid.y0]) / grid.res).astype(int)
     hi = np.ceil((tc + reach - [grid.x0, grid.y0]) / grid.res).astype(int)
@@ -420,7 +421,7 @@ def compute_tray_region(
     anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
     memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
     keys = anchor.cell_keys(IX, IY)
-    targets = [Targets.of(gs, cen, Rz_T, keys, memo) for gs in grasp_sets]
+    targets = [Targets.of(gs, cen, R_base_world, keys, memo) for gs in grasp_sets]
     # Cells the database cannot serve for some part are left to the growth below.
     alive = np.flatnonzero(
         memo.served(keys, lambda idx: solve.served(planner.db, [t.take(idx) for t in targets]))
@@ -502,9 +503,7 @@ def tray_world(
     tc = np.array([tray.pose.x, tray.pose.y])
     reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
     solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
-    c, s = math.cos(yaw), math.sin(yaw)
-    Rz_T = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-    return reach, solids, BoxArrays.of(solids), Rz_T
+    return reach, solids, BoxArrays.of(solids), frames.R_base_world(yaw)
 
 
 def feasible_at(
@@ -524,14 +523,16 @@ def feasible_at(
     alive = np.flatnonzero(footprint_free(scene, planner.robot, xy, yaw))
     if not P:
         return np.zeros(M, bool), thetas, grasp
-    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
+    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
     world = ArmWorld(
         boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max), scene.floor_clearance
     )
     for k, gs in enumerate(planner.grasps(scene, tray)):
         if len(alive) == 0 or len(gs.Ts_world_tool) == 0:
             return np.zeros(M, bool), thetas, grasp
-        found, th, gi = solve.solve_part(planner, world, Targets.of(gs, xy[alive], Rz_T), xy[alive])
+        found, th, gi = solve.solve_part(
+            planner, world, Targets.of(gs, xy[alive], R_base_world), xy[alive]
+        )
         alive = alive[found]
         thetas[alive, k] = th[found]
         grasp[alive, k] = gi[found]
@@ -564,7 +565,7 @@ def feasible_near(
     if not len(todo):
         return ok, thetas, grasp
     tray = scene.tray(region.tray_id)
-    _, solids, boxes, Rz_T = tray_world(planner, scene, tray, yaw)
+    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
     world = ArmWorld(
         boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max), scene.floor_clearance
     )
@@ -588,13 +589,13 @@ def feasible_near(
             src = near[rest, :n_seeds].reshape(-1)  # seeding cells
             owner = np.repeat(np.repeat(rest, n_seeds), len(shifts))
             g = ((region.grasp_index[src, k][:, None] + shifts) % G).ravel()
-            tg = Targets.of(gs, xy[todo[owner]], Rz_T)
+            tg = Targets.of(gs, xy[todo[owner]], R_base_world)
             win, th = solve.seeded(
                 planner,
                 world,
                 np.repeat(region.thetas[src, k].reshape(-1, dof), len(shifts), axis=0),
-                tg.R_bt[g],
-                tg.p_bt[np.arange(len(g)), g],
+                tg.Rs_base_tool[g],
+                tg.ps_base_tool[np.arange(len(g)), g],
                 xy[todo[owner]],
                 owner,
                 len(todo),

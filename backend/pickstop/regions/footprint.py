@@ -15,6 +15,7 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
+from pickstop.frames import rot2
 from pickstop.robot.model import RobotModel
 from pickstop.scene.model import Scene
 from pickstop.scene.world import Solid, scene_solids
@@ -53,9 +54,9 @@ def upper_body(robot: RobotModel) -> UpperBody:
             obj.geometry.computeLocalAABB()
             lo = np.asarray(obj.geometry.aabb_local.min_)
             hi = np.asarray(obj.geometry.aabb_local.max_)
-            M = obj.placement  # joint 0: the base frame
-            c = M.rotation @ ((lo + hi) / 2) + M.translation
-            h = np.abs(M.rotation) @ ((hi - lo) / 2)
+            T_base_geom = obj.placement  # joint 0: the base frame
+            c = T_base_geom.rotation @ ((lo + hi) / 2) + T_base_geom.translation
+            h = np.abs(T_base_geom.rotation) @ ((hi - lo) / 2)
             if c[2] + h[2] > fp.height:
                 boxes.append([np.maximum(c - h, [-np.inf, -np.inf, fp.height]), c + h])
     arr = np.array(boxes, float).reshape(-1, 2, 3)
@@ -120,8 +121,7 @@ def blocked_by(
             grow = fp.radius / math.cos(math.pi / (4 * QUAD_SEGS)) + 1e-6
             out |= _inside(union.buffer(grow, quad_segs=QUAD_SEGS), x, y)
         else:
-            c, s = math.cos(yaw), math.sin(yaw)
-            rot = np.asarray(fp.polygon) @ np.array([[c, s], [-s, c]])
+            rot = np.asarray(fp.polygon) @ rot2(yaw).T
             outline = shapely.Polygon(rot)
             if outline.equals(outline.convex_hull):
                 # Convex footprint and convex outlines: the positions where they meet are the
@@ -158,8 +158,7 @@ def _upper_blocked(body: UpperBody, solids: list[Solid], yaw: float) -> BaseGeom
     per pair, the Minkowski difference of two convex outlines (hull of vertex differences)."""
     if not len(body.boxes):
         return None
-    c, s = math.cos(yaw), math.sin(yaw)
-    R = np.array([[c, -s], [s, c]])
+    R = rot2(yaw)
     parts = []
     for solid in solids:
         lo, hi = solid.aabb()

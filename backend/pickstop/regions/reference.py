@@ -21,12 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from pickstop import frames
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
 from pickstop.regions.arm import screen_arm
 from pickstop.regions.base_region import RegionPlanner, tray_world
 from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.footprint import footprint_free
+from pickstop.regions.solve import Targets
 from pickstop.robot.kinematics import fk, fk_soa
 from pickstop.robot.screen import screen
 from pickstop.scene.grasps import GraspSet
@@ -86,12 +88,8 @@ def grasp_targets(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``T_base_tool`` of every grasp from bases at ``centres: (M, 2)`` [m] facing ``yaw``:
     ``Rs: (G, 3, 3)`` (the same from every cell) and ``ps: (M, G, 3)`` [m]."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    R_base_world = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-    Ts = grasps.Ts_world_tool
-    Rs = np.einsum("ij,gjk->gik", R_base_world, Ts[:, :3, :3])
-    base = np.concatenate([centres, np.zeros((len(centres), 1))], 1)
-    return Rs, (Ts[None, :, :3, 3] - base[:, None]) @ R_base_world.T
+    tg = Targets.of(grasps, centres, frames.R_base_world(yaw))
+    return tg.Rs_base_tool, tg.ps_base_tool
 
 
 @dataclass(frozen=True)

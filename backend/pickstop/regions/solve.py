@@ -63,9 +63,9 @@ class Targets:
     """Tool targets of one part's grasps from M base cells, in the base frame."""
 
     grasps: GraspSet
-    R_bt: np.ndarray  # (G, 3, 3) the same from every cell (fixed yaw)
-    q_bt: np.ndarray  # (G, 4) wxyz
-    p_bt: np.ndarray  # (M, G, 3) [m]
+    Rs_base_tool: np.ndarray  # (G, 3, 3) the same from every cell (fixed yaw)
+    qs_base_tool: np.ndarray  # (G, 4) wxyz
+    ps_base_tool: np.ndarray  # (M, G, 3) [m]
     # Cells by their offset from the tray ((M,) int64) and the tray's memo of refinements:
     # set where the cells are grid cells, so that refinements carry over to other positions.
     cell_keys: np.ndarray | None = None
@@ -76,20 +76,27 @@ class Targets:
         cls,
         gs: GraspSet,
         cen: np.ndarray,
-        Rz_T: np.ndarray,
+        R_base_world: np.ndarray,
         cell_keys: np.ndarray | None = None,
         memo: RefineMemo | None = None,
     ) -> Targets:
-        """``cen: (M, 2)`` base positions [m]; ``Rz_T: (3, 3)`` R_base_world of the yaw."""
-        R_bt = np.einsum("ij,gjk->gik", Rz_T, gs.Ts_world_tool[:, :3, :3])
+        """``cen: (M, 2)`` base positions [m]; ``R_base_world: (3, 3)`` R_base_world of the yaw."""
+        Rs_base_tool = np.einsum("ij,gjk->gik", R_base_world, gs.Ts_world_tool[:, :3, :3])
         base = np.concatenate([cen, np.zeros((len(cen), 1))], 1)
-        p_bt = (gs.Ts_world_tool[None, :, :3, 3] - base[:, None]) @ Rz_T.T
+        ps_base_tool = (gs.Ts_world_tool[None, :, :3, 3] - base[:, None]) @ R_base_world.T
         assert cell_keys is None or cell_keys.shape == (len(cen),)
-        return cls(gs, R_bt, matrices_to_quats(R_bt), p_bt, cell_keys, memo)
+        return cls(gs, Rs_base_tool, matrices_to_quats(Rs_base_tool), ps_base_tool, cell_keys, memo)
 
     def take(self, idx: np.ndarray) -> Targets:
         keys = None if self.cell_keys is None else self.cell_keys[idx]
-        return Targets(self.grasps, self.R_bt, self.q_bt, self.p_bt[idx], keys, self.memo)
+        return Targets(
+            self.grasps,
+            self.Rs_base_tool,
+            self.qs_base_tool,
+            self.ps_base_tool[idx],
+            keys,
+            self.memo,
+        )
 
     def refine(
         self,
@@ -132,17 +139,19 @@ def served(db: ReachDatabase, targets: list[Targets]) -> np.ndarray:
 
     Only such cells can be solved from the database; the rest can only be grown into.
     """
-    M = targets[0].p_bt.shape[0]
+    M = targets[0].ps_base_tool.shape[0]
     ok = np.ones(M, bool)
     for tg in targets:
-        G = tg.p_bt.shape[1]
+        G = tg.ps_base_tool.shape[1]
         idx = np.flatnonzero(ok)
-        s, e = db.lookup(tg.p_bt[idx].reshape(-1, 3), np.tile(tg.q_bt, (len(idx), 1)))
+        s, e = db.lookup(
+            tg.ps_base_tool[idx].reshape(-1, 3), np.tile(tg.qs_base_tool, (len(idx), 1))
+        )
         own = ((e - s).reshape(-1, G) > 0).any(1)
         rest = idx[~own]
         if len(rest):
             s, e = db.lookup_vicinity(
-                tg.p_bt[rest].reshape(-1, 3), np.tile(tg.q_bt, (len(rest), 1))
+                tg.ps_base_tool[rest].reshape(-1, 3), np.tile(tg.qs_base_tool, (len(rest), 1))
             )
             ok[rest] = ((e - s).reshape(len(rest), -1) > 0).any(1)
     return ok
@@ -195,8 +204,8 @@ def _gather(
     Returns rows, cell, grasp, target (cell * G + grasp), rank within the cell and the target
     positions ``(M * G, 3)``.
     """
-    M, G = tg.p_bt.shape[:2]
-    ps, qs = tg.p_bt.reshape(-1, 3), np.tile(tg.q_bt, (M, 1))
+    M, G = tg.ps_base_tool.shape[:2]
+    ps, qs = tg.ps_base_tool.reshape(-1, 3), np.tile(tg.qs_base_tool, (M, 1))
     if vicinity:
         starts, ends = db.lookup_vicinity(ps, qs)  # (M * G, 27)
         n = (ends - starts).ravel()
@@ -211,7 +220,7 @@ def _gather(
     cell = target // G
     g = target % G
     pos_err = np.linalg.norm(db.positions[rows] - ps[target], axis=1)
-    dot = np.abs(np.einsum("ij,ij->i", db.quats[rows], tg.q_bt[g]))
+    dot = np.abs(np.einsum("ij,ij->i", db.quats[rows], tg.qs_base_tool[g]))
     score = pos_err + RANK_LENGTH * 2 * np.arccos(np.minimum(dot, 1.0))
     order = np.lexsort((score, cell))
     rows, cell, g, target = rows[order], cell[order], g[order], target[order]
@@ -289,7 +298,7 @@ def _rounds(
             g[e],
             rows[e].tolist(),
             db.thetas(rows[e]),
-            tg.R_bt[g[e]],
+            tg.Rs_base_tool[g[e]],
             ps[target[e]],
             REFINE_ITERATIONS,
             REFINE_GIVE_UP,
@@ -424,7 +433,7 @@ def grow(
         ij[:, None, 1] - lo[1] + 1 + _NEIGHBOURS[None, :, 1],
     ]  # (M, 8) neighbour rows or -1
     P = len(targets)
-    G = np.array([len(tg.R_bt) for tg in targets])
+    G = np.array([len(tg.Rs_base_tool) for tg in targets])
     fresh = found.copy()
     added = 0
     for _ in range(GROW_WAVES):
@@ -462,8 +471,8 @@ def grow(
             p_t = np.empty((len(pair), 3))
             for p in range(P):
                 m = part == p
-                R_t[m] = targets[p].R_bt[g[m]]
-                p_t[m] = targets[p].p_bt[cell[m], g[m]]
+                R_t[m] = targets[p].Rs_base_tool[g[m]]
+                p_t[m] = targets[p].ps_base_tool[cell[m], g[m]]
             problem = o_loc[pair] * P + part
             part_ids = np.array([tg.grasps.part_id for tg in targets], dtype=object)
             seeds = thetas[src[pair], part]

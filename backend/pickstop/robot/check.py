@@ -131,11 +131,11 @@ def _locked(robot: RobotModel) -> dict[str, float]:
 
 def _tool(robot: RobotModel) -> dict[str, Any]:
     frame = robot.model.frames[robot.tool_frame_id]
-    M = frame.placement  # in the last arm joint's frame
+    T_joint_tool = frame.placement  # in the last arm joint's frame
     return {
         "frame": robot.config.tool_frame,
         "carried_by": robot.joints[-1].name,
-        "position_in_joint": np.asarray(M.translation).round(6).tolist(),
+        "position_in_joint": np.asarray(T_joint_tool.translation).round(6).tolist(),
         "approach_axis": list(robot.config.hand.approach_axis),
     }
 

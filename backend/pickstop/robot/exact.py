@@ -18,7 +18,7 @@ from pickstop.robot.model import RobotModel
 from pickstop.robot.screen import SphereModel, screen
 
 if TYPE_CHECKING:
-    from pickstop.robot.selfcollision import DisabledPairs
+    from pickstop.robot.pairs import DisabledPairs
 
 
 def _geometry_model(robot: RobotModel, link_pairs: list[tuple[str, str]]) -> tuple[Any, list]:

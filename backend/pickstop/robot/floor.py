@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pickstop.frames import inverse, transform
+
 if TYPE_CHECKING:
     from pickstop.robot.model import RobotModel
 
@@ -179,11 +181,10 @@ class ExactFloor:
         out = [
             name
             for (name, geom), box, (R, p) in zip(self.geoms, self.boxes, poses, strict=True)
-            if _low(R, p, box) <= clearance and geometry_below(geom, _matrix(R, p), clearance)
+            if _low(R, p, box) <= clearance and geometry_below(geom, transform(R, p), clearance)
         ]
         if self.stand_in:
-            M = data.oMi[self.robot.dof]
-            T_base_joint = _matrix(M.rotation, M.translation)
+            T_base_joint = data.oMi[self.robot.dof].homogeneous
             for k, ((geom, T_joint_geom), box) in enumerate(
                 zip(self.stand_in, self.stand_in_boxes, strict=True)
             ):
@@ -216,12 +217,6 @@ def _low(R: np.ndarray, p: np.ndarray, box: tuple[np.ndarray, np.ndarray]) -> fl
     return float(R[2] @ c + p[2] - np.abs(R[2]) @ h)
 
 
-def _matrix(R: np.ndarray, p: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, p
-    return T
-
-
 def stand_in_hand(robot: RobotModel) -> list[tuple[Any, np.ndarray]]:
     """The boxes standing in for the hand (``hand.geometry: boxes``) as ``(coal geometry,
     T_joint_geometry (4, 4))`` in the last arm joint's frame; none for a hand of links."""
@@ -230,8 +225,6 @@ def stand_in_hand(robot: RobotModel) -> list[tuple[Any, np.ndarray]]:
     from pickstop.robot.hand import hand_shape
 
     hand = hand_shape(robot)
-    M = robot.model.frames[robot.tool_frame_id].placement  # tool in the last joint's frame
-    T_joint_tool = np.eye(4)
-    T_joint_tool[:3, :3], T_joint_tool[:3, 3] = M.rotation, M.translation
-    T_joint_tcp = T_joint_tool @ np.linalg.inv(hand.T_tcp_tool)
+    T_joint_tool = robot.model.frames[robot.tool_frame_id].placement.homogeneous
+    T_joint_tcp = T_joint_tool @ inverse(hand.T_tcp_tool)
     return [(geom, T_joint_tcp @ T_tcp_geom) for _, geom, T_tcp_geom in hand.geometries]

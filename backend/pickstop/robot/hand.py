@@ -18,30 +18,16 @@ import coal
 import numpy as np
 
 from pickstop.errors import RobotConfigError
+from pickstop.frames import R_rpy, inverse, transform
 from pickstop.robot.config import Hand
 from pickstop.robot.model import RobotModel
 
 _CORNERS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], float)
 
 
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``R = Rz(yaw) Ry(pitch) Rx(roll)`` (3, 3), the URDF convention."""
-    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
 def tool_offset_matrix(hand: Hand) -> np.ndarray:
     """``T_tool_tcp`` (4, 4) of a hand config."""
-    T = np.eye(4)
-    T[:3, :3] = rpy_matrix(*hand.tool_offset.rpy)
-    T[:3, 3] = hand.tool_offset.position
-    return T
+    return transform(R_rpy(*hand.tool_offset.rpy), hand.tool_offset.position)
 
 
 def geometry_points(geom: Any) -> np.ndarray:
@@ -107,9 +93,7 @@ class HandShape:
         ]
         geoms = []
         for name, c, size in boxes:
-            T = np.eye(4)
-            T[:3, 3] = c
-            geoms.append((name, coal.Box(*size), T))
+            geoms.append((name, coal.Box(*size), transform(np.eye(3), c)))
         return _shape(tuple(geoms), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), o, np.eye(4), {})
 
 
@@ -209,7 +193,7 @@ def _make_shape(robot: RobotModel) -> HandShape:
         )
         return replace(
             shape,
-            T_tcp_tool=np.linalg.inv(tool_offset_matrix(cfg)),
+            T_tcp_tool=inverse(tool_offset_matrix(cfg)),
             joints=hand_joints(robot),
             key=shape.key + repr(cfg.tool_offset),
         )
@@ -221,11 +205,9 @@ def _make_shape(robot: RobotModel) -> HandShape:
                 f"{robot.urdf_path.name}: hand.links pattern {p!r} matches no collision link",
                 field=f"hand.links[{k}]",
             )
-    M = robot.model.frames[robot.tool_frame_id].placement  # tool in the last joint's frame
-    T_joint_tool = np.eye(4)
-    T_joint_tool[:3, :3], T_joint_tool[:3, 3] = M.rotation, M.translation
+    T_joint_tool = robot.model.frames[robot.tool_frame_id].placement.homogeneous
     T_tool_tcp = tool_offset_matrix(cfg)
-    T_tcp_joint = np.linalg.inv(T_joint_tool @ T_tool_tcp)
+    T_tcp_joint = inverse(T_joint_tool @ T_tool_tcp)
     geoms = []
     for link in collision_links(robot):
         if link.name not in names:
@@ -238,14 +220,12 @@ def _make_shape(robot: RobotModel) -> HandShape:
             )
         for gid in link.geometry_ids:
             obj = robot.geom_model.geometryObjects[gid]
-            T = np.eye(4)
-            T[:3, :3], T[:3, 3] = obj.placement.rotation, obj.placement.translation
-            geoms.append((str(obj.name), obj.geometry, T_tcp_joint @ T))
+            geoms.append((str(obj.name), obj.geometry, T_tcp_joint @ obj.placement.homogeneous))
     return _shape(
         tuple(geoms),
         np.asarray(cfg.approach_axis, float),
         np.asarray(cfg.closing_axis, float),
         cfg.max_opening,
-        np.linalg.inv(T_tool_tcp),
+        inverse(T_tool_tcp),
         hand_joints(robot),
     )

@@ -34,7 +34,7 @@ from pickstop.robot.spheres import (
 
 if TYPE_CHECKING:
     from pickstop.robot.model import RobotModel
-    from pickstop.robot.selfcollision import DisabledPairs
+    from pickstop.robot.pairs import DisabledPairs
 
 Frames = Sequence[tuple[np.ndarray, np.ndarray]]
 

@@ -13,7 +13,8 @@ Links on the same joint never move relative to each other, so only pairs of coll
 
 Samples are screened with the conservative :mod:`pickstop.robot.screen` and checked exactly
 with coal only where it flags a pair, so tens of thousands of samples take seconds.
-The public names of the self-collision API are re-exported here.
+The public names of the self-collision API (the pair types of :mod:`pickstop.robot.pairs`
+among them) are re-exported here.
 """
 
 from __future__ import annotations
@@ -24,9 +25,8 @@ import tempfile
 import time
 import xml.etree.ElementTree as ET
 from collections import defaultdict
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 
@@ -35,6 +35,7 @@ from pickstop.robot.exact import ExactSelfCollision, PairChecker, false_rejectio
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa
 from pickstop.robot.link_geometry import CollisionLink, collision_links
 from pickstop.robot.model import RobotModel
+from pickstop.robot.pairs import REASONS, DisabledPair, DisabledPairs, Reason, candidate_pairs
 from pickstop.robot.screen import SphereModel, screen, screen_pairs
 
 __all__ = [
@@ -54,71 +55,10 @@ __all__ = [
     "srdf_pairs",
 ]
 
-Reason = Literal["adjacent", "default", "always", "never", "srdf"]
-REASONS: tuple[Reason, ...] = ("adjacent", "default", "always", "never", "srdf")
-
 #: Random samples for "always"/"never" (MoveIt's default: 10000): ~8 s for TIAGo on one core.
 DEFAULT_SAMPLES = 50000
 ALWAYS_FRACTION = 0.95
 _CACHE_FORMAT = 1
-
-
-@dataclass(frozen=True)
-class DisabledPair:
-    link1: str  # link1 < link2
-    link2: str
-    reason: Reason
-
-
-@dataclass(frozen=True)
-class DisabledPairs:
-    """The candidate link pairs that self-collision checking skips, with their reasons.
-
-    samples: random configurations behind "always"/"never" (0 when read from an SRDF).
-    """
-
-    robot_hash: str
-    links: tuple[CollisionLink, ...]
-    pairs: tuple[DisabledPair, ...]
-    source: Literal["computed", "srdf"]
-    samples: int
-    seed: int
-    seconds: float = 0.0  # time it took to compute [s]
-
-    def candidates(self) -> list[tuple[str, str]]:
-        """Link pairs on different joints, ``(a, b)`` with ``a < b``, sorted."""
-        return _candidates(self.links)
-
-    def reasons(self) -> dict[tuple[str, str], Reason]:
-        return {(p.link1, p.link2): p.reason for p in self.pairs}
-
-    def enabled_pairs(self) -> list[tuple[str, str]]:
-        """Candidate pairs that are checked."""
-        off = self.reasons()
-        return [p for p in self.candidates() if p not in off]
-
-    def counts(self) -> dict[str, int]:
-        """Number of pairs per reason, plus ``enabled`` and ``candidates``."""
-        out: dict[str, int] = {r: 0 for r in REASONS}
-        for p in self.pairs:
-            out[p.reason] += 1
-        out["enabled"] = len(self.enabled_pairs())
-        out["candidates"] = len(self.candidates())
-        return out
-
-    @classmethod
-    def none(cls, robot: RobotModel) -> DisabledPairs:
-        """Nothing disabled: every candidate pair is checked."""
-        return cls(robot.robot_hash, collision_links(robot), (), "computed", 0, 0)
-
-
-def _candidates(links: tuple[CollisionLink, ...]) -> list[tuple[str, str]]:
-    out = []
-    for i, a in enumerate(links):
-        for b in links[i + 1 :]:
-            if a.joint != b.joint:
-                out.append((min(a.name, b.name), max(a.name, b.name)))
-    return sorted(out)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -214,7 +154,7 @@ def home_thetas(robot: RobotModel) -> np.ndarray:
 
 def _compute(robot: RobotModel, samples: int, seed: int) -> tuple[DisabledPair, ...]:
     links = collision_links(robot)
-    cands = _candidates(links)
+    cands = candidate_pairs(links)
     reasons: dict[tuple[str, str], Reason] = {}
     adj = adjacent_pairs(robot.urdf_path, links)
     for p in cands:
@@ -279,7 +219,7 @@ def _compute(robot: RobotModel, samples: int, seed: int) -> tuple[DisabledPair, 
 def _from_srdf(robot: RobotModel, links: tuple[CollisionLink, ...]) -> tuple[DisabledPair, ...]:
     assert robot.srdf_path is not None
     listed = srdf_pairs(robot.srdf_path)
-    return tuple(DisabledPair(a, b, "srdf") for a, b in _candidates(links) if (a, b) in listed)
+    return tuple(DisabledPair(a, b, "srdf") for a, b in candidate_pairs(links) if (a, b) in listed)
 
 
 def _cache_file(cache_dir: Path, robot: RobotModel, samples: int, seed: int) -> Path:
@@ -301,7 +241,7 @@ def _read_cache(
             or (source == "computed" and (doc["samples"], doc["seed"]) != (samples, seed))
         ):
             return None
-        cands = set(_candidates(links))
+        cands = set(candidate_pairs(links))
         pairs = []
         for a, b, r in doc["pairs"]:
             if (a, b) not in cands or r not in REASONS:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 
+import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
+from pickstop.frames import R_z, rot2
 from pickstop.scene.model import Box, Cylinder, Mesh, Obstacle, Pose, Scene, Tray
 
 TOUCH = 1e-6  # [m] resting on a surface is not intersecting it
@@ -16,9 +17,8 @@ TOUCH = 1e-6  # [m] resting on a surface is not intersecting it
 
 def rect(cx: float, cy: float, yaw: float, sx: float, sy: float) -> Polygon:
     """Rectangle of size ``sx x sy`` [m] centred at ``(cx, cy)``, rotated by ``yaw`` [rad]."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    pts = [(-sx / 2, -sy / 2), (sx / 2, -sy / 2), (sx / 2, sy / 2), (-sx / 2, sy / 2)]
-    return Polygon([(cx + c * x - s * y, cy + s * x + c * y) for x, y in pts])
+    corners = np.array([(-sx / 2, -sy / 2), (sx / 2, -sy / 2), (sx / 2, sy / 2), (-sx / 2, sy / 2)])
+    return Polygon(corners @ rot2(yaw).T + (cx, cy))
 
 
 def footprint(geometry: Box | Cylinder | Mesh, pose: Pose) -> BaseGeometry | None:
@@ -41,16 +41,19 @@ def height(geometry: Box | Cylinder | Mesh) -> float | None:
 def tray_corners(tray: Tray) -> list[tuple[float, float, float]]:
     """World corners of the tray's outer box (floor bottom to wall top), tilt included."""
     ox, oy = tray.outer_size
-    R = tray.tilt.matrix() if tray.tilt is not None else [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
-    c, s = math.cos(tray.pose.yaw), math.sin(tray.pose.yaw)
-    out = []
-    for x in (-ox / 2, ox / 2):
-        for y in (-oy / 2, oy / 2):
-            for z in (-tray.floor_thickness, tray.wall_height):
-                tx, ty, tz = (R[i][0] * x + R[i][1] * y + R[i][2] * z for i in range(3))
-                out.append((tray.pose.x + c * tx - s * ty, tray.pose.y + s * tx + c * ty,
-                            tray.pose.z + tz))  # fmt: skip
-    return out
+    R_world_tray = R_z(tray.pose.yaw)
+    if tray.tilt is not None:
+        R_world_tray = R_world_tray @ tray.tilt.matrix()
+    corners = np.array(
+        [
+            (x, y, z)
+            for x in (-ox / 2, ox / 2)
+            for y in (-oy / 2, oy / 2)
+            for z in (-tray.floor_thickness, tray.wall_height)
+        ]
+    )
+    world = corners @ R_world_tray.T + (tray.pose.x, tray.pose.y, tray.pose.z)
+    return [(float(x), float(y), float(z)) for x, y, z in world]
 
 
 def tray_footprint(tray: Tray) -> Polygon:

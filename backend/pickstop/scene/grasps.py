@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import coal
 import numpy as np
 
+from pickstop.frames import R_z, transform
 from pickstop.robot.hand import HandShape
 from pickstop.scene.model import Box, Cylinder, Gripper, Mesh, Part, Scene, Tray
 from pickstop.scene.world import (
@@ -66,9 +67,7 @@ class GraspSet:
 
 
 def _frame(x: np.ndarray, y: np.ndarray, p: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, np.cross(x, y), p
-    return T
+    return transform(np.column_stack([x, y, np.cross(x, y)]), p)
 
 
 def _extent_along(geometry: Box | Cylinder | Mesh, d: np.ndarray) -> float:
@@ -113,14 +112,14 @@ def candidate_grasps(
     if z < h and "top" in kinds:
         for i in range(settings.top_down_angles):
             a = span * i / settings.top_down_angles
-            y = np.array([math.cos(a), math.sin(a), 0.0])
+            y = R_z(a)[:, 0]
             if _extent_along(g, y) <= hand.max_opening:
                 out.append((_frame(np.array([0.0, 0.0, -1.0]), y, np.array([0, 0, z])), "top"))
     # Side: approach horizontal towards the part, closing horizontal or vertical.
     for i in range(settings.side_directions if "side" in kinds else 0):
         b = 2 * math.pi * i / settings.side_directions
-        x = np.array([math.cos(b), math.sin(b), 0.0])
-        for y in (np.array([-math.sin(b), math.cos(b), 0.0]), np.array([0.0, 0.0, 1.0])):
+        x, y_side = R_z(b)[:, 0], R_z(b)[:, 1]
+        for y in (y_side, np.array([0.0, 0.0, 1.0])):
             if _extent_along(g, y) <= hand.max_opening:
                 out.append((_frame(x, y, np.array([0, 0, h / 2])), "side"))
     for T, _ in out:
@@ -152,10 +151,8 @@ def _candidates(
 
     cands: list[tuple[np.ndarray, str]] = []
     for gr in part.grasps:
-        T = np.eye(4)
-        T[:3, :3] = quats_to_matrices(np.asarray(gr.quaternion_wxyz))
-        T[:3, 3] = gr.position
-        cands.append((T, "user"))
+        R_part_tcp = quats_to_matrices(np.asarray(gr.quaternion_wxyz))
+        cands.append((transform(R_part_tcp, gr.position), "user"))
     return cands
 
 

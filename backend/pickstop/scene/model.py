@@ -12,9 +12,11 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from pickstop.errors import InputError
+from pickstop.frames import R_axis
 from pickstop.robot.floor import FLOOR_CLEARANCE, MAX_CLEARANCE
 
 FORMAT = "pickstop.scene"
@@ -123,12 +125,9 @@ class Tilt(_Strict):
     axis: Literal["x", "y"]
     angle: Annotated[float, Field(ge=-MAX_TILT, le=MAX_TILT, allow_inf_nan=False)]
 
-    def matrix(self) -> list[list[float]]:
-        """``R_yawed_tray`` (3 x 3): the tilt, applied after the tray's yaw."""
-        c, s = math.cos(self.angle), math.sin(self.angle)
-        if self.axis == "x":
-            return [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]
-        return [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
+    def matrix(self) -> np.ndarray:
+        """``R_yawed_tray`` (3, 3): the tilt, applied after the tray's yaw."""
+        return R_axis(self.axis, self.angle)
 
 
 class Tray(_Strict):
@@ -303,30 +302,6 @@ class Scene(_Strict):
         return list(self.task) if self.task is not None else [t.id for t in self.trays]
 
 
-def parse_scene(data: Any, source: str = "scene") -> Scene:
-    """Validate a decoded scene document (shape by pydantic, then the geometry checks)."""
-    if isinstance(data, dict) and data.get("format", FORMAT) != FORMAT:
-        raise SceneError([("format", f"expected {FORMAT!r}, got {data.get('format')!r}")], source)
-    if isinstance(data, dict) and data.get("version", VERSION) != VERSION:
-        raise SceneError(
-            [("version", f"this PickStop reads version {VERSION}, got {data.get('version')!r}")],
-            source,
-        )
-    try:
-        scene = Scene.model_validate(data)
-    except ValidationError as e:
-        problems = [
-            (".".join(str(p) for p in err["loc"]) or "(root)", err["msg"]) for err in e.errors()
-        ]
-        raise SceneError(problems, source) from None
-    from pickstop.scene.checks import check_scene
-
-    problems = check_scene(scene)
-    if problems:
-        raise SceneError(problems, source)
-    return scene
-
-
 def resolve_mesh_paths(
     data: Any, root: Path, allowed: list[Path] | None = None, source: str = "scene"
 ) -> Any:
@@ -361,19 +336,6 @@ def resolve_mesh_paths(
     if problems:
         raise SceneError(problems, source)
     return out
-
-
-def load_scene(path: str | Path) -> Scene:
-    """A scene file; its relative mesh paths start at the file's folder."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: scene file not found", field="scene")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as e:
-        raise InputError(f"{path}: not valid JSON: {e}", field="scene") from None
-    data = resolve_mesh_paths(data, path.resolve().parent, source=str(path))
-    return parse_scene(data, str(path))
 
 
 def scene_json_schema() -> dict[str, Any]:

@@ -7,7 +7,6 @@ box, so a sphere that misses the box surely misses the mesh.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -15,18 +14,15 @@ from typing import Any, Literal
 import coal
 import numpy as np
 
+from pickstop.frames import T_yaw, transform
 from pickstop.scene.model import Box, Cylinder, Mesh, Part, Pose, Scene, Tray
 
 TOUCH = 1e-4  # [m] allowed interpenetration: resting on a surface is not a collision
 
 
 def pose_matrix(pose: Pose, dz: float = 0.0) -> np.ndarray:
-    """``T_world_x`` of a pose (x, y, z + dz, yaw)."""
-    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    T = np.eye(4)
-    T[:2, :2] = [[c, -s], [s, c]]
-    T[:3, 3] = (pose.x, pose.y, pose.z + dz)
-    return T
+    """``T_world_x`` (4, 4) of a pose (x, y, z + dz, yaw)."""
+    return T_yaw(pose.x, pose.y, pose.z + dz, pose.yaw)
 
 
 def tray_transform(tray: Tray) -> np.ndarray:
@@ -34,7 +30,7 @@ def tray_transform(tray: Tray) -> np.ndarray:
     tray is tilted about its own x or y axis)."""
     T = pose_matrix(tray.pose)
     if tray.tilt is not None:
-        T[:3, :3] = T[:3, :3] @ np.array(tray.tilt.matrix())
+        T[:3, :3] = T[:3, :3] @ tray.tilt.matrix()
     return T
 
 
@@ -145,9 +141,7 @@ def solid_below(s: Solid, clearance: float) -> bool:
     if s.aabb()[0][2] > clearance:
         return False
     g, t = _coal(s)
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = t.getRotation(), t.getTranslation()
-    return geometry_below(g, T, clearance)
+    return geometry_below(g, transform(t.getRotation(), t.getTranslation()), clearance)
 
 
 def tray_body_solids(tray: Tray) -> list[Solid]:
@@ -170,9 +164,7 @@ def tray_body_solids(tray: Tray) -> list[Solid]:
 
 
 def _shift(x: float, y: float, z: float) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = (x, y, z)
-    return T
+    return transform(np.eye(3), (x, y, z))
 
 
 def part_solid(tray: Tray, part: Part, root: Path | None = None) -> Solid:
