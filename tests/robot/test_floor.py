@@ -57,11 +57,21 @@ def test_screens_reject_every_configuration_the_exact_check_finds_below(
         assert (flagged & ~exact).sum() <= 0.25 * exact.sum()
 
 
+def _hand_geometry(robot, name: str) -> bool:
+    """Is the geometry ``name`` part of the hand (a stand-in box ``hand:<k>`` or a hand link's)?"""
+    from pickstop.robot.link_geometry import is_hand_link
+
+    if name.startswith("hand:"):
+        return True
+    geom = robot.geom_model.geometryObjects[robot.geom_model.getGeometryId(name)]
+    return is_hand_link(robot, robot.model.frames[geom.parentFrame].name)
+
+
 def _lowest(tiago, thetas, only_hand: bool) -> np.ndarray:
     exact = ExactFloor(tiago)
     for th in thetas:
         names = exact.below(th, CLEARANCE)
-        if names and all(n.startswith("hand:") for n in names) == only_hand:
+        if names and all(_hand_geometry(tiago, n) for n in names) == only_hand:
             return th
     raise AssertionError("no such configuration among the samples")
 
@@ -70,8 +80,9 @@ def _lowest(tiago, thetas, only_hand: bool) -> np.ndarray:
 def test_a_configuration_below_the_floor_is_rejected_by_screen_and_exact_check(
     tiago, arm_spheres, low_thetas, only_hand
 ):
-    """A configuration with an arm link below the floor, and one where only the hand (the
-    boxes standing in for TIAGo's hand) reaches below: both rejected, by both checks."""
+    """A configuration with an arm link below the floor, and one where only the hand (TIAGo's
+    own Hey5 links, or boxes where a preset stands them in) reaches below: both rejected, by
+    both checks."""
     theta = _lowest(tiago, low_thetas, only_hand)
     exact = ExactArm(tiago)
     assert exact.colliding(theta, 1.0, 2.0, 0.3, [], floor=CLEARANCE)
@@ -81,7 +92,7 @@ def test_a_configuration_below_the_floor_is_rejected_by_screen_and_exact_check(
     assert screen_arm(arm_spheres, BoxArrays.of([]), frames, xy, 0.3, floor=CLEARANCE)[0]
     assert below_floor(FloorSpheres.of(tiago), frames, CLEARANCE)[0]
     names = exact.below_floor(CLEARANCE)
-    assert names and all(n.startswith("hand:") for n in names) == only_hand
+    assert names and all(_hand_geometry(tiago, n) for n in names) == only_hand
 
 
 def test_lifting_the_floor_check_away_frees_the_configuration(tiago, arm_spheres, low_thetas):
