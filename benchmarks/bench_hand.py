@@ -69,6 +69,8 @@ def main() -> None:
 
     def all_factory() -> None:
         planner.cache.clear()
+        planner._last.clear()  # nor reused from the trays as they last stood, or the layout
+        planner._layouts.clear()
         planner.regions(factory)
 
     sp = StopPlanner(planner)
@@ -109,6 +111,8 @@ def main() -> None:
         out = {}
         for name, scene in scenes.items():
             planner.cache.clear()
+            planner._last.clear()
+            planner._layouts.clear()
             for r in planner.regions(scene).values():
                 out[f"{name}/{r.tray_id}/{r.yaw:.6f}"] = {
                     "cells": r.cells.tolist(),
