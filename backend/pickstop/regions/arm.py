@@ -166,9 +166,16 @@ def screen_arm(
     hit_boxes: set[int] = set()
     hit = np.zeros(len(leaf), bool)
     leaf_skip = np.where(spheres.is_hand[spheres.leaf_link[leaf]], code[rows], -1)
+    # joint-major copies of the frames, so that a leaf's frame is one gather
+    by_joint = (
+        np.ascontiguousarray(
+            np.stack([R for R, _ in frames]).transpose(0, 3, 1, 2)
+        ),  # (J, B, 3, 3)
+        np.ascontiguousarray(np.stack([p for _, p in frames]).transpose(0, 2, 1)),  # (J, B, 3)
+    )
     for a in range(0, len(leaf), LEAF_BATCH):
         sl = slice(a, a + LEAF_BATCH)
-        lw = _leaves_to_world(frames, joint[sl], rows[sl], spheres.leaf_c[leaf[sl]], base_xy, yaw)
+        lw = _leaves_to_world(by_joint, joint[sl], rows[sl], spheres.leaf_c[leaf[sl]], base_xy, yaw)
         hit[sl] = spheres_hit(boxes, lw, spheres.leaf_r[leaf[sl]], hit_boxes, skip=leaf_skip[sl])
     if envelope is not None:
         envelope.hit_owners.update(boxes.owners[k] for k in hit_boxes)
@@ -177,7 +184,7 @@ def screen_arm(
 
 
 def _leaves_to_world(
-    frames: list[tuple[np.ndarray, np.ndarray]],
+    frames: tuple[np.ndarray, np.ndarray],
     joint: np.ndarray,
     rows: np.ndarray,
     local: np.ndarray,
@@ -185,12 +192,13 @@ def _leaves_to_world(
     yaw: float,
 ) -> np.ndarray:
     """Points ``local: (P, 3)`` on joint index ``joint: (P,)`` (0-based) of configuration
-    ``rows: (P,)`` each -> (P, 3) in the world."""
-    pts = np.empty((len(joint), 3))
-    for j in np.unique(joint):
-        m = joint == j
-        R, p = frames[j]
-        pts[m] = np.einsum("ikp,pk->pi", R[:, :, rows[m]], local[m]) + p[:, rows[m]].T
+    ``rows: (P,)`` each -> (P, 3) in the world. frames: every joint frame of every
+    configuration, ``R: (J, B, 3, 3)`` and ``p: (J, B, 3)`` (base frame)."""
+    R, p = frames
+    Rl = R[joint, rows]  # (P, 3, 3)
+    pts = p[joint, rows] + Rl[:, :, 0] * local[:, 0, None]
+    pts += Rl[:, :, 1] * local[:, 1, None]
+    pts += Rl[:, :, 2] * local[:, 2, None]
     c, s = np.cos(yaw), np.sin(yaw)
     out = np.empty_like(pts)
     out[:, 0] = c * pts[:, 0] - s * pts[:, 1] + base_xy[rows, 0]
