@@ -147,6 +147,46 @@ def test_environment_screen_is_conservative(planner, tiago, seed):
     assert flagged.sum() >= colliding.sum()
 
 
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiago, seed):
+    """The batched screen flags exactly the configurations where some covering sphere of a
+    link touches a solid (the grasped part no obstacle for the hand's spheres), and records
+    the owners of exactly the solids those spheres touch."""
+    from types import SimpleNamespace
+
+    from pickstop.regions.arm import _to_world, owner_codes
+    from pickstop.scene.model import load_scene
+    from pickstop.scene.world import spheres_hit
+    from tests.regions.conftest import EXAMPLES
+
+    scene = load_scene(EXAMPLES / "paper_experiment.json")
+    boxes = BoxArrays.of(scene_solids(scene))
+    rng = np.random.default_rng(seed)
+    n = 120
+    th = rng.uniform(tiago.lower, tiago.upper, (n, tiago.dof))
+    xy = np.stack([rng.uniform(0.5, 2.2, n), rng.uniform(0.6, 1.1, n)], 1)
+    yaw = float(rng.uniform(0, 2 * np.pi))
+    parts = [o for o in dict.fromkeys(boxes.owners) if "part" in o] or list(boxes.owners)
+    targets = np.array([parts[i % len(parts)] for i in range(n)])
+    _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    env = SimpleNamespace(hit_owners=set())
+    flagged = screen_arm(planner.arm, boxes, frames, xy, yaw, env, targets)
+
+    arm = planner.arm
+    leaves = _to_world(frames, arm.link_joint[arm.leaf_link], arm.leaf_c, xy, yaw)  # (n, S, 3)
+    code = owner_codes(boxes, targets, n)
+    skip = np.where(arm.is_hand[arm.leaf_link][None, :], code[:, None], -1)  # (n, S)
+    touched: set[int] = set()
+    hit = spheres_hit(
+        boxes, leaves.reshape(-1, 3), np.tile(arm.leaf_r, n), touched, skip=skip.ravel()
+    )
+    expected = hit.reshape(n, -1).any(axis=1)
+    assert expected.any() and not expected.all()
+    assert np.array_equal(flagged, expected)
+    assert env.hit_owners == {boxes.owners[k] for k in touched}
+
+
 def test_top_down_grasp_targets_point_down(planner, paper_doc):
     scene = parse_scene(paper_doc)
     hand = planner.hand  # the approach axis is the hand's, in the grasp point's frame

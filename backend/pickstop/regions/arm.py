@@ -25,6 +25,8 @@ from pickstop.robot.model import RobotModel
 from pickstop.scene.world import BoxArrays, Solid, _coal, collide
 
 SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
+BOUNDS_MEMO = 32  # solid lists whose bounding boxes ExactArm keeps
+LEAF_BATCH = 20_000  # covering spheres screened per call (bounds its (spheres, solids) table)
 
 
 def arm_geometry_ids(robot: RobotModel) -> list[int]:
@@ -57,6 +59,16 @@ class ArmSpheres:
     leaf_c: np.ndarray  # (S, 3)
     leaf_r: np.ndarray  # (S,)
     floor: FloorSpheres  # the leaves, and the stand-in hand's hull points, per joint
+
+    @property
+    def leaf_start(self) -> np.ndarray:
+        """``(L,)`` index of each link's first leaf (leaves are stored link by link)."""
+        return np.searchsorted(self.leaf_link, np.arange(len(self.bound_r)))
+
+    @property
+    def leaf_count(self) -> np.ndarray:
+        """``(L,)`` how many leaves cover each link."""
+        return np.bincount(self.leaf_link, minlength=len(self.bound_r))
 
     @classmethod
     def of(cls, robot: RobotModel, excess: float = SPHERE_EXCESS) -> ArmSpheres:
@@ -145,30 +157,56 @@ def screen_arm(
     cfg, lnk = np.nonzero(hit_link)
     if len(cfg) == 0:
         return flagged
-    for link in np.unique(lnk):
-        rows = cfg[lnk == link]
-        leaves = np.flatnonzero(spheres.leaf_link == link)
-        sub = [(R[:, :, rows], p[:, rows]) for R, p in frames]
-        lw = _to_world(
-            sub,
-            np.full(len(leaves), spheres.link_joint[link]),
-            spheres.leaf_c[leaves],
-            base_xy[rows],
-            yaw,
-        )
-        hit_boxes: set[int] = set()
-        leaf_skip = code[rows] if spheres.is_hand[link] else np.full(len(rows), -1)
-        h = spheres_hit(
-            boxes,
-            lw.reshape(-1, 3),
-            np.tile(spheres.leaf_r[leaves], len(rows)),
-            hit_boxes,
-            skip=np.repeat(leaf_skip, len(leaves)),
-        )
-        if envelope is not None:
-            envelope.hit_owners.update(boxes.owners[k] for k in hit_boxes)
-        flagged[rows] |= h.reshape(len(rows), -1).any(axis=1)
+    # Every leaf of every flagged (configuration, link) pair, screened in one batch: the
+    # hand's links ride on the same joint, so they no longer cost one call each.
+    start, count = spheres.leaf_start, spheres.leaf_count
+    per = count[lnk]
+    pair = np.repeat(np.arange(len(cfg)), per)
+    leaf = start[lnk][pair] + (np.arange(len(pair)) - np.repeat(np.cumsum(per) - per, per))
+    rows = cfg[pair]
+    joint = spheres.link_joint[spheres.leaf_link[leaf]] - 1
+    hit_boxes: set[int] = set()
+    hit = np.zeros(len(leaf), bool)
+    leaf_skip = np.where(spheres.is_hand[spheres.leaf_link[leaf]], code[rows], -1)
+    # joint-major copies of the frames, so that a leaf's frame is one gather
+    by_joint = (
+        np.ascontiguousarray(
+            np.stack([R for R, _ in frames]).transpose(0, 3, 1, 2)
+        ),  # (J, B, 3, 3)
+        np.ascontiguousarray(np.stack([p for _, p in frames]).transpose(0, 2, 1)),  # (J, B, 3)
+    )
+    for a in range(0, len(leaf), LEAF_BATCH):
+        sl = slice(a, a + LEAF_BATCH)
+        lw = _leaves_to_world(by_joint, joint[sl], rows[sl], spheres.leaf_c[leaf[sl]], base_xy, yaw)
+        hit[sl] = spheres_hit(boxes, lw, spheres.leaf_r[leaf[sl]], hit_boxes, skip=leaf_skip[sl])
+    if envelope is not None:
+        envelope.hit_owners.update(boxes.owners[k] for k in hit_boxes)
+    flagged[rows[hit]] = True
     return flagged
+
+
+def _leaves_to_world(
+    frames: tuple[np.ndarray, np.ndarray],
+    joint: np.ndarray,
+    rows: np.ndarray,
+    local: np.ndarray,
+    base_xy: np.ndarray,
+    yaw: float,
+) -> np.ndarray:
+    """Points ``local: (P, 3)`` on joint index ``joint: (P,)`` (0-based) of configuration
+    ``rows: (P,)`` each -> (P, 3) in the world. frames: every joint frame of every
+    configuration, ``R: (J, B, 3, 3)`` and ``p: (J, B, 3)`` (base frame)."""
+    R, p = frames
+    Rl = R[joint, rows]  # (P, 3, 3)
+    pts = p[joint, rows] + Rl[:, :, 0] * local[:, 0, None]
+    pts += Rl[:, :, 1] * local[:, 1, None]
+    pts += Rl[:, :, 2] * local[:, 2, None]
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.empty_like(pts)
+    out[:, 0] = c * pts[:, 0] - s * pts[:, 1] + base_xy[rows, 0]
+    out[:, 1] = s * pts[:, 0] + c * pts[:, 1] + base_xy[rows, 1]
+    out[:, 2] = pts[:, 2]
+    return out
 
 
 class ExactArm:
@@ -192,6 +230,7 @@ class ExactArm:
         self.local_c = np.array(centres).reshape(-1, 3)
         self.local_h = np.array(halves).reshape(-1, 3)
         self.floor = ExactFloor(robot)
+        self._bounds_memo: dict[tuple[Solid, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def below_floor(self, clearance: float) -> list[str]:
         """After :meth:`place`: the arm geometries, and the stand-in hand boxes
@@ -225,31 +264,46 @@ class ExactArm:
             return True
         if not solids or not self.ids:
             return False
-        T_world_base = pin.SE3(frames.T_world_base(x, y, yaw))
-        Ts_world_geom = [T_world_base * self.gdata.oMg[i] for i in self.ids]
-        R = np.array([T.rotation for T in Ts_world_geom])  # (G, 3, 3)
-        c = np.einsum("gij,gj->gi", R, self.local_c) + np.array(
-            [T.translation for T in Ts_world_geom]
-        )
+        R_world_base = frames.R_z(yaw)
+        Ts_base_geom = [self.gdata.oMg[i] for i in self.ids]
+        R = np.einsum(
+            "ij,gjk->gik", R_world_base, np.array([T.rotation for T in Ts_base_geom])
+        )  # (G, 3, 3) R_world_geom
+        p = np.array([T.translation for T in Ts_base_geom]) @ R_world_base.T + np.array(
+            [x, y, 0.0]
+        )  # (G, 3) p_world_geom
+        c = np.einsum("gij,gj->gi", R, self.local_c) + p
         h = np.einsum("gij,gj->gi", np.abs(R), self.local_h)
-        bounds = [s.aabb() for s in solids]
-        lo = np.array([b[0] for b in bounds])  # (S, 3)
-        hi = np.array([b[1] for b in bounds])
+        lo, hi, owners = self._bounds(solids)
         # Geometry g and solid k can touch only where their world bounding boxes overlap.
         near = ~(
             ((c - h)[:, None] > hi[None]).any(axis=2) | ((c + h)[:, None] < lo[None]).any(axis=2)
         )  # (G, S)
         if target is not None:
-            near &= ~(self.hand[:, None] & (np.array([s.owner for s in solids]) == target)[None])
-        for g, k in zip(*np.nonzero(near), strict=True):
-            T_world_geom = Ts_world_geom[g]
-            geom = self.robot.geom_model.geometryObjects[self.ids[g]].geometry
-            gs, ts = _coal(solids[k])
-            if collide(
-                geom, coal.Transform3s(T_world_geom.rotation, T_world_geom.translation), gs, ts
-            ):
+            near &= ~(self.hand[:, None] & (owners == target)[None])
+        for k, j in zip(*np.nonzero(near), strict=True):
+            g = self.robot.geom_model.geometryObjects[self.ids[k]]
+            gs, ts = _coal(solids[j])
+            if collide(g.geometry, coal.Transform3s(R[k], p[k]), gs, ts):
                 return True
         return False
+
+    def _bounds(self, solids: list[Solid]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """World bounding boxes ``lo, hi: (S, 3)`` [m] and owners ``(S,)`` of ``solids``, kept
+        for the last few lists (the same solids are checked against many configurations)."""
+        key = tuple(solids)  # identity: a Solid compares by itself
+        hit = self._bounds_memo.get(key)
+        if hit is None:
+            bounds = [s.aabb() for s in solids]
+            hit = (
+                np.array([b[0] for b in bounds]),
+                np.array([b[1] for b in bounds]),
+                np.array([s.owner for s in solids]),
+            )
+            if len(self._bounds_memo) >= BOUNDS_MEMO:
+                self._bounds_memo.pop(next(iter(self._bounds_memo)))
+            self._bounds_memo[key] = hit
+        return hit
 
 
 def nearby(solids: list[Solid], centre: Any, radius: float) -> list[Solid]:

@@ -169,6 +169,9 @@ class ExactFloor:
         objs = [gm.geometryObjects[i] for i in self.ids]
         self.geoms = [(o.name, o.geometry) for o in objs]
         self.boxes = [_local_box(g) for _, g in self.geoms]
+        # (G, 3) each: centre and half extents of every local bounding box
+        self.box_c = np.array([c for c, _ in self.boxes]).reshape(-1, 3)
+        self.box_h = np.array([h for _, h in self.boxes]).reshape(-1, 3)
         self.stand_in = stand_in_hand(robot)
         self.stand_in_boxes = [_local_box(g) for g, _ in self.stand_in]
         self.data = robot.model.createData()
@@ -177,12 +180,22 @@ class ExactFloor:
     def placed_below(self, data: Any, gdata: Any, clearance: float) -> list[str]:
         """The geometries reaching ``z <= clearance`` [m] as placed in ``data``/``gdata``
         (after ``pin.updateGeometryPlacements``, base frame); ``hand:<k>``: a stand-in box."""
-        poses = [(gdata.oMg[i].rotation, gdata.oMg[i].translation) for i in self.ids]
-        out = [
-            name
-            for (name, geom), box, (R, p) in zip(self.geoms, self.boxes, poses, strict=True)
-            if _low(R, p, box) <= clearance and geometry_below(geom, transform(R, p), clearance)
-        ]
+        Ms = [gdata.oMg[i] for i in self.ids]
+        out = []
+        if Ms:
+            R = np.array([M.rotation for M in Ms])  # (G, 3, 3)
+            p = np.array([M.translation for M in Ms])  # (G, 3)
+            # the lowest z of every local bounding box at once; only those low enough go to coal
+            low = (
+                np.einsum("gj,gj->g", R[:, 2], self.box_c)
+                + p[:, 2]
+                - np.einsum("gj,gj->g", np.abs(R[:, 2]), self.box_h)
+            )
+            out = [
+                self.geoms[k][0]
+                for k in np.flatnonzero(low <= clearance)
+                if geometry_below(self.geoms[k][1], transform(R[k], p[k]), clearance)
+            ]
         if self.stand_in:
             T_base_joint = data.oMi[self.robot.dof].homogeneous
             for k, ((geom, T_joint_geom), box) in enumerate(

@@ -248,17 +248,18 @@ def spheres_hit(
     if len(centres) == 0 or len(boxes.centres) == 0:
         return hit
     # Bounds test of every sphere against every box at once, one axis at a time.
-    near = np.ones((len(centres), len(boxes.centres)), bool)
+    # (boxes, spheres): one box's candidates are contiguous for the loop below
+    near = np.ones((len(boxes.centres), len(centres)), bool)
     if skip is not None and (skip >= 0).any():
         codes = {o: i for i, o in enumerate(dict.fromkeys(boxes.owners))}
         box_code = np.array([codes[o] for o in boxes.owners])
-        near &= box_code[None, :] != skip[:, None]
+        near &= box_code[:, None] != skip[None, :]
     for a in range(3):
-        c = centres[:, a, None]
-        r = radii[:, None]
-        near &= (c + r > boxes.lo[None, :, a]) & (c - r < boxes.hi[None, :, a])
-    for k in np.flatnonzero(near.any(axis=0)):
-        idx = np.flatnonzero(near[:, k] & ~hit)
+        lo_a = centres[:, a] - radii
+        hi_a = centres[:, a] + radii
+        near &= (hi_a[None, :] > boxes.lo[:, a, None]) & (lo_a[None, :] < boxes.hi[:, a, None])
+    for k in np.flatnonzero(near.any(axis=1)):
+        idx = np.flatnonzero(near[k] & ~hit)
         if len(idx) == 0:
             continue
         d = (centres[idx] - boxes.centres[k]) @ boxes.R[k]  # sphere centres in the box frame
