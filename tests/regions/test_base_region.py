@@ -156,7 +156,7 @@ def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiag
     from types import SimpleNamespace
 
     from pickstop.regions.arm import _to_world, owner_codes
-    from pickstop.scene.model import load_scene
+    from pickstop.scene.load import load_scene
     from pickstop.scene.world import spheres_hit
     from tests.regions.conftest import EXAMPLES
 
