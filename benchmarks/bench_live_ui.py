@@ -24,6 +24,7 @@ import numpy as np
 
 from pickstop.settings import hash_key
 from pickstop.stack import spawn_api
+from pickstop_ui.app import SIGMA_MAX
 
 SCENE = Path(__file__).parents[1] / "examples" / "scenes" / "paper_experiment.json"
 CHROMIUM = "/usr/bin/chromium"
@@ -155,7 +156,7 @@ def main() -> None:
                 box = root.bounding_box()
                 thumb = root.locator("[role=slider]").bounding_box()
                 start = (thumb["x"] + thumb["width"] / 2, thumb["y"] + thumb["height"] / 2)
-                end = (box["x"] + value / 0.25 * box["width"], start[1])
+                end = (box["x"] + value / SIGMA_MAX * box["width"], start[1])
                 pg.evaluate(TIMER)
                 _drag(pg, start, end, 8, 0.03)
                 time.sleep(0.5)

@@ -43,6 +43,10 @@ from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 
 log = logging.getLogger("pickstop.ui")
 
+#: The sigma slider's range ends here [m]: the widest stops of the example scenes reach
+#: about 0.3 m, and a layout beyond this is infeasible for any real base.
+SIGMA_MAX = 0.5
+
 PALETTE = [
     (230, 25, 75),
     (60, 180, 75),
@@ -292,7 +296,7 @@ class PlannerApp:
             self.sigma = gui.add_slider(
                 "sigma [m]",
                 min=0.0,
-                max=0.25,
+                max=SIGMA_MAX,
                 step=0.005,
                 initial_value=float(doc.get("sigma", 0.1)),
             )

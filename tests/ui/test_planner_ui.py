@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pickstop_ui.app import SIGMA_MAX
 from tests.conftest import LIVE_KEY, free_port
 
 playwright = pytest.importorskip("playwright.sync_api")
@@ -211,7 +212,7 @@ def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app):
     before = _shot(ui_page, "02-sigma-before")
     green_before = len(_pixels(before, KEPT, tol=35))
     _arm_timer(ui_page)
-    _set_slider(ui_page, 0, target, 0.0, 0.25)
+    _set_slider(ui_page, 0, target, 0.0, SIGMA_MAX)
     sigma = _settled_sigma(planner_app)
     assert sigma == pytest.approx(target, abs=1e-6)
     ms = _elapsed_ms(ui_page, f"σ = {sigma:.3f} m")
@@ -227,7 +228,7 @@ def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app):
     _robots_checkbox(ui_page).click()
     _wait_for(lambda: planner_app.show_robots.value)
     _arm_timer(ui_page)
-    _set_slider(ui_page, 0, 0.10, 0.0, 0.25)
+    _set_slider(ui_page, 0, 0.10, 0.0, SIGMA_MAX)
     sigma = _settled_sigma(planner_app)
     ms = _elapsed_ms(ui_page, f"σ = {sigma:.3f} m")
     print(f"slider gesture end -> redrawn plan (sigma {sigma:.3f}): {ms:.0f} ms")
@@ -267,8 +268,9 @@ def test_dragging_a_tray_replans_and_moves_its_region(ui_page, planner_app):
 
 
 def test_infeasible_layout_shows_the_explanation(ui_page, planner_app):
-    _set_slider(ui_page, 0, 0.25, 0.0, 0.25)
+    _set_slider(ui_page, 0, SIGMA_MAX, 0.0, SIGMA_MAX)
     sigma = _settled_sigma(planner_app)
+    assert sigma == pytest.approx(SIGMA_MAX)
     marker = f"no plan with sigma = {sigma:.3f} m"
     ui_page.wait_for_function("m => document.body.innerText.includes(m)", arg=marker,
                               timeout=60_000)  # fmt: skip
@@ -280,7 +282,7 @@ def test_infeasible_layout_shows_the_explanation(ui_page, planner_app):
     initial = _pixels(_read("01-initial"), ROUTE)
     assert len(_pixels(img, ROUTE)) < len(initial) / 2, "the route is no longer yellow"
     assert len(_pixels(img, STALE, tol=25)) > 200, "the last plan is drawn greyed out"
-    _set_slider(ui_page, 0, 0.10, 0.0, 0.25)
+    _set_slider(ui_page, 0, 0.10, 0.0, SIGMA_MAX)
     ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
 
 
@@ -385,7 +387,7 @@ def test_a_sigma_change_updates_nodes_and_sends_no_robot_meshes(ui_page, planner
     target = _sigma_splitting_a_stop(plan)
     # Once there and back, so that a ghost exists for each stop count.
     for value in (target, 0.10):
-        _set_slider(ui_page, 0, value, 0.0, 0.25)
+        _set_slider(ui_page, 0, value, 0.0, SIGMA_MAX)
         _settled_sigma(planner_app)
         ui_page.wait_for_function("document.body.innerText.includes('Status: ready')",
                                   timeout=60_000)  # fmt: skip
@@ -394,7 +396,7 @@ def test_a_sigma_change_updates_nodes_and_sends_no_robot_meshes(ui_page, planner
         times = []
         for value in (target, 0.10):
             _arm_timer(ui_page)
-            _set_slider(ui_page, 0, value, 0.0, 0.25)
+            _set_slider(ui_page, 0, value, 0.0, SIGMA_MAX)
             sigma = _settled_sigma(planner_app)
             times.append(_elapsed_ms(ui_page, f"σ = {sigma:.3f} m"))
             ui_page.wait_for_function("document.body.innerText.includes('Status: ready')",
