@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from pickstop.errors import InputError
 from pickstop.frames import R_axis
 from pickstop.robot.floor import FLOOR_CLEARANCE, MAX_CLEARANCE
+from pickstop.scene import defaults
 
 FORMAT = "pickstop.scene"
 VERSION = 1
@@ -139,9 +140,9 @@ class Tray(_Strict):
     pose: Pose  # inner floor centre in the world [m], yaw [rad]
     tilt: Tilt | None = None  # about the tray's own x or y axis, after the yaw
     inner_size: tuple[Positive, Positive]  # [m]
-    wall_height: Positive = 0.06
-    wall_thickness: Positive = 0.01
-    floor_thickness: NonNegative = 0.005
+    wall_height: Positive = defaults.TRAY_WALL_HEIGHT
+    wall_thickness: Positive = defaults.TRAY_WALL_THICKNESS
+    floor_thickness: NonNegative = defaults.TRAY_FLOOR_THICKNESS
     parts: list[Part] = Field(default_factory=list)
     color: str | None = None
 
@@ -229,7 +230,7 @@ class Extent(_Strict):
 class BaseGrid(_Strict):
     """Where base positions are sampled: resolution [m] and the extent (default: the floor)."""
 
-    resolution: Annotated[float, Field(ge=0.005, le=0.5)] = 0.025
+    resolution: Annotated[float, Field(ge=0.005, le=0.5)] = defaults.GRID_RESOLUTION
     extent: Extent | None = None
 
 
@@ -283,7 +284,7 @@ class Scene(_Strict):
     base_grid: BaseGrid = BaseGrid()
     start: BasePose
     goal: BasePose
-    sigma: Annotated[float, Field(ge=0, le=1.0)] = 0.10  # base positioning error [m]
+    sigma: Annotated[float, Field(ge=0, le=1.0)] = defaults.SIGMA  # base positioning error [m]
     error_model: ErrorModel = ErrorModel()
     motion: Motion = Motion()
 

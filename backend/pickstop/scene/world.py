@@ -16,6 +16,7 @@ import numpy as np
 
 from pickstop.frames import T_yaw, transform
 from pickstop.scene.model import Box, Cylinder, Mesh, Part, Pose, Scene, Tray
+from pickstop.scene.tray_body import tray_body_boxes
 
 TOUCH = 1e-4  # [m] allowed interpenetration: resting on a surface is not a collision
 
@@ -145,22 +146,12 @@ def solid_below(s: Solid, clearance: float) -> bool:
 
 
 def tray_body_solids(tray: Tray) -> list[Solid]:
-    """The tray's floor and four walls."""
+    """The tray's floor and four walls (:func:`pickstop.scene.tray_body.tray_body_boxes`)."""
     T = tray_transform(tray)
-    (ix, iy), (ox, oy) = tray.inner_size, tray.outer_size
-    t, h, f = tray.wall_thickness, tray.wall_height, tray.floor_thickness
-    out = []
-    if f > 0:
-        out.append(Solid.box(T @ _shift(0, 0, -f / 2), (ox, oy, f), tray.id))
-    zc, hz = (h - f) / 2, h + f
-    for dx, dy, sx, sy in (
-        ((ix + t) / 2, 0.0, t, oy),
-        (-(ix + t) / 2, 0.0, t, oy),
-        (0.0, (iy + t) / 2, ix, t),
-        (0.0, -(iy + t) / 2, ix, t),
-    ):
-        out.append(Solid.box(T @ _shift(dx, dy, zc), (sx, sy, hz), tray.id))
-    return out
+    boxes = tray_body_boxes(
+        tray.inner_size, tray.wall_thickness, tray.wall_height, tray.floor_thickness
+    )
+    return [Solid.box(T @ _shift(*b.centre), b.size, tray.id) for b in boxes]
 
 
 def _shift(x: float, y: float, z: float) -> np.ndarray:
