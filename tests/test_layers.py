@@ -3,8 +3,9 @@
 - Importing the core (robot, reach, scene, regions, sequence) loads no web framework, UI or
   SQLite: it runs in a batch job, a Dask worker or a notebook as it is.
 - The planner UI (``pickstop_ui``) imports nothing of the backend but the shared plan schema
-  (``pickstop.sequence.plan_model``) and the frames module; robot geometry and everything
-  else come over the REST API.
+  (``pickstop.sequence.plan_model``), the frames module and the scene format's pure parts
+  (its defaults and the tray body's boxes, so a wall is drawn where it is checked); robot
+  geometry and everything else come over the REST API.
 - The backend never imports the UI, except the two places that wire the programs together
   (the command line and the stack that starts the API and the planner side by side).
 - No two modules import each other, directly or round a longer cycle (imports inside
@@ -33,7 +34,12 @@ CORE = [
     "pickstop.sequence",
 ]
 FORBIDDEN_IN_CORE = ("fastapi", "starlette", "uvicorn", "viser", "sqlite3", "sqlite_utils")
-UI_MAY_IMPORT = ("pickstop.sequence.plan_model", "pickstop.frames")
+UI_MAY_IMPORT = (
+    "pickstop.sequence.plan_model",
+    "pickstop.frames",
+    "pickstop.scene.defaults",
+    "pickstop.scene.tray_body",
+)
 WIRING = ("pickstop.cli", "pickstop.stack")
 
 
@@ -157,10 +163,33 @@ def test_the_ui_imports_only_the_plan_schema_of_the_backend():
     for m, targets in GRAPH.items():
         if m.startswith("pickstop_ui"):
             backend = {t for t in targets if t.startswith("pickstop.")}
-            assert backend <= set(UI_MAY_IMPORT) | {"pickstop", "pickstop.sequence"}, (m, backend)
+            parents = {"pickstop", "pickstop.sequence", "pickstop.scene"}
+            assert backend <= set(UI_MAY_IMPORT) | parents, (m, backend)
 
 
 def test_the_backend_imports_the_ui_only_where_the_programs_are_wired():
     for m, targets in GRAPH.items():
         if m.startswith("pickstop.") and any(t.startswith("pickstop_ui") for t in targets):
             assert m in WIRING, m
+
+
+HEAVY = ("pydantic", "coal", "pinocchio", "sqlite3", "shapely", "numpy")
+
+
+SHARED = [m for m in UI_MAY_IMPORT if m != "pickstop.sequence.plan_model"]
+
+
+@pytest.mark.parametrize("module", SHARED)
+def test_what_the_ui_shares_with_the_core_is_pure(module):
+    """The frames and the scene format's pure parts load nothing heavy (numpy aside for the
+    frames), so the UI takes them without the backend's models."""
+    code = (
+        f"import sys, {module}\n"
+        f"print(' '.join(sorted(m for m in set(sys.modules) & set({HEAVY!r}))))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True,
+        env={"PYTHONPATH": f"{ROOT / 'backend'}", "PATH": "/usr/bin:/bin"},
+    )  # fmt: skip
+    allowed = {"numpy"} if module == "pickstop.frames" else set()
+    assert set(out.stdout.split()) <= allowed, f"importing {module} loads {out.stdout.strip()}"

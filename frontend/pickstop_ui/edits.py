@@ -1,8 +1,25 @@
-"""Edits of the scene document the planner makes: pure functions of the document."""
+"""Edits of the scene document the planner makes: pure functions of the document.
+
+Each edit changes the plain JSON document in place (the planner holds it under its lock) and
+raises :class:`EditError` when the edit would leave an invalid scene, the document unchanged.
+"""
 
 from __future__ import annotations
 
+import copy
 from typing import Any
+
+import shapely.affinity
+from shapely.geometry import Polygon, box
+
+from pickstop.scene import defaults
+
+COPY_GAP = 0.05  # between a copied tray and any other tray [m]
+COPY_TRIES = 4  # rings of places tried for a copy
+
+
+class EditError(ValueError):
+    """An edit the scene cannot take; the message says why, for the engineer."""
 
 
 def snapped(value: float, ref: float, step: float) -> float:
@@ -17,7 +34,7 @@ def move(
     """Set the pose of tray or obstacle ``oid`` (``kind``: "trays" or "obstacles") in ``doc``
     to ``(x, y)`` [m] and ``yaw`` [rad], its height kept; a tray's position snapped to whole
     base cells from where it stood. Returns the new pose (None if there is no such item)."""
-    res = float(doc.get("base_grid", {}).get("resolution", 0.025))
+    res = float(doc.get("base_grid", {}).get("resolution", defaults.GRID_RESOLUTION))
     for item in doc.get(kind, []):
         if item["id"] == oid:
             pose = item.setdefault("pose", {})
@@ -27,3 +44,94 @@ def move(
             pose["x"], pose["y"], pose["yaw"] = float(x), float(y), float(yaw)
             return dict(pose)
     return None
+
+
+def tray(doc: dict[str, Any], tid: str) -> dict[str, Any]:
+    """The tray ``tid`` of ``doc`` (EditError if there is none)."""
+    for t in doc["trays"]:
+        if t["id"] == tid:
+            return t
+    raise EditError(f"no tray {tid!r} in the scene")
+
+
+def task_of(doc: dict[str, Any]) -> list[str]:
+    """The trays the task needs, in the document's order (all of them when it names none)."""
+    task = doc.get("task")
+    return [t["id"] for t in doc["trays"] if task is None or t["id"] in task]
+
+
+def set_needed(doc: dict[str, Any], tid: str, needed: bool) -> None:
+    """Add tray ``tid`` to the task or take it out; the task keeps the trays' order."""
+    tray(doc, tid)
+    keep = set(task_of(doc)) - {tid} | ({tid} if needed else set())
+    doc["task"] = [t["id"] for t in doc["trays"] if t["id"] in keep]
+
+
+def rename_tray(doc: dict[str, Any], tid: str, name: str) -> None:
+    tray(doc, tid)["name"] = name
+
+
+def _footprint(t: dict[str, Any], dx: float = 0.0, dy: float = 0.0) -> Polygon:
+    """The tray's outer rectangle on the floor [m], moved by ``(dx, dy)``."""
+    wall = float(t.get("wall_thickness", defaults.TRAY_WALL_THICKNESS))
+    ox, oy = (float(v) + 2 * wall for v in t["inner_size"])
+    p = t["pose"]
+    rect = shapely.affinity.rotate(box(-ox / 2, -oy / 2, ox / 2, oy / 2), float(p.get("yaw", 0.0)),
+                                   origin=(0, 0), use_radians=True)  # fmt: skip
+    return shapely.affinity.translate(
+        rect, float(p.get("x", 0.0)) + dx, float(p.get("y", 0.0)) + dy
+    )
+
+
+def free_offset(doc: dict[str, Any], t: dict[str, Any]) -> tuple[float, float]:
+    """Where a copy of tray ``t`` fits beside it: the first of +x, -x, +y, -y, then twice as
+    far, ... (steps of its outer size and ``COPY_GAP``) whose footprint keeps ``COPY_GAP``
+    from every tray's; +x when none does within ``COPY_TRIES`` rings (the API then names the
+    collision). Footprints are the outer rectangles on the floor: a first guess, the API's
+    scene check is the truth."""
+    fp = _footprint(t)
+    (x0, y0, x1, y1), others = fp.bounds, [_footprint(o) for o in doc["trays"]]
+    sx, sy = x1 - x0 + COPY_GAP, y1 - y0 + COPY_GAP
+    for k in range(1, COPY_TRIES + 1):
+        for dx, dy in ((k * sx, 0.0), (-k * sx, 0.0), (0.0, k * sy), (0.0, -k * sy)):
+            moved = _footprint(t, dx, dy).buffer(COPY_GAP)
+            if not any(moved.intersects(o) for o in others):
+                return dx, dy
+    return sx, 0.0
+
+
+def copy_tray(doc: dict[str, Any], tid: str, name: str = "") -> str:
+    """Add a copy of tray ``tid`` (parts included, their ids made unique as ``<part>_<k>``)
+    beside it where its footprint meets no other tray (:func:`free_offset`), under the first
+    free id ``<tid>_<k>`` (k >= 2) and named ``"<name or tid> <k>"``; a task that lists its
+    trays lists the copy too. Returns the copy's id."""
+    new = copy.deepcopy(tray(doc, tid))
+    ids = {t["id"] for t in doc["trays"]}
+    k = 2
+    while f"{tid}_{k}" in ids:
+        k += 1
+    new["id"], new["name"] = f"{tid}_{k}", f"{name or tid} {k}"
+    part_ids = {p["id"] for t in doc["trays"] for p in t.get("parts", [])}
+    for part in new.get("parts", []):
+        j = k
+        while f"{part['id']}_{j}" in part_ids:
+            j += 1
+        part["id"] = f"{part['id']}_{j}"
+        part_ids.add(part["id"])
+    dx, dy = free_offset(doc, new)
+    new["pose"]["x"] = float(new["pose"].get("x", 0.0)) + dx
+    new["pose"]["y"] = float(new["pose"].get("y", 0.0)) + dy
+    doc["trays"].append(new)
+    if doc.get("task") is not None:
+        doc["task"].append(new["id"])
+    return str(new["id"])
+
+
+def remove_tray(doc: dict[str, Any], tid: str) -> None:
+    """Remove tray ``tid`` (and take it out of the task); a scene keeps at least one tray."""
+    tray(doc, tid)
+    if len(doc["trays"]) == 1:
+        raise EditError("A scene needs at least one tray.")
+    doc["trays"] = [t for t in doc["trays"] if t["id"] != tid]
+    if doc.get("task") is not None:
+        doc["task"] = [t for t in doc["task"] if t != tid]

@@ -4,40 +4,12 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Any
 
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from pickstop.frames import axis_quat, rot2
-
-
-def tilt_quat(tilt: dict[str, Any] | None) -> tuple[float, float, float, float]:
-    """wxyz of a tray's tilt about its own x or y axis (identity without one)."""
-    if not tilt:
-        return (1.0, 0.0, 0.0, 0.0)
-    return axis_quat("x" if tilt["axis"] == "x" else "y", float(tilt["angle"]))
-
-
-def tray_boxes(tray: dict[str, Any]) -> list[tuple[str, tuple[float, float, float], tuple]]:
-    """The tray's floor and walls as ``(name, dimensions, centre)`` boxes in its own frame
-    (inner floor centre, z along the floor's normal) [m], as the backend models them."""
-    ix, iy = tray["inner_size"]
-    t, wh = tray.get("wall_thickness", 0.01), tray.get("wall_height", 0.06)
-    ft = tray.get("floor_thickness", 0.005)
-    out: list[tuple[str, tuple[float, float, float], tuple]] = []
-    if ft > 0:
-        out.append(("floor", (ix + 2 * t, iy + 2 * t, ft), (0.0, 0.0, -ft / 2)))
-    walls = [
-        ((ix + t) / 2, 0.0, t, iy + 2 * t),
-        (-(ix + t) / 2, 0.0, t, iy + 2 * t),
-        (0.0, (iy + t) / 2, ix, t),
-        (0.0, -(iy + t) / 2, ix, t),
-    ]
-    for k, (dx, dy, sx, sy) in enumerate(walls):
-        out.append((f"wall{k}", (sx, sy, wh + ft), (dx, dy, (wh - ft) / 2)))
-    return out
+from pickstop.frames import rot2
 
 
 def patch_mesh(polys: list[Polygon], z: float) -> tuple[np.ndarray, np.ndarray]:

@@ -46,6 +46,7 @@ class PlanLayer:
         self._labels: list[Any] = []
         self.ghosts: list[tuple[Any, Any]] = []  # (frame, ViserUrdf)
         self._n_ghosts = 0
+        self._joints: list[str] | None = None
 
     # -- one kind of node each ------------------------------------------------------------------
     def _region(self, tid: str, v: np.ndarray, f: np.ndarray, colour: Any, opacity: float) -> None:
@@ -140,6 +141,18 @@ class PlanLayer:
         self.show_ghosts = visible
         for k, (frame, _) in enumerate(self.ghosts):
             frame.visible = visible and k < self._n_ghosts
+
+    def actuated_joints(self) -> list[str] | None:
+        """The URDF's actuated joints, in the order ghosts take them (None without a robot);
+        known once a ghost exists, so the first call makes one, hidden."""
+        if self.urdf is None:
+            return None
+        if self._joints is None:
+            if not self.ghosts:
+                self._add_ghost()
+                self.ghosts[0][0].visible = False
+            self._joints = list(self.ghosts[0][1].get_actuated_joint_names())
+        return self._joints
 
     def _add_ghost(self) -> None:
         from viser.extras import ViserUrdf

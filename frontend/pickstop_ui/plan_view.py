@@ -8,13 +8,20 @@ scene's existing nodes.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 from shapely.geometry import Polygon
 
 from pickstop.sequence.plan_model import Plan
-from pickstop_ui.geometry import circle_segments, patch_mesh, ring_segments, route_segments
+from pickstop_ui.geometry import (
+    circle_segments,
+    patch_mesh,
+    polyline_at,
+    ring_segments,
+    route_segments,
+)
 
 RGB = tuple[int, int, int]
 GREY: RGB = (150, 150, 150)
@@ -188,8 +195,33 @@ def joint_cfg(
     return np.array([values.get(n, 0.0) for n in urdf_joints])
 
 
-def status_line(phase: str, seq: int, ms: float, exact_ms: float | None, busy: str | None) -> str:
-    """The panel's status: what is shown, how long it took, and what is running."""
-    running = f" · ⏳ {busy}…" if busy else ""
-    last = f" · last exact plan {exact_ms:.0f} ms" if exact_ms is not None else ""
-    return f"**Status:** {phase} · plan #{seq} in {ms:.0f} ms{last}{running}"
+@dataclass(frozen=True)
+class PlaybackStep:
+    """One moment of the route's playback: the base pose [m, rad], the arm's joints (None:
+    as it was) and how long to hold it [s]."""
+
+    x: float
+    y: float
+    yaw: float
+    theta: list[float] | None
+    hold: float
+
+
+def playback(
+    plan: Plan, speed: float = 1.5, dt: float = 1 / 30, reach_time: float = 0.6
+) -> Iterator[PlaybackStep]:
+    """The robot driving each leg at ``speed`` [m/s] in steps of ``dt`` [s], then at each
+    stop reaching each witness for ``reach_time`` [s] and folding the arm back (zeros)."""
+    for k, leg in enumerate(plan.legs):
+        line = np.asarray(leg.polyline, float)
+        length = float(np.sum(np.hypot(*np.diff(line, axis=0).T))) if len(line) > 1 else 0.0
+        s = 0.0
+        while s <= length:
+            p, heading = polyline_at(line, s)
+            yield PlaybackStep(float(p[0]), float(p[1]), heading, None, dt)
+            s += speed * dt
+        if k < len(plan.stops):
+            stop = plan.stops[k]
+            for w in stop.witnesses:
+                yield PlaybackStep(stop.x, stop.y, stop.yaw, list(w.theta), reach_time)
+            yield PlaybackStep(stop.x, stop.y, stop.yaw, [0.0] * len(plan.joints), 0.0)

@@ -1,31 +1,11 @@
-"""The planner's drawings as pure functions of a plan (no browser), and its document edits."""
+"""The planner's drawings as pure functions of a plan (no browser)."""
 
 from __future__ import annotations
-
-import copy
-import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pickstop.scene.load import parse_scene
-from pickstop.sequence.plan import StopPlanner
-from pickstop.sequence.plan_model import PlanOptions
-from pickstop_ui import edits
-from pickstop_ui.plan_view import PREVIEW, STALE, VERIFIED, plan_drawing, style_of
-
-SCENE = Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.json"
-
-
-@pytest.fixture(scope="module")
-def plans(planner):
-    doc = json.loads(SCENE.read_text())
-    sp = StopPlanner(planner)
-    exact = sp.plan(parse_scene(doc), PlanOptions(samples=0))
-    moved = copy.deepcopy(doc)
-    moved["trays"][0]["pose"]["x"] -= 0.1
-    return exact, sp.preview(parse_scene(moved), PlanOptions(samples=0))
+from pickstop_ui.plan_view import PREVIEW, STALE, VERIFIED, plan_drawing, playback, style_of
 
 
 def test_a_verified_plan_is_drawn_with_its_regions_route_and_ghosts(plans):
@@ -60,14 +40,18 @@ def test_a_preview_is_drawn_as_one_dashed_lighter_and_without_robots(plans):
     assert d.labels and all(text.endswith("(preview)") for text, _ in d.labels)
 
 
-def test_a_dragged_tray_moves_in_whole_base_cells():
-    doc = json.loads(SCENE.read_text())
-    x0, y0 = doc["trays"][0]["pose"]["x"], doc["trays"][0]["pose"]["y"]
-    pose = edits.move(doc, "trays", doc["trays"][0]["id"], x0 + 0.061, y0 - 0.013, 0.2)
-    assert pose is not None
-    assert pose["x"] == pytest.approx(x0 + 0.05) and pose["y"] == pytest.approx(y0 - 0.025)
-    assert pose["yaw"] == 0.2 and doc["trays"][0]["pose"]["x"] == pose["x"]
-    assert edits.move(doc, "trays", "nope", 0, 0, 0) is None
-    ob = doc["obstacles"][0]["id"] if doc.get("obstacles") else None
-    if ob is not None:  # obstacles move freely
-        assert edits.move(doc, "obstacles", ob, 1.2345, 0.5, 0.0)["x"] == 1.2345
+def test_playback_drives_every_leg_and_reaches_each_witness_at_its_stop(plans):
+    exact, _ = plans
+    steps = list(playback(exact, speed=1.5, dt=0.1, reach_time=0.6))
+    reaches = [s for s in steps if s.theta is not None and s.hold > 0]
+    assert len(reaches) == sum(len(s.witnesses) for s in exact.stops)
+    for stop in exact.stops:  # each witness is reached standing on its stop
+        mine = [s for s in reaches if (s.x, s.y, s.yaw) == (stop.x, stop.y, stop.yaw)]
+        assert [s.theta for s in mine] == [list(w.theta) for w in stop.witnesses]
+    driving = [s for s in steps if s.theta is None]
+    # One step per 0.15 m driven and one at each leg's start.
+    route = sum(leg.length for leg in exact.legs)
+    assert len(driving) == pytest.approx(route / 0.15 + len(exact.legs), abs=len(exact.legs))
+    first, last = exact.legs[0].polyline[0], exact.legs[-1].polyline[-1]
+    assert (driving[0].x, driving[0].y) == pytest.approx(tuple(first))
+    assert np.hypot(driving[-1].x - last[0], driving[-1].y - last[1]) <= 0.15 + 1e-9

@@ -1,0 +1,150 @@
+"""The re-plan worker: asks the API for a plan of the latest request only, then its success rates.
+
+Every change of the layout or the options submits a request; a newer request replaces one
+that is still pending, so while a plan is computed or drawn the frames in between are skipped.
+A quick plan (no Monte Carlo) is reported first; once no newer request has come for
+``mc_quiet`` seconds the same plan with ``mc_samples`` Monte Carlo samples follows. A preview
+(a drag under way) gets no Monte Carlo. Results of a request that is no longer the newest are
+dropped. The worker talks to the API through ``client.plan`` and to the planner through a
+:class:`Sink`, so it runs under test with fakes of both.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from pickstop.sequence.plan_model import Plan
+from pickstop_ui.client import ApiProblem, PlanResult
+
+log = logging.getLogger("pickstop.ui")
+
+MC_SAMPLES = 300
+MC_QUIET = 0.4  # [s] without a newer request before the Monte Carlo starts
+
+
+@dataclass(frozen=True)
+class Request:
+    seq: int  # 1, 2, ... in the order of submission
+    scene: dict[str, Any]  # a copy of the document as it was
+    options: dict[str, Any]  # PlanOptions as JSON (samples 0: the quick plan)
+    t0: float  # submitted at [s, perf_counter]
+    cause: str  # what changed, for the panel
+    preview: bool = False  # a drag is under way: a quick unverified plan
+
+
+class PlanClient(Protocol):
+    def plan(
+        self, scene: dict[str, Any], options: dict[str, Any], store: bool = False,
+        preview: bool = False,
+    ) -> PlanResult: ...  # fmt: skip
+
+
+class Sink(Protocol):
+    """Where the worker's results go (called on the worker's thread)."""
+
+    def plan_ready(self, req: Request, plan: Plan, final: bool) -> None:
+        """A plan of ``req``: the quick one (``final`` False) or with its success rates."""
+
+    def plan_failed(self, req: Request, problem: ApiProblem) -> None:
+        """The API refused ``req`` or could not be reached."""
+
+    def success_rates_started(self, req: Request) -> None:
+        """The Monte Carlo of ``req`` is running."""
+
+    def success_rates_failed(self, req: Request, problem: ApiProblem) -> None:
+        """The Monte Carlo of ``req`` failed; its quick plan stays drawn."""
+
+
+class Replanner:
+    """One worker thread planning the newest request; ``lock`` guards the document the
+    requests copy (the planner's, so an edit and a submission never interleave)."""
+
+    def __init__(
+        self,
+        client: PlanClient,
+        sink: Sink,
+        lock: threading.Lock | None = None,
+        mc_samples: int = MC_SAMPLES,
+        mc_quiet: float = MC_QUIET,
+    ) -> None:
+        self.client, self.sink = client, sink
+        self.lock = lock or threading.Lock()
+        self.mc_samples, self.mc_quiet = mc_samples, mc_quiet
+        self.seq = 0
+        self._pending: Request | None = None
+        self._wake = threading.Event()
+        self._stop = False
+        self._thread = threading.Thread(target=self._loop, name="pickstop-replan", daemon=True)
+        self._thread.start()
+
+    def submit(
+        self, doc: dict[str, Any], options: dict[str, Any], cause: str, preview: bool = False
+    ) -> Request:
+        """Plan ``doc`` (copied now, under the lock) with ``options``; replaces any pending
+        request. Returns the request."""
+        with self.lock:
+            self.seq += 1
+            req = Request(
+                self.seq, copy.deepcopy(doc), dict(options), time.perf_counter(), cause, preview
+            )
+            self._pending = req
+        self._wake.set()
+        return req
+
+    def newer(self, req: Request) -> bool:
+        """Has a request come after ``req``?"""
+        with self.lock:
+            return self._pending is not None or self.seq != req.seq
+
+    def close(self, timeout: float = 5.0) -> None:
+        self._stop = True
+        self._wake.set()
+        self._thread.join(timeout)
+
+    # -- the worker's thread ------------------------------------------------------------------
+    def _loop(self) -> None:
+        while not self._stop:
+            self._wake.wait()
+            self._wake.clear()
+            with self.lock:
+                req, self._pending = self._pending, None
+            if req is None or self._stop:
+                continue
+            plan = self._ask(req, req.options, req.preview)
+            if isinstance(plan, ApiProblem):
+                if not self.newer(req):
+                    self.sink.plan_failed(req, plan)
+                continue
+            if self.newer(req):
+                continue
+            self.sink.plan_ready(req, plan, final=False)
+            if req.preview:
+                continue
+            # The success rates wait until the engineer pauses: while a slider or a tray is
+            # still moving, a running Monte Carlo would hold up the next quick plan.
+            if self._wake.wait(self.mc_quiet) or self.newer(req):
+                continue
+            self.sink.success_rates_started(req)
+            mc = self._ask(req, {**req.options, "samples": self.mc_samples}, False)
+            if self.newer(req):
+                continue
+            if isinstance(mc, ApiProblem):
+                self.sink.success_rates_failed(req, mc)
+            else:
+                self.sink.plan_ready(req, mc, final=True)
+
+    def _ask(self, req: Request, options: dict[str, Any], preview: bool) -> Plan | ApiProblem:
+        """The API's plan, or the problem that stands for it."""
+        try:
+            return self.client.plan(req.scene, options, preview=preview).plan
+        except ApiProblem as e:
+            problem = e
+        except Exception as e:  # the API is down or answered nonsense
+            problem = ApiProblem(0, "API unreachable", str(e))
+        log.info("plan #%d: %s", req.seq, problem)
+        return problem

@@ -1,0 +1,149 @@
+"""The re-plan worker with a fake API and a fake planner window (no server, no browser)."""
+
+from __future__ import annotations
+
+import threading
+import time
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+from pickstop_ui.client import ApiProblem
+from pickstop_ui.replan import Replanner, Request
+
+
+class FakeApi:
+    """Answers each plan request after ``delay`` [s] with a token naming what was asked;
+    ``gate`` (when set) holds every answer until it is opened."""
+
+    def __init__(self, delay: float = 0.0, fail: dict[int, Exception] | None = None) -> None:
+        self.delay, self.fail = delay, fail or {}
+        self.calls: list[tuple[int, int, bool]] = []  # (scene's n, samples, preview)
+        self.gate: threading.Event | None = None
+
+    def plan(self, scene: dict[str, Any], options: dict[str, Any], store: bool = False,
+             preview: bool = False) -> Any:  # fmt: skip
+        self.calls.append((scene["n"], options["samples"], preview))
+        if self.gate is not None:
+            self.gate.wait(5)
+        time.sleep(self.delay)
+        if (scene["n"], options["samples"]) in self.fail:
+            raise self.fail[scene["n"], options["samples"]]
+        return SimpleNamespace(plan=("plan", scene["n"], options["samples"]))
+
+
+class Window:
+    def __init__(self) -> None:
+        self.events: list[tuple[str, int, Any]] = []
+        self.done = threading.Event()
+
+    def plan_ready(self, req: Request, plan: Any, final: bool) -> None:
+        self.events.append(("final" if final else "quick", req.seq, plan))
+        self.done.set()
+
+    def plan_failed(self, req: Request, problem: ApiProblem) -> None:
+        self.events.append(("failed", req.seq, problem))
+        self.done.set()
+
+    def success_rates_started(self, req: Request) -> None:
+        self.events.append(("mc", req.seq, None))
+
+    def success_rates_failed(self, req: Request, problem: ApiProblem) -> None:
+        self.events.append(("mc failed", req.seq, problem))
+        self.done.set()
+
+
+def _settle(r: Replanner, seconds: float = 0.6) -> None:
+    time.sleep(seconds)
+    r.close()
+
+
+@pytest.fixture
+def window() -> Window:
+    return Window()
+
+
+def test_a_request_is_planned_quickly_then_with_success_rates(window):
+    api = FakeApi()
+    r = Replanner(api, window, mc_samples=50, mc_quiet=0.05)
+    doc = {"n": 1}
+    req = r.submit(doc, {"samples": 0}, "open")
+    doc["n"] = 99  # the request copied the document as it was
+    _settle(r)
+    assert req.seq == 1 and req.scene == {"n": 1} and req.cause == "open"
+    assert api.calls == [(1, 0, False), (1, 50, False)]
+    assert window.events == [
+        ("quick", 1, ("plan", 1, 0)), ("mc", 1, None), ("final", 1, ("plan", 1, 50)),
+    ]  # fmt: skip
+
+
+def test_a_preview_gets_no_monte_carlo(window):
+    api = FakeApi()
+    r = Replanner(api, window, mc_quiet=0.01)
+    r.submit({"n": 1}, {"samples": 0}, "dragging", preview=True)
+    _settle(r, 0.3)
+    assert api.calls == [(1, 0, True)] and [e[0] for e in window.events] == ["quick"]
+
+
+def test_requests_made_while_one_is_planned_collapse_into_the_newest(window):
+    api = FakeApi()
+    api.gate = threading.Event()
+    r = Replanner(api, window, mc_quiet=10.0)
+    r.submit({"n": 1}, {"samples": 0}, "a", preview=True)
+    time.sleep(0.1)  # the worker now waits on the API with request 1
+    for n in range(2, 8):
+        r.submit({"n": n}, {"samples": 0}, "drag", preview=True)
+    api.gate.set()
+    _settle(r, 0.3)
+    # 1 was asked, 2..6 were replaced while pending, 7 was asked; 1's answer came after
+    # newer requests and was dropped.
+    assert [c[0] for c in api.calls] == [1, 7]
+    assert window.events == [("quick", 7, ("plan", 7, 0))]
+    assert r.newer(Request(6, {}, {}, 0.0, "")) and not r.newer(Request(7, {}, {}, 0.0, ""))
+
+
+def test_a_change_during_the_quiet_time_skips_the_monte_carlo(window):
+    api = FakeApi()
+    r = Replanner(api, window, mc_samples=50, mc_quiet=0.3)
+    r.submit({"n": 1}, {"samples": 0}, "sigma")
+    time.sleep(0.1)
+    r.submit({"n": 2}, {"samples": 0}, "sigma")
+    _settle(r, 0.8)
+    assert (1, 50, False) not in api.calls and (2, 50, False) in api.calls
+    assert [e[:2] for e in window.events] == [("quick", 1), ("quick", 2), ("mc", 2), ("final", 2)]
+
+
+def test_problems_are_reported_and_an_unreachable_api_is_named(window):
+    refused = ApiProblem(422, "Infeasible plan", "no plan with sigma = 0.5 m", "sigma")
+    api = FakeApi(fail={(1, 0): refused, (2, 0): ConnectionError("refused"),
+                        (3, 50): ApiProblem(500, "Server error", "boom")})  # fmt: skip
+    r = Replanner(api, window, mc_samples=50, mc_quiet=0.01)
+    for n in (1, 2, 3):
+        window.done.clear()
+        r.submit({"n": n}, {"samples": 0}, "x")
+        assert window.done.wait(2)
+        time.sleep(0.2)
+    r.close()
+    kinds = [(e[0], e[1]) for e in window.events]
+    assert kinds == [("failed", 1), ("failed", 2), ("quick", 3), ("mc", 3), ("mc failed", 3)]
+    assert window.events[0][2] is refused
+    unreachable = window.events[1][2]
+    assert unreachable.status == 0 and unreachable.title == "API unreachable"
+    assert "refused" in unreachable.detail
+
+
+def test_a_stale_failure_is_not_reported(window):
+    api = FakeApi(delay=0.2, fail={(1, 0): ApiProblem(422, "Infeasible plan", "x")})
+    r = Replanner(api, window, mc_quiet=10.0)
+    r.submit({"n": 1}, {"samples": 0}, "a")
+    time.sleep(0.05)
+    r.submit({"n": 2}, {"samples": 0}, "b")
+    _settle(r, 0.8)
+    assert [e[:2] for e in window.events] == [("quick", 2)]
+
+
+def test_close_stops_the_worker(window):
+    r = Replanner(FakeApi(), window)
+    r.close()
+    assert not r._thread.is_alive()
