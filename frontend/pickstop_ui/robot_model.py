@@ -15,6 +15,12 @@ from pathlib import Path
 from typing import Any
 
 from pickstop_ui.client import PickStopClient
+from pickstop_ui.mesh_lod import fit_budget
+
+#: Triangles the planner draws of the robot (visual meshes) and of each ghost (collision
+#: meshes): a software-rendered frame costs about 2 ms per thousand (see :mod:`mesh_lod`).
+VISUAL_FACES = 15_000
+GHOST_FACES = 8_000
 
 _REF = re.compile(r'filename="files/([A-Za-z0-9._-]+)"')
 
@@ -34,7 +40,8 @@ def scene_robot_name(doc: dict[str, Any]) -> str:
 
 
 def fetch_robot(client: PickStopClient, name: str, cache: Path | None = None) -> RobotDrawing:
-    """Download robot ``name``'s model (URDF and meshes, each file once) and load it."""
+    """Download robot ``name``'s model (URDF and meshes, each file once) and load it, its
+    meshes thinned to the planner's triangle budgets."""
     import yourdfpy
 
     model = client.robot_model(name)
@@ -58,6 +65,9 @@ def fetch_robot(client: PickStopClient, name: str, cache: Path | None = None) ->
         load_collision_meshes=True,
         build_collision_scene_graph=True,
     )
+    # Drawn only: the backend checks the robot's real geometry.
+    fit_budget(urdf.scene, VISUAL_FACES)
+    fit_budget(urdf.collision_scene, GHOST_FACES)
     return RobotDrawing(
         name=name,
         urdf=urdf,
