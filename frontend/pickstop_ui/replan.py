@@ -1,12 +1,18 @@
 """The re-plan worker: asks the API for a plan of the latest request only, then its success rates.
 
 Every change of the layout or the options submits a request; a newer request replaces one
-that is still pending, so while a plan is computed or drawn the frames in between are skipped.
-A quick plan (no Monte Carlo) is reported first; once no newer request has come for
+that is still pending, so while a plan is computed the requests in between are skipped. A
+quick plan (no Monte Carlo) is reported first; once no newer request has come for
 ``mc_quiet`` seconds the same plan with ``mc_samples`` Monte Carlo samples follows. A preview
-(a drag under way) gets no Monte Carlo. Results of a request that is no longer the newest are
-dropped. The worker talks to the API through ``client.plan`` and to the planner through a
-:class:`Sink`, so it runs under test with fakes of both.
+(a drag under way) gets no Monte Carlo.
+
+Asking and drawing run on two threads, so the next request is on its way to the API while a
+result is drawn. Every result is drawn, even when newer requests wait (it is still newer than
+what is on screen: during a drag that outpaces the API, a result that waited for the newest
+would never come); a result not yet drawn when a newer one arrives is skipped. A failure is
+told only while its request is the newest. The worker talks to the API through
+``client.plan`` and to the planner through a :class:`Sink`, so it runs under test with fakes
+of both.
 """
 
 from __future__ import annotations
@@ -45,7 +51,8 @@ class PlanClient(Protocol):
 
 
 class Sink(Protocol):
-    """Where the worker's results go (called on the worker's thread)."""
+    """Where the worker's results go: the drawing thread calls every method one at a time,
+    except :meth:`success_rates_started`, which the asking thread calls."""
 
     def plan_ready(self, req: Request, plan: Plan, final: bool) -> None:
         """A plan of ``req``: the quick one (``final`` False) or with its success rates."""
@@ -61,8 +68,9 @@ class Sink(Protocol):
 
 
 class Replanner:
-    """One worker thread planning the newest request; ``lock`` guards the document the
-    requests copy (the planner's, so an edit and a submission never interleave)."""
+    """A thread asking the API for the newest request and one drawing the newest result;
+    ``lock`` guards the document the requests copy (the planner's, so an edit and a
+    submission never interleave)."""
 
     def __init__(
         self,
@@ -79,8 +87,16 @@ class Replanner:
         self._pending: Request | None = None
         self._wake = threading.Event()
         self._stop = False
-        self._thread = threading.Thread(target=self._loop, name="pickstop-replan", daemon=True)
-        self._thread.start()
+        self._out: tuple[str, Request, Any] | None = None  # the newest result not yet drawn
+        self._out_lock = threading.Lock()
+        self._out_ready = threading.Event()
+        self.skipped = 0  # results replaced before they were drawn
+        self._threads = [
+            threading.Thread(target=self._loop, name="pickstop-replan-ask", daemon=True),
+            threading.Thread(target=self._draw_loop, name="pickstop-replan-draw", daemon=True),
+        ]
+        for t in self._threads:
+            t.start()
 
     def submit(
         self, doc: dict[str, Any], options: dict[str, Any], cause: str, preview: bool = False
@@ -104,7 +120,9 @@ class Replanner:
     def close(self, timeout: float = 5.0) -> None:
         self._stop = True
         self._wake.set()
-        self._thread.join(timeout)
+        self._out_ready.set()
+        for t in self._threads:
+            t.join(timeout)
 
     # -- the worker's thread ------------------------------------------------------------------
     def _loop(self) -> None:
@@ -118,11 +136,9 @@ class Replanner:
             plan = self._ask(req, req.options, req.preview)
             if isinstance(plan, ApiProblem):
                 if not self.newer(req):
-                    self.sink.plan_failed(req, plan)
+                    self._post("failed", req, plan)
                 continue
-            if self.newer(req):
-                continue
-            self.sink.plan_ready(req, plan, final=False)
+            self._post("quick", req, plan)
             if req.preview:
                 continue
             # The success rates wait until the engineer pauses: while a slider or a tray is
@@ -131,12 +147,36 @@ class Replanner:
                 continue
             self.sink.success_rates_started(req)
             mc = self._ask(req, {**req.options, "samples": self.mc_samples}, False)
-            if self.newer(req):
+            if not self.newer(req):
+                self._post("mc failed" if isinstance(mc, ApiProblem) else "final", req, mc)
+
+    def _post(self, kind: str, req: Request, payload: Any) -> None:
+        """Hand a result to the drawing thread, replacing one it has not taken yet."""
+        with self._out_lock:
+            if self._out is not None:
+                self.skipped += 1
+            self._out = (kind, req, payload)
+        self._out_ready.set()
+
+    # -- the drawing thread -------------------------------------------------------------------
+    def _draw_loop(self) -> None:
+        while not self._stop:
+            self._out_ready.wait()
+            self._out_ready.clear()
+            with self._out_lock:
+                item, self._out = self._out, None
+            if item is None or self._stop:
                 continue
-            if isinstance(mc, ApiProblem):
-                self.sink.success_rates_failed(req, mc)
-            else:
-                self.sink.plan_ready(req, mc, final=True)
+            kind, req, payload = item
+            try:
+                if kind in ("quick", "final"):
+                    self.sink.plan_ready(req, payload, final=kind == "final")
+                elif kind == "failed":
+                    self.sink.plan_failed(req, payload)
+                else:
+                    self.sink.success_rates_failed(req, payload)
+            except Exception:  # a drawing bug must not stop the planner's updates
+                log.exception("drawing plan #%d failed", req.seq)
 
     def _ask(self, req: Request, options: dict[str, Any], preview: bool) -> Plan | ApiProblem:
         """The API's plan, or the problem that stands for it."""

@@ -96,10 +96,10 @@ def test_requests_made_while_one_is_planned_collapse_into_the_newest(window):
         r.submit({"n": n}, {"samples": 0}, "drag", preview=True)
     api.gate.set()
     _settle(r, 0.3)
-    # 1 was asked, 2..6 were replaced while pending, 7 was asked; 1's answer came after
-    # newer requests and was dropped.
+    # 1 was asked, 2..6 were replaced while pending, 7 was asked; 1's answer is drawn
+    # although newer requests wait: it is newer than what the window shows.
     assert [c[0] for c in api.calls] == [1, 7]
-    assert window.events == [("quick", 7, ("plan", 7, 0))]
+    assert window.events == [("quick", 1, ("plan", 1, 0)), ("quick", 7, ("plan", 7, 0))]
     assert r.newer(Request(6, {}, {}, 0.0, "")) and not r.newer(Request(7, {}, {}, 0.0, ""))
 
 
@@ -143,7 +143,52 @@ def test_a_stale_failure_is_not_reported(window):
     assert [e[:2] for e in window.events] == [("quick", 2)]
 
 
+def test_a_drag_faster_than_the_api_still_draws_previews(window):
+    """Poses every 20 ms, the API answering in 50 ms: previews follow at the API's pace
+    instead of waiting for the drag to pause."""
+    api = FakeApi(delay=0.05)
+    r = Replanner(api, window, mc_quiet=10.0)
+    for n in range(50):
+        r.submit({"n": n}, {"samples": 0}, "drag", preview=True)
+        time.sleep(0.02)
+    _settle(r, 0.3)
+    drawn = [e[1] for e in window.events]
+    assert len(drawn) >= 10 and drawn == sorted(drawn) and drawn[-1] == 50
+
+
+def test_a_result_not_yet_drawn_is_replaced_by_a_newer_one():
+    class SlowWindow(Window):
+        def plan_ready(self, req, plan, final):
+            time.sleep(0.3)  # drawing is slower than the API
+            super().plan_ready(req, plan, final)
+
+    window = SlowWindow()
+    r = Replanner(FakeApi(delay=0.01), window, mc_quiet=10.0)
+    for n in range(20):
+        r.submit({"n": n}, {"samples": 0}, "drag", preview=True)
+        time.sleep(0.03)
+    _settle(r, 1.0)
+    drawn = [e[1] for e in window.events]
+    assert drawn[-1] == 20 and len(drawn) <= 5 and r.skipped >= 10
+
+
+def test_a_drawing_error_does_not_stop_the_worker():
+    class Broken(Window):
+        def plan_ready(self, req, plan, final):
+            if req.seq == 1:
+                raise RuntimeError("bad drawing")
+            super().plan_ready(req, plan, final)
+
+    window = Broken()
+    r = Replanner(FakeApi(), window, mc_quiet=10.0)
+    r.submit({"n": 1}, {"samples": 0}, "a", preview=True)
+    time.sleep(0.2)
+    r.submit({"n": 2}, {"samples": 0}, "b", preview=True)
+    _settle(r, 0.3)
+    assert [e[:2] for e in window.events] == [("quick", 2)]
+
+
 def test_close_stops_the_worker(window):
     r = Replanner(FakeApi(), window)
     r.close()
-    assert not r._thread.is_alive()
+    assert not any(t.is_alive() for t in r._threads)
