@@ -13,22 +13,21 @@ from pickstop.frames import rot2
 
 
 def patch_mesh(polys: list[Polygon], z: float) -> tuple[np.ndarray, np.ndarray]:
-    """Triangles covering ``polys`` (holes respected) at height ``z``: vertices, faces."""
-    verts: list[np.ndarray] = []
-    faces: list[np.ndarray] = []
-    n = 0
-    for poly in polys:
-        if poly.is_empty:
-            continue
-        tris = shapely.constrained_delaunay_triangles(poly)
-        for tri in getattr(tris, "geoms", []):
-            xy = np.asarray(tri.exterior.coords)[:3]
-            verts.append(np.column_stack([xy, np.full(3, z)]))
-            faces.append(np.array([[n, n + 1, n + 2]]))
-            n += 3
-    if not verts:
+    """Triangles covering ``polys`` (holes respected) at height ``z``: vertices ``(3T, 3)``
+    float32 [m] (three of its own per triangle) and faces ``(T, 3)`` uint32."""
+    tris = [
+        t
+        for poly in polys
+        if not poly.is_empty
+        for t in getattr(shapely.constrained_delaunay_triangles(poly), "geoms", [])
+    ]
+    if not tris:
         return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32)
-    return np.concatenate(verts).astype(np.float32), np.concatenate(faces).astype(np.uint32)
+    # Each triangle's exterior ring holds 4 points (closed): keep the first three.
+    xy = shapely.get_coordinates(shapely.get_exterior_ring(np.asarray(tris, dtype=object)))
+    xy = xy.reshape(len(tris), 4, 2)[:, :3].reshape(-1, 2)
+    verts = np.column_stack([xy, np.full(len(xy), z)]).astype(np.float32)
+    return verts, np.arange(len(verts), dtype=np.uint32).reshape(-1, 3)
 
 
 def ring_segments(coords: np.ndarray, z: float) -> np.ndarray:
