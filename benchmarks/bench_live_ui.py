@@ -1,6 +1,7 @@
 """Live layout editing in the browser: previews per second, release and slider to redrawn.
 
-    PICKSTOP_DATA_DIR=<data with a TIAGo database> python benchmarks/bench_live_ui.py
+    PICKSTOP_DATA_DIR=<data with a TIAGo database> \
+        python benchmarks/bench_live_ui.py [--flat-lighting]
 
 Starts ``pickstop serve`` on 127.0.0.1 over the data folder, the 3D planner on the paper-like
 scene in this process and Debian's headless Chromium (Playwright, software WebGL). Measured in
@@ -8,7 +9,8 @@ the page (``performance.now()``): (1) previews drawn per second while tray_4 mov
 50 ms, as a gizmo drag delivers poses (set from the server side, so the browser's own pointer
 handling is left out); (2) a real mouse drag of the gizmo: pointer moves the page handles per
 second and previews drawn; (3) release of a drag to the exact plan drawn; (4) the end of a
-sigma slider gesture to the redrawn plan.
+sigma slider gesture to the redrawn plan. ``--flat-lighting`` runs the planner with its
+hemisphere light instead of the environment map (``pickstop ui --flat-lighting``).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import json
 import os
 import socket
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -104,7 +107,10 @@ def main() -> None:
     try:
         client = PickStopClient(f"http://127.0.0.1:{port}", "bench-key")
         stored = client.create_scene(json.loads(SCENE.read_text()))
-        app = PlannerApp(client, stored.id, port=_port())
+        flat = "--flat-lighting" in sys.argv
+        app = PlannerApp(client, stored.id, port=_port(), flat_lighting=flat)
+        print(f"lighting: {'flat (hemisphere light)' if flat else 'environment map'}; "
+              f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")  # fmt: skip
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
             pg = browser.new_page(viewport={"width": 1280, "height": 800})

@@ -510,7 +510,7 @@ def cmd_ui(args: argparse.Namespace) -> int:
     if not scene_id:
         raise InputError("give --scene SCENE_ID or --scene-file FILE", field="scene")
     try:
-        app = run(args.api, scene_id, key, args.host, args.port)
+        app = run(args.api, scene_id, key, args.host, args.port, args.flat_lighting)
     except ApiProblem as e:
         raise PickStopError(f"{args.api}: {e.title}: {e.detail}") from None
     print(f"PickStop 3D planner on http://{args.host}:{app.port}/ (scene {scene_id})",
@@ -640,6 +640,12 @@ def build_parser() -> argparse.ArgumentParser:
     ui.add_argument("--key", help="API key for saving (default: $PICKSTOP_UI_KEY)")
     ui.add_argument("--host", default="127.0.0.1")
     ui.add_argument("--port", type=positive_int, default=8080)
+    ui.add_argument(
+        "--flat-lighting",
+        action="store_true",
+        help="one hemisphere light, no environment map: about twice the frame rate in a "
+        "browser without a GPU (software WebGL), flatter colours",
+    )
     ui.set_defaults(func=cmd_ui)
 
     ak = sub.add_parser("api-key", help="make a new API key and print its hash for the settings")

@@ -76,8 +76,13 @@ class PlannerApp:
         host: str = "127.0.0.1",
         port: int = 8080,
         draw_robot: bool = True,
+        flat_lighting: bool = False,
     ) -> None:
+        """``flat_lighting``: light the scene with one hemisphere light instead of the
+        environment map, which costs a software renderer (a browser without a GPU) about
+        half of every frame; colours then look flatter."""
         self.api = client
+        self.flat_lighting = flat_lighting
         stored = client.scene(scene_id)
         # The scene's own robot, from the API (URDF, meshes, locked and pre-grasp joints).
         self.robot = fetch_robot(client, scene_robot_name(stored.doc)) if draw_robot else None
@@ -110,6 +115,9 @@ class PlannerApp:
         sc.set_up_direction("+z")
         # No shadow pass: it doubles the cost of every frame in a browser without a GPU.
         sc.configure_default_lights(enabled=True, cast_shadow=False)
+        if self.flat_lighting:
+            sc.configure_environment_map(None)
+            sc.add_light_hemisphere("/lights/flat", ground_color=(170, 170, 170), intensity=2.0)
         w, h = d.floor_size
         sc.add_grid("/floor", width=w, height=h, cell_size=0.5, position=d.floor_centre)
         for item in d.items:
@@ -377,6 +385,13 @@ class PlannerApp:
             time.sleep(step.hold)
 
 
-def run(api_url: str, scene_id: str, api_key: str | None, host: str, port: int) -> PlannerApp:
+def run(
+    api_url: str,
+    scene_id: str,
+    api_key: str | None,
+    host: str,
+    port: int,
+    flat_lighting: bool = False,
+) -> PlannerApp:
     client = PickStopClient(api_url, api_key)
-    return PlannerApp(client, scene_id, host=host, port=port)
+    return PlannerApp(client, scene_id, host=host, port=port, flat_lighting=flat_lighting)
