@@ -6,13 +6,13 @@ quick plan (no Monte Carlo) is reported first; once no newer request has come fo
 ``mc_quiet`` seconds the same plan with ``mc_samples`` Monte Carlo samples follows. A preview
 (a drag under way) gets no Monte Carlo.
 
-Asking and drawing run on two threads, so the next request is on its way to the API while a
-result is drawn. Every result is drawn, even when newer requests wait (it is still newer than
-what is on screen: during a drag that outpaces the API, a result that waited for the newest
-would never come); a result not yet drawn when a newer one arrives is skipped. A failure is
-told only while its request is the newest. The worker talks to the API through
-``client.plan`` and to the planner through a :class:`Sink`, so it runs under test with fakes
-of both.
+Asking, the Monte Carlo and drawing run on three threads, so the next request is on its way
+to the API while a result is drawn or success rates are computed. Every result newer than
+the screen is drawn, even when newer requests wait (during a drag that outpaces the API, a
+result that waited for the newest would never come); a result not yet drawn when a newer
+one arrives is skipped. A failure is told only while its request is the newest. The worker
+talks to the API through ``client.plan`` and to the planner through a :class:`Sink`, so it
+runs under test with fakes of both.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ class PlanClient(Protocol):
 
 class Sink(Protocol):
     """Where the worker's results go: the drawing thread calls every method one at a time,
-    except :meth:`success_rates_started`, which the asking thread calls."""
+    except :meth:`success_rates_started`, which the Monte Carlo's thread calls."""
 
     def plan_ready(self, req: Request, plan: Plan, final: bool) -> None:
         """A plan of ``req``: the quick one (``final`` False) or with its success rates."""
@@ -68,7 +68,8 @@ class Sink(Protocol):
 
 
 class Replanner:
-    """A thread asking the API for the newest request and one drawing the newest result;
+    """Threads asking the API for the newest request, for its success rates, and drawing the
+    newest result;
     ``lock`` guards the document the requests copy (the planner's, so an edit and a
     submission never interleave)."""
 
@@ -91,8 +92,12 @@ class Replanner:
         self._out_lock = threading.Lock()
         self._out_ready = threading.Event()
         self.skipped = 0  # results replaced before they were drawn
+        self.drawn_seq = 0  # the newest request whose result was handed to the sink
+        self._mc_req: Request | None = None  # the exact plan whose success rates come next
+        self._mc_ready = threading.Event()
         self._threads = [
             threading.Thread(target=self._loop, name="pickstop-replan-ask", daemon=True),
+            threading.Thread(target=self._mc_loop, name="pickstop-replan-mc", daemon=True),
             threading.Thread(target=self._draw_loop, name="pickstop-replan-draw", daemon=True),
         ]
         for t in self._threads:
@@ -121,6 +126,7 @@ class Replanner:
         self._stop = True
         self._wake.set()
         self._out_ready.set()
+        self._mc_ready.set()
         for t in self._threads:
             t.join(timeout)
 
@@ -139,16 +145,36 @@ class Replanner:
                     self._post("failed", req, plan)
                 continue
             self._post("quick", req, plan)
-            if req.preview:
-                continue
-            # The success rates wait until the engineer pauses: while a slider or a tray is
-            # still moving, a running Monte Carlo would hold up the next quick plan.
-            if self._wake.wait(self.mc_quiet) or self.newer(req):
+            if not req.preview:
+                with self._out_lock:
+                    self._mc_req = req
+                self._mc_ready.set()
+
+    # -- the Monte Carlo's thread ---------------------------------------------------------------
+    def _mc_loop(self) -> None:
+        """The success rates of the newest exact plan, once the engineer has paused: while a
+        slider or a tray is still moving, a Monte Carlo would slow the next quick plan. On a
+        thread of its own, so a request that comes while it runs is asked at once."""
+        while not self._stop:
+            self._mc_ready.wait()
+            self._mc_ready.clear()
+            with self._out_lock:
+                req, self._mc_req = self._mc_req, None
+            if req is None or self._stop or not self._quiet(req):
                 continue
             self.sink.success_rates_started(req)
             mc = self._ask(req, {**req.options, "samples": self.mc_samples}, False)
             if not self.newer(req):
                 self._post("mc failed" if isinstance(mc, ApiProblem) else "final", req, mc)
+
+    def _quiet(self, req: Request) -> bool:
+        """Wait ``mc_quiet`` seconds; False as soon as a request newer than ``req`` comes."""
+        end = time.monotonic() + self.mc_quiet
+        while time.monotonic() < end:
+            if self.newer(req) or self._stop:
+                return False
+            time.sleep(min(0.02, self.mc_quiet))
+        return not self.newer(req)
 
     def _post(self, kind: str, req: Request, payload: Any) -> None:
         """Hand a result to the drawing thread, replacing one it has not taken yet."""
@@ -168,6 +194,10 @@ class Replanner:
             if item is None or self._stop:
                 continue
             kind, req, payload = item
+            if req.seq < self.drawn_seq:  # an older request's answer, overtaken
+                self.skipped += 1
+                continue
+            self.drawn_seq = req.seq
             try:
                 if kind in ("quick", "final"):
                     self.sink.plan_ready(req, payload, final=kind == "final")

@@ -192,3 +192,31 @@ def test_close_stops_the_worker(window):
     r = Replanner(FakeApi(), window)
     r.close()
     assert not any(t.is_alive() for t in r._threads)
+
+
+def test_a_request_during_the_monte_carlo_is_asked_at_once(window):
+    """The success rates run beside the quick plans: a change while they are computed is
+    planned without waiting for them, and their result, now stale, is not drawn."""
+    api = FakeApi()
+    slow_mc = threading.Event()
+    plan0 = api.plan
+
+    def plan(scene, options, store=False, preview=False):
+        if options["samples"]:
+            slow_mc.wait(2)  # a long Monte Carlo
+        return plan0(scene, options, store, preview)
+
+    api.plan = plan  # type: ignore[method-assign]
+    r = Replanner(api, window, mc_samples=50, mc_quiet=0.05)
+    r.submit({"n": 1}, {"samples": 0}, "sigma")
+    time.sleep(0.3)  # the Monte Carlo of 1 is running
+    t0 = time.perf_counter()
+    window.done.clear()
+    r.submit({"n": 2}, {"samples": 0}, "sigma")
+    while not any(e[:2] == ("quick", 2) for e in window.events):
+        assert time.perf_counter() - t0 < 1.0, "the quick plan waited for the Monte Carlo"
+        time.sleep(0.01)
+    slow_mc.set()
+    _settle(r, 0.5)
+    assert ("final", 1) not in [e[:2] for e in window.events]
+    assert [e[:2] for e in window.events][-1] == ("final", 2)
