@@ -25,7 +25,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import viser
@@ -65,7 +65,6 @@ class PlannerState:
     mc_t0: float = 0.0  # when the running Monte Carlo started [s, perf_counter]
     busy: bool = False
     dirty: bool = False  # edited since the last save
-    history: list[dict[str, Any]] = field(default_factory=list)
 
 
 class PlannerApp:
