@@ -47,3 +47,7 @@ class CorruptShardError(DatabaseError):
 
 class QueryError(InputError):
     """A pose query is malformed (shape, NaN, non-unit quaternion)."""
+
+
+class UnavailableError(PickStopError):
+    """The work could not be done now, through no fault of the request: try again."""

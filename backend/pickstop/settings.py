@@ -60,6 +60,13 @@ class Settings(BaseSettings):
     workers: int = Field(
         default=1, ge=1, le=32, description="API processes sharing the port (pickstop serve)"
     )
+    planner_processes: int = Field(
+        default=1,
+        ge=0,
+        le=1,
+        description="child processes that compute plans, previews and regions, so that reads "
+        "never wait on a planner for the interpreter lock (0: threads of the API process)",
+    )
     job_deadline: float = Field(
         default=6 * 3600.0, gt=0, description="seconds a job may run (then it fails)"
     )

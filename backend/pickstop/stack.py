@@ -157,9 +157,12 @@ def start(
         sock.close()  # the workers hold it
         wait_healthy(api_url, server)
     else:
-        server = uvicorn.Server(
-            uvicorn.Config(create_app(settings), host=host, port=port, log_level=log_level)
+        from pickstop.api.workers import SERVER_OPTIONS
+
+        config = uvicorn.Config(
+            create_app(settings), host=host, port=port, log_level=log_level, **SERVER_OPTIONS
         )
+        server = uvicorn.Server(config)
         thread = threading.Thread(
             target=server.run, kwargs={"sockets": [sock]}, name="pickstop-api", daemon=True
         )

@@ -21,7 +21,8 @@ REF = "#/components/schemas/{model}"
 # Statuses any operation may answer, and when.
 COMMON: dict[int, str] = {
     500: "an unexpected server error (the detail never names server paths)",
-    503: "the computation was stopped (client gone, or shutting down)",
+    503: "the computation was stopped (client gone, or shutting down), or the planner "
+    "process restarted: try again",
 }
 BODY: dict[int, str] = {
     413: "the request body exceeds the limit (see /limits)",

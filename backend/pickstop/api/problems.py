@@ -19,6 +19,7 @@ from pickstop.errors import (
     DatabaseNotFoundError,
     InputError,
     PickStopError,
+    UnavailableError,
 )
 from pickstop.sequence.cover import InfeasiblePlanError
 
@@ -101,6 +102,9 @@ def from_error(e: PickStopError) -> Problem:
         return Problem(
             422, "Invalid input", e.message, kind="validation", field=e.field, errors=errors
         )
+    if isinstance(e, UnavailableError):
+        return Problem(503, "Unavailable", e.message, kind="unavailable",
+                       headers={"Retry-After": "5"})  # fmt: skip
     return Problem(500, "Internal error", e.message, kind="internal")
 
 

@@ -18,13 +18,14 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import shapely
 
 from pickstop.api import limits as lim
 from pickstop.api.body import type_errors
+from pickstop.api.planner_process import PlannerProcess
 from pickstop.api.problems import Problem
 from pickstop.api.work import Cancelled, Work
 from pickstop.errors import InputError, PickStopError, RobotConfigError
@@ -95,6 +96,9 @@ class Service:
         self.job_runner = job_runner
         self.interrupted = self.store.interrupt_stale_jobs() if job_runner else 0
         self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="pickstop-plan")
+        # Plans, previews and regions run in a child process (planner_process.py) unless the
+        # settings keep them on this process's threads.
+        self.remote = PlannerProcess(settings) if settings.planner_processes > 0 else None
         self._slots: dict[tuple[str, str], _Slot] = {}
         self._slots_lock = threading.Lock()
         self._jobs: queue.Queue[str | None] = queue.Queue()
@@ -116,6 +120,8 @@ class Service:
             self._jobs.put(None)
             self._job_thread.join(timeout=10)
         self.pool.shutdown(wait=False, cancel_futures=True)
+        if self.remote is not None:
+            self.remote.close()
         for slot in self._slots.values():
             slot.planner.regions.close()
 
@@ -343,7 +349,11 @@ class Service:
             return slot
 
     def preload(self) -> None:
-        """Load the default robot's planner if it has a database (at start-up)."""
+        """Load the default robot's planner if it has a database (at start-up); with a
+        planner process, start it (it loads the planner itself)."""
+        if self.remote is not None:
+            self.remote.start()
+            return
         try:
             from pickstop.loader import robot_for
 
@@ -362,6 +372,8 @@ class Service:
 
     @property
     def loaded(self) -> list[dict[str, Any]]:
+        if self.remote is not None:
+            return self.remote.loaded
         return [
             {"robot": s.planner.regions.robot.name, "database": s.planner.regions.db.id}
             for s in self._slots.values()
@@ -394,6 +406,8 @@ class Service:
         return body
 
     def plan(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
+        if self.remote is not None:
+            return cast(Plan, self.remote.call("plan", scene, options, db_id))
         slot = self.slot(scene, db_id)
         with slot.lock:
             plan = slot.planner.plan(scene, options)
@@ -404,6 +418,8 @@ class Service:
 
     def preview(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
         """An unverified plan to draw while the layout is edited (``StopPlanner.preview``)."""
+        if self.remote is not None:
+            return cast(Plan, self.remote.call("preview", scene, options, db_id))
         slot = self.slot(scene, db_id)
         with slot.lock:
             return slot.planner.preview(scene, options)
@@ -423,6 +439,9 @@ class Service:
         target: float = 0.95,
     ) -> dict[str, Any]:
         """Regions and intersections, each candidate judged as a plan with this rule would."""
+        if self.remote is not None:
+            out = self.remote.call("regions", scene, sigma, db_id, rule, target)
+            return cast(dict[str, Any], out)
         from pickstop.regions.geojson import region_feature
 
         slot = self.slot(scene, db_id)

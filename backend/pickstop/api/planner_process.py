@@ -1,0 +1,289 @@
+"""Plans, previews and regions computed in a child process, so the API's event loop never
+shares an interpreter lock with a planner.
+
+A plan is mostly Python and numpy holding the GIL: computed on a thread of the API process,
+it takes turns with the event loop every switch interval, and under load a reader waits for
+the planner and the planner for the readers. The service therefore hands each computation to
+:class:`PlannerProcess`: one child process (a fresh interpreter, never a fork of a threaded
+server) that runs its own :class:`~pickstop.api.service.Service` without a job runner or
+children of its own, and so the same robot registry, confinement, planners, caches and
+background centre checks. The reachability database is memory-mapped, so the child and the
+API share its pages instead of holding two copies.
+
+Calls block the calling thread (one of the service's planner threads) and wait in short
+polls, so the :class:`~pickstop.api.work.Cancelled` that the deadline or a disconnect raises
+in that thread arrives within a poll; the call then tells the child, which stops the
+computation the same way (:class:`~pickstop.api.work.Work`), and waits for its word before
+returning, so the next request is served at once. The child computes one request at a time,
+in order of arrival, as one planner lock did before. If the child dies, the calls waiting on
+it fail with a clear error and the next call starts a new child.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import logging
+import os
+import pickle
+import queue
+import socket
+import subprocess
+import sys
+import threading
+from concurrent.futures import Future
+from concurrent.futures import TimeoutError as FutureTimeout
+from multiprocessing.connection import Connection
+from typing import Any
+
+from pickstop.api.work import Cancelled, Work
+from pickstop.errors import PickStopError, UnavailableError
+from pickstop.settings import Settings
+
+log = logging.getLogger("pickstop.api")
+
+POLL = 0.05  # seconds between checks for a Cancelled while waiting on the child
+ACK_WAIT = 30.0  # seconds a stopped computation may take to unwind before the child restarts
+KINDS = ("plan", "preview", "regions")
+
+
+class PlannerProcessError(UnavailableError):
+    """The planner process stopped or could not be started."""
+
+
+class PlannerProcess:
+    """The child that computes for one service (see the module docstring)."""
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self._lock = threading.Lock()  # guards the child handle, the pending calls and sends
+        self._ids = itertools.count(1)
+        self._pending: dict[int, Future[Any]] = {}
+        self._proc: Any = None
+        self._conn: Connection | None = None
+        self._closed = False
+        #: what the child has loaded (``Service.loaded``), as it last said
+        self.loaded: list[dict[str, Any]] = []
+
+    # -- the parent side ----------------------------------------------------------------------
+    def start(self) -> None:
+        """Start the child now (it loads the default planner), instead of at the first call."""
+        with self._lock:
+            self._ensure()
+
+    def _ensure(self) -> Connection:
+        if self._closed:
+            raise PlannerProcessError("the service is shutting down")
+        if self._proc is not None and self._proc.poll() is None and self._conn is not None:
+            return self._conn
+        # A fresh interpreter (never a fork of a threaded server), given one end of a socket
+        # pair; it does not import the parent's main module, whatever started the service.
+        ours, theirs = socket.socketpair()
+        env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "from pickstop.api.planner_process import child_main; "
+             f"child_main({theirs.fileno()})"],
+            pass_fds=[theirs.fileno()],
+            env={**env, "PICKSTOP_CHILD_SETTINGS": self.settings.model_dump_json()},
+        )  # fmt: skip
+        theirs.close()
+        parent = Connection(ours.detach())
+        self._proc, self._conn = proc, parent
+        threading.Thread(target=self._read, args=(parent, proc), name="pickstop-planner-reader",
+                         daemon=True).start()  # fmt: skip
+        log.info("planner process %d started", proc.pid)
+        return parent
+
+    def _read(self, conn: Connection, proc: Any) -> None:
+        """Hand each answer of the child to the call waiting for it; fail them all if it dies."""
+        while True:
+            try:
+                rid, status, payload = conn.recv()
+            except (EOFError, OSError):
+                break
+            if status == "loaded":
+                self.loaded = payload
+                continue
+            with self._lock:
+                fut = self._pending.pop(rid, None)
+            if fut is None:
+                continue
+            if status == "ok":
+                fut.set_result(payload)
+            elif status == "cancelled":
+                fut.set_exception(Cancelled())
+            else:
+                fut.set_exception(_error(payload))
+        with self._lock:
+            if self._conn is conn:
+                self._proc, self._conn = None, None
+            orphans = list(self._pending.items()) if self._proc is None else []
+            for rid, _ in orphans:
+                self._pending.pop(rid, None)
+        code = proc.poll()
+        for _, fut in orphans:
+            if not fut.done():
+                fut.set_exception(PlannerProcessError(
+                    f"the planner process stopped (exit code {code}) during the computation; "
+                    "it is restarted for the next request"))  # fmt: skip
+        if not self._closed:
+            log.warning("planner process %s stopped (exit code %s)", proc.pid, code)
+
+    def call(self, kind: str, *args: Any) -> Any:
+        """``Service.<kind>(*args)`` computed in the child; blocks this thread until done."""
+        if kind not in KINDS:
+            raise ValueError(f"unknown planner call {kind!r}")
+        fut: Future[Any] = Future()
+        with self._lock:
+            conn = self._ensure()
+            rid = next(self._ids)
+            self._pending[rid] = fut
+            conn.send(("run", rid, kind, args))
+        try:
+            while True:
+                try:
+                    return fut.result(timeout=POLL)
+                except FutureTimeout:
+                    continue
+        except Cancelled:
+            self._stop(rid, fut)
+            raise
+
+    def _stop(self, rid: int, fut: Future[Any]) -> None:
+        """Stop request ``rid`` in the child and wait until it has let go of its planner."""
+        with self._lock:
+            conn = self._conn
+            if conn is not None and not fut.done():
+                with contextlib.suppress(OSError, ValueError):
+                    conn.send(("cancel", rid, None, None))
+        try:
+            fut.exception(timeout=ACK_WAIT)
+        except FutureTimeout:  # stuck in one native call: start afresh rather than queue behind
+            log.warning("planner process did not stop request %d in %g s; restarting it", rid,
+                        ACK_WAIT)  # fmt: skip
+            self._restart()
+
+    def _restart(self) -> None:
+        with self._lock:
+            proc = self._proc
+        if proc is not None:
+            proc.kill()
+            proc.wait(timeout=10)
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+            conn, proc = self._conn, self._proc
+            self._conn = self._proc = None
+        if conn is not None:
+            with contextlib.suppress(OSError, ValueError):
+                conn.send(("stop", 0, None, None))
+        if proc is not None:
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(timeout=5)
+
+    @property
+    def pid(self) -> int | None:
+        proc = self._proc
+        return proc.pid if proc is not None else None
+
+
+def _error(payload: bytes) -> BaseException:
+    try:
+        err = pickle.loads(payload)
+    except Exception:  # a class the parent cannot rebuild: keep its words
+        return PlannerProcessError("the planner failed with an error that could not be passed on")
+    return err if isinstance(err, BaseException) else PlannerProcessError(str(err))
+
+
+def _dump_error(e: BaseException) -> bytes:
+    """``e`` pickled, or a :class:`PickStopError` with its message and field if it won't."""
+    try:
+        data = pickle.dumps(e)
+        pickle.loads(data)
+        return data
+    except Exception:
+        msg = getattr(e, "message", None) or f"{type(e).__name__}: {e}"
+        return pickle.dumps(PickStopError(str(msg), field=getattr(e, "field", None)))
+
+
+# -- the child side --------------------------------------------------------------------------
+def child_main(fd: int) -> None:
+    """The child: serve the parent's calls on the socket ``fd`` until it says stop or goes
+    away."""
+    from pickstop.api.workers import _die_with_parent
+
+    _die_with_parent()
+    from pickstop.api.service import Service
+
+    conn = Connection(fd)
+    settings = Settings.model_validate_json(os.environ.pop("PICKSTOP_CHILD_SETTINGS"))
+    service = Service(settings.model_copy(update={"planner_processes": 0}), job_runner=False)
+    try:
+        service.preload()
+        _serve(conn, service)
+    finally:
+        service.close()
+
+
+def _serve(conn: Connection, service: Any) -> None:
+    todo: queue.Queue[tuple[int, str, tuple[Any, ...]] | None] = queue.Queue()
+    dropped: set[int] = set()
+    current: list[Any] = [None, None]  # [request id, Work] being computed
+    state = threading.Lock()
+    send_lock = threading.Lock()
+
+    def send(msg: tuple[Any, ...]) -> None:
+        with send_lock, contextlib.suppress(OSError, ValueError):
+            conn.send(msg)
+
+    def compute() -> None:
+        while (item := todo.get()) is not None:
+            rid, kind, args = item
+            work = Work()
+            with state:
+                if rid in dropped:
+                    dropped.discard(rid)
+                    send((rid, "cancelled", None))
+                    continue
+                current[:] = [rid, work]
+            try:
+                out = work.run(getattr(service, kind), *args)
+                send((rid, "ok", out))
+            except Cancelled:
+                send((rid, "cancelled", None))
+            except BaseException as e:
+                send((rid, "error", _dump_error(e)))
+            finally:
+                with state:
+                    current[:] = [None, None]
+                send((0, "loaded", service.loaded))
+
+    send((0, "loaded", service.loaded))
+    worker = threading.Thread(target=compute, name="pickstop-planner-compute", daemon=True)
+    worker.start()
+    while True:
+        try:
+            op, rid, kind, args = conn.recv()
+        except (EOFError, OSError):
+            break
+        if op == "run":
+            todo.put((rid, kind, args))
+        elif op == "cancel":
+            with state:
+                if current[0] == rid:
+                    current[1].stop()
+                else:  # not started yet (or already answered: then the id is never seen)
+                    if len(dropped) > 1024:
+                        dropped.clear()
+                    dropped.add(rid)
+        elif op == "stop":
+            break
+    with state:
+        if current[1] is not None:
+            current[1].stop()
+    todo.put(None)
+    worker.join(timeout=5)

@@ -1,0 +1,58 @@
+"""Plans are computed in a child process (api/planner_process.py): the API process holds no
+planner, a child that dies is reported as 503 and replaced, and errors come back typed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+from fastapi.testclient import TestClient
+
+from pickstop.api.app import create_app
+
+from .conftest import AUTH
+from .factories import paper, problem
+
+PLANS = "/api/v1/plans"
+
+
+def test_plans_are_computed_in_a_child_process(client, region_db):
+    service = client.app.state.service
+    quick = {"scene": paper(), "options": {"samples": 0}, "store": False}
+    assert client.post(PLANS, json=quick, headers=AUTH).status_code == 200
+    assert service.remote is not None
+    pid = service.remote.pid
+    assert pid is not None and pid != os.getpid()
+    assert not service._slots, "the API process loaded a planner of its own"
+    health = client.get("/api/v1/health").json()
+    assert {"robot": "tiago", "database": region_db[1].id} in health["loaded"]
+    # Errors raised in the child arrive as the same problems: an infeasible plan is a 422.
+    tight = {"scene": paper(), "options": {"sigma": 0.9, "samples": 0}, "store": False}
+    body = problem(client.post(PLANS, json=tight, headers=AUTH), 422)
+    assert body["title"] == "Infeasible plan"
+
+
+def test_a_planner_process_that_dies_is_reported_and_replaced(api_settings):
+    with TestClient(create_app(api_settings)) as c:
+        service = c.app.state.service
+        quick = {"scene": paper(), "options": {"samples": 0}, "store": False}
+        assert c.post(PLANS, json=quick, headers=AUTH).status_code == 200
+        first = service.remote.pid
+        seed = time.time_ns() % 2**31  # nothing cached: a Monte Carlo of several seconds
+        heavy = {"scene": paper(), "options": {"samples": 20000, "seed": seed}, "store": False}
+        answer: list[object] = []
+        worker = threading.Thread(
+            target=lambda: answer.append(c.post(PLANS, json=heavy, headers=AUTH))
+        )
+        worker.start()
+        time.sleep(1.0)
+        os.kill(first, signal.SIGKILL)
+        worker.join(timeout=60)
+        body = problem(answer[0], 503)  # type: ignore[arg-type]
+        assert "planner process stopped" in body["detail"], body
+        assert answer[0].headers["Retry-After"] == "5"  # type: ignore[attr-defined]
+        r = c.post(PLANS, json=quick, headers=AUTH)
+        assert r.status_code == 200, r.text
+        assert service.remote.pid not in (None, first)
