@@ -25,7 +25,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.loader import planner_for
-from pickstop.regions.base_region import compute_tray_region
+from pickstop.regions.pipeline import compute_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.sequence.plan import StopPlanner, world_key
 from pickstop.sequence.plan_model import PlanOptions

@@ -30,8 +30,8 @@ from pickstop.reach.batch_ik import refine_batch
 from pickstop.reach.database import RANK_LENGTH
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import nearby, screen_arm
-from pickstop.regions.base_region import RegionPlanner
 from pickstop.regions.cells import CellGrid
+from pickstop.regions.planner import RegionPlanner
 from pickstop.regions.reference import (
     ORACLE_SEEDS,
     baseline_region,

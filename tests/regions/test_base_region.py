@@ -201,7 +201,7 @@ def test_top_down_grasp_targets_point_down(planner, paper_doc):
 
 
 def test_feasible_at_agrees_with_the_grid(planner, paper_doc):
-    from pickstop.regions.base_region import feasible_at, feasible_near
+    from pickstop.regions.offgrid import feasible_at, feasible_near
 
     scene = parse_scene(paper_doc)
     region = planner.tray_region(scene, "tray_2")
@@ -282,8 +282,8 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
     """Cells the database pass did not reach are grown into from solved neighbours, and
     every grown cell carries a witness that passes the exact checks."""
     from pickstop.regions import solve
-    from pickstop.regions.base_region import tray_world
     from pickstop.regions.envelope import Envelope
+    from pickstop.regions.pipeline import tray_world
     from pickstop.regions.reference import verify_witnesses
 
     scene = parse_scene(paper_doc)
@@ -318,7 +318,7 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
 
 
 def test_witnesses_clear_sees_an_object_on_a_witness_arm(planner, paper_doc):
-    from pickstop.regions.base_region import witnesses_clear
+    from pickstop.regions.validity import witnesses_clear
     from pickstop.robot.kinematics import Chain, fk_soa
     from pickstop.scene.world import Solid
 
@@ -366,8 +366,8 @@ def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, m
     With a screen that flags everything, the cells are still solved, by coal alone, and each
     witness holds exactly: on its grasp, free of the scene and of itself."""
     from pickstop.regions import solve
-    from pickstop.regions.base_region import tray_world
     from pickstop.regions.envelope import Envelope
+    from pickstop.regions.pipeline import tray_world
     from pickstop.regions.reference import pose_ok
 
     scene = parse_scene(paper_doc)

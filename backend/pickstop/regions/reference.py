@@ -25,9 +25,10 @@ from pickstop import frames
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
 from pickstop.regions.arm import screen_arm
-from pickstop.regions.base_region import RegionPlanner, tray_world
 from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.footprint import footprint_free
+from pickstop.regions.pipeline import tray_world
+from pickstop.regions.planner import RegionPlanner
 from pickstop.regions.solve import Targets
 from pickstop.robot.kinematics import fk, fk_soa
 from pickstop.robot.screen import screen

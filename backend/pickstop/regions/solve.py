@@ -18,15 +18,16 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import ArmSpheres, ExactArm, screen_arm
+from pickstop.regions.arm import screen_arm
 from pickstop.regions.envelope import Envelope
+from pickstop.regions.kit import RegionKit
 from pickstop.regions.reuse import RefineMemo
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
@@ -44,18 +45,6 @@ GROW_ITERATIONS = 20  # a seed for another grasp turns the wrist: 0.3 rad per st
 REFINE_GIVE_UP = ((3, 0.01),)  # after 3 iterations, candidates still 1 cm off stop
 GROW_GIVE_UP = ((5, 0.02), (10, 0.003))
 GROW_WAVES = 12  # rings of cells grown at most
-
-
-class RegionKit(Protocol):
-    """What solving needs of a region planner (:class:`~pickstop.regions.base_region.
-    RegionPlanner` is one): the database, the IK solver and the collision checks."""
-
-    db: ReachDatabase
-    solver: BatchSolver
-    arm: ArmSpheres
-    exact_arm: ExactArm
-    self_spheres: Any
-    exact_self: Any
 
 
 @dataclass(frozen=True)
