@@ -54,7 +54,7 @@ SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
 
 def _fresh(planner: RegionPlanner) -> None:
     """Forget cached regions and grasps, so the next call computes everything."""
-    planner.cache.clear()
+    planner.forget()
     planner.grasp_cache.clear()
 
 

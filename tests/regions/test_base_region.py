@@ -219,9 +219,9 @@ def test_feasible_at_agrees_with_the_grid(planner, paper_doc):
 
 def test_parallel_regions_equal_serial(planner, paper_doc):
     scene = parse_scene(paper_doc)
-    planner.cache.clear()
+    planner.forget()
     serial = planner.regions(scene, workers=1)
-    planner.cache.clear()
+    planner.forget()  # nor the layout's regions: the workers compute every one
     try:
         parallel = planner.regions(scene, workers=2)
     finally:
