@@ -26,9 +26,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 
+from pickstop.frames import R_base_world
 from pickstop.reach.batch_ik import refine_batch
 from pickstop.reach.database import RANK_LENGTH
-from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import nearby, screen_arm
 from pickstop.regions.cells import CellGrid
 from pickstop.regions.planner import RegionPlanner
@@ -36,11 +36,10 @@ from pickstop.regions.reference import (
     ORACLE_SEEDS,
     baseline_region,
     comparison_cells,
-    grasp_targets,
     oracle_region,
     verify_witnesses,
 )
-from pickstop.regions.solve import MAX_ROUNDS, REFINE_ITERATIONS, WINDOW
+from pickstop.regions.solve import MAX_ROUNDS, REFINE_ITERATIONS, WINDOW, Targets
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import load
 from pickstop.scene.load import load_scene, parse_scene
@@ -81,8 +80,8 @@ def explain_misses(
     for i in range(len(missed)):
         cause = "free candidates refine for every part: refined pose flagged or colliding"
         for gs in planner.grasps(scene, tray):
-            R, p = grasp_targets(gs, yaw, cen[i : i + 1])
-            q = matrices_to_quats(R)
+            tg = Targets.of(gs, cen[i : i + 1], R_base_world(yaw))
+            R, p, q = tg.Rs_base_tool, tg.ps_base_tool, tg.qs_base_tool
             starts, ends = db.lookup(p[0], q)
             rows = np.concatenate([np.arange(s, e) for s, e in zip(starts, ends, strict=True)])
             g = np.repeat(np.arange(len(q)), ends - starts)

@@ -16,7 +16,6 @@ import math
 import time
 
 import numpy as np
-import shapely
 
 from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.footprint import footprint_free
@@ -55,24 +54,19 @@ def carried_regions(
     out = []
     for (_, region), (keep, ix, iy), ok in zip(known, moved, fits, strict=True):
         keep, ix, iy = keep[ok], ix[ok], iy[ok]
-        mask = np.zeros((grid.ny, grid.nx), bool)
-        mask[iy, ix] = True
         out.append(
-            TrayRegion(
+            TrayRegion.of_cells(
                 region.tray_id,
                 region.yaw,
                 grid,
-                mask,
                 np.stack([iy, ix], 1),
                 region.part_ids,
                 region.thetas[keep],
                 region.grasp_index[keep],
-                grid.cells_polygon(iy, ix) if len(ix) else shapely.Polygon(),
                 {"carried": len(region.cells), "footprint_free": len(ix)},
                 None if len(ix) else f"tray {region.tray_id!r}: no carried cell has room",
                 time.perf_counter() - t0,
                 f"carried:{region.key}",
-                None,
             )
         )
     return out
