@@ -230,6 +230,29 @@ def test_parallel_regions_equal_serial(planner, paper_doc):
     for k in serial:
         np.testing.assert_array_equal(serial[k].mask, parallel[k].mask)
         np.testing.assert_allclose(serial[k].thetas, parallel[k].thetas)
+        assert parallel[k] is not serial[k]  # computed by a worker, not taken from a memo
+
+
+def test_forget_drops_every_kept_region(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    first = planner.regions(scene)
+    again = planner.regions(scene)
+    assert all(again[k] is first[k] for k in first)  # the layout's regions, as they were
+    assert planner.known_regions(scene, list(first)).keys() == first.keys()
+    planner.forget()
+    assert planner.known_regions(scene, list(first)) == {}
+    fresh = planner.regions(scene)
+    for k in first:
+        assert fresh[k] is not first[k]
+        np.testing.assert_array_equal(fresh[k].cells, first[k].cells)
+        np.testing.assert_array_equal(fresh[k].thetas, first[k].thetas)
+
+
+def test_region_workers_want_a_process(planner):
+    from pickstop.regions.workers import RegionWorkers
+
+    with pytest.raises(ValueError, match="processes must be at least 1, got 0"):
+        RegionWorkers(planner, 0)
 
 
 def test_touching_cells_merge_into_one_polygon():

@@ -17,7 +17,16 @@ from pickstop.regions.footprint import footprint_free
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import tray_world
 from pickstop.regions.solve import ArmWorld, Targets
-from pickstop.scene.model import Scene
+from pickstop.scene.model import Scene, Tray
+
+
+def _arm_world(
+    planner: RegionKit, scene: Scene, tray: Tray, yaw: float
+) -> tuple[ArmWorld, np.ndarray]:
+    """What the arm is checked against near ``tray`` at ``yaw`` [rad], and R_base_world."""
+    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
+    env = Envelope.empty(scene.floor.min, scene.floor.max)  # a check records nothing
+    return ArmWorld(boxes, solids, yaw, env, scene.floor_clearance), R_base_world
 
 
 def feasible_at(
@@ -37,10 +46,7 @@ def feasible_at(
     alive = np.flatnonzero(footprint_free(scene, planner.robot, xy, yaw))
     if not P:
         return np.zeros(M, bool), thetas, grasp
-    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
-    world = ArmWorld(
-        boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max), scene.floor_clearance
-    )
+    world, R_base_world = _arm_world(planner, scene, tray, yaw)
     for k, gs in enumerate(planner.grasps(scene, tray)):
         if len(alive) == 0 or len(gs.Ts_world_tool) == 0:
             return np.zeros(M, bool), thetas, grasp
@@ -79,10 +85,7 @@ def feasible_near(
     if not len(todo):
         return ok, thetas, grasp
     tray = scene.tray(region.tray_id)
-    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
-    world = ArmWorld(
-        boxes, solids, yaw, Envelope.empty(scene.floor.min, scene.floor.max), scene.floor_clearance
-    )
+    world, R_base_world = _arm_world(planner, scene, tray, yaw)
     cells_xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
     S = min(NEIGHBOUR_SEEDS, len(cells_xy))
     d2 = ((xy[todo, None, :] - cells_xy[None]) ** 2).sum(-1)
