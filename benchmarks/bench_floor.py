@@ -122,7 +122,7 @@ def _regions(planner, doc: dict) -> None:
 
 def _plan(planner, doc: dict, samples: int) -> None:
     scene = parse_scene(doc)
-    planner.cache.clear()
+    planner.forget()
     sp = StopPlanner(planner)
     t0 = time.perf_counter()
     try:

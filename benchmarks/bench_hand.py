@@ -25,7 +25,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.loader import planner_for
-from pickstop.regions.base_region import compute_tray_region
+from pickstop.regions.pipeline import compute_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.sequence.plan import StopPlanner, world_key
 from pickstop.sequence.plan_model import PlanOptions
@@ -68,9 +68,7 @@ def main() -> None:
         compute_tray_region(planner, paper, tray, yaw)
 
     def all_factory() -> None:
-        planner.cache.clear()
-        planner._last.clear()  # nor reused from the trays as they last stood, or the layout
-        planner._layouts.clear()
+        planner.forget()  # nor reused from the trays as they last stood, or the layout
         planner.regions(factory)
 
     sp = StopPlanner(planner)
@@ -110,9 +108,7 @@ def main() -> None:
     if args.dump:
         out = {}
         for name, scene in scenes.items():
-            planner.cache.clear()
-            planner._last.clear()
-            planner._layouts.clear()
+            planner.forget()
             for r in planner.regions(scene).values():
                 out[f"{name}/{r.tray_id}/{r.yaw:.6f}"] = {
                     "cells": r.cells.tolist(),

@@ -35,7 +35,7 @@ t0 = time.perf_counter()
 from pathlib import Path
 from pickstop.store.reach_catalog import open_database
 from pickstop.loader import robot_for
-from pickstop.regions.base_region import RegionPlanner
+from pickstop.regions.planner import RegionPlanner
 from pickstop.robot.config import resolve_robot
 from pickstop.scene.load import load_scene
 from pickstop.settings import cache_dir

@@ -101,7 +101,7 @@ def main() -> None:
     factory = scenes["factory_cell"]
     scratch = []
     for _ in range(3):
-        regions.cache.clear()
+        regions.forget()
         fresh = StopPlanner(regions)
         t0 = time.perf_counter()
         p = fresh.plan(factory, PlanOptions(samples=0))

@@ -26,21 +26,20 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 
+from pickstop.frames import R_base_world
 from pickstop.reach.batch_ik import refine_batch
 from pickstop.reach.database import RANK_LENGTH
-from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import nearby, screen_arm
-from pickstop.regions.base_region import RegionPlanner
 from pickstop.regions.cells import CellGrid
+from pickstop.regions.planner import RegionPlanner
 from pickstop.regions.reference import (
     ORACLE_SEEDS,
     baseline_region,
     comparison_cells,
-    grasp_targets,
     oracle_region,
     verify_witnesses,
 )
-from pickstop.regions.solve import MAX_ROUNDS, REFINE_ITERATIONS, WINDOW
+from pickstop.regions.solve import MAX_ROUNDS, REFINE_ITERATIONS, WINDOW, Targets
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import load
 from pickstop.scene.load import load_scene, parse_scene
@@ -54,7 +53,7 @@ SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
 
 def _fresh(planner: RegionPlanner) -> None:
     """Forget cached regions and grasps, so the next call computes everything."""
-    planner.cache.clear()
+    planner.forget()
     planner.grasp_cache.clear()
 
 
@@ -81,8 +80,8 @@ def explain_misses(
     for i in range(len(missed)):
         cause = "free candidates refine for every part: refined pose flagged or colliding"
         for gs in planner.grasps(scene, tray):
-            R, p = grasp_targets(gs, yaw, cen[i : i + 1])
-            q = matrices_to_quats(R)
+            tg = Targets.of(gs, cen[i : i + 1], R_base_world(yaw))
+            R, p, q = tg.Rs_base_tool, tg.ps_base_tool, tg.qs_base_tool
             starts, ends = db.lookup(p[0], q)
             rows = np.concatenate([np.arange(s, e) for s, e in zip(starts, ends, strict=True)])
             g = np.repeat(np.arange(len(q)), ends - starts)

@@ -19,7 +19,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.loader import planner_for
-from pickstop.regions.base_region import compute_tray_region
+from pickstop.regions.pipeline import compute_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.settings import data_dir
 
@@ -58,7 +58,7 @@ def main() -> None:
     five = parse_scene(five_doc)
 
     def all_five() -> None:
-        planner.cache.clear()
+        planner.forget()
         planner.regions(five)
 
     planner.regions(five)  # grasps cached, as in a running service
@@ -67,14 +67,14 @@ def main() -> None:
     )
 
     def all_five_parallel() -> None:
-        planner.cache.clear()
+        planner.forget()
         planner.regions(five, workers=2)
 
     all_five_parallel()  # start the workers and warm their grasp caches
     print(f"five-tray scene, all regions, 2 processes: {best(all_five_parallel):.3f} s")
 
     def move_one(workers: int) -> None:
-        planner.cache.clear()
+        planner.forget()
         before = planner.regions(five, workers=workers)
         doc = json.loads(json.dumps(five_doc))
         doc["trays"][4]["pose"]["x"] += 0.3
@@ -97,7 +97,7 @@ def main() -> None:
     planner.close()
 
     cell = parse_scene(json.loads((SCENES / "factory_cell.json").read_text()))
-    planner.cache.clear()
+    planner.forget()
     planner.grasp_cache.clear()
     t = time.perf_counter()
     regs = planner.regions(cell)

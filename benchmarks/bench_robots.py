@@ -59,7 +59,7 @@ def bench(ref: str, samples: int, folder: Path) -> None:
 
 def paper(ref: str, robot, row: dict, folder: Path) -> None:
     """Regions and plan of the paper-like scene with ``robot`` (its database of ``row``)."""
-    from pickstop.regions.base_region import RegionPlanner
+    from pickstop.regions.planner import RegionPlanner
     from pickstop.scene.load import parse_scene
     from pickstop.sequence.cover import InfeasiblePlanError
     from pickstop.sequence.plan import StopPlanner

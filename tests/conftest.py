@@ -52,7 +52,7 @@ def region_db(tmp_path_factory, tiago):
 
 @pytest.fixture(scope="session")
 def planner(region_db, tiago):
-    from pickstop.regions.base_region import RegionPlanner
+    from pickstop.regions.planner import RegionPlanner
     from pickstop.settings import cache_dir
 
     folder, db = region_db

@@ -41,7 +41,7 @@ def assert_stop_verified(planner, scene, stop) -> None:
     the robot against itself."""
     import math
 
-    from pickstop.regions.base_region import tray_world
+    from pickstop.regions.pipeline import tray_world
     from pickstop.robot.kinematics import fk
 
     c, s_ = math.cos(stop.yaw), math.sin(stop.yaw)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pickstop.regions.base_region import RegionPlanner
+from pickstop.regions.planner import RegionPlanner
 from pickstop.robot.config import RobotConfig, load_config, resolve_robot
 from pickstop.robot.model import RobotModel, load_robot
 from pickstop.scene.model import Scene

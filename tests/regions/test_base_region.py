@@ -201,7 +201,7 @@ def test_top_down_grasp_targets_point_down(planner, paper_doc):
 
 
 def test_feasible_at_agrees_with_the_grid(planner, paper_doc):
-    from pickstop.regions.base_region import feasible_at, feasible_near
+    from pickstop.regions.offgrid import feasible_at, feasible_near
 
     scene = parse_scene(paper_doc)
     region = planner.tray_region(scene, "tray_2")
@@ -219,9 +219,9 @@ def test_feasible_at_agrees_with_the_grid(planner, paper_doc):
 
 def test_parallel_regions_equal_serial(planner, paper_doc):
     scene = parse_scene(paper_doc)
-    planner.cache.clear()
+    planner.forget()
     serial = planner.regions(scene, workers=1)
-    planner.cache.clear()
+    planner.forget()  # nor the layout's regions: the workers compute every one
     try:
         parallel = planner.regions(scene, workers=2)
     finally:
@@ -230,6 +230,29 @@ def test_parallel_regions_equal_serial(planner, paper_doc):
     for k in serial:
         np.testing.assert_array_equal(serial[k].mask, parallel[k].mask)
         np.testing.assert_allclose(serial[k].thetas, parallel[k].thetas)
+        assert parallel[k] is not serial[k]  # computed by a worker, not taken from a memo
+
+
+def test_forget_drops_every_kept_region(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    first = planner.regions(scene)
+    again = planner.regions(scene)
+    assert all(again[k] is first[k] for k in first)  # the layout's regions, as they were
+    assert planner.known_regions(scene, list(first)).keys() == first.keys()
+    planner.forget()
+    assert planner.known_regions(scene, list(first)) == {}
+    fresh = planner.regions(scene)
+    for k in first:
+        assert fresh[k] is not first[k]
+        np.testing.assert_array_equal(fresh[k].cells, first[k].cells)
+        np.testing.assert_array_equal(fresh[k].thetas, first[k].thetas)
+
+
+def test_region_workers_want_a_process(planner):
+    from pickstop.regions.workers import RegionWorkers
+
+    with pytest.raises(ValueError, match="processes must be at least 1, got 0"):
+        RegionWorkers(planner, 0)
 
 
 def test_touching_cells_merge_into_one_polygon():
@@ -282,8 +305,8 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
     """Cells the database pass did not reach are grown into from solved neighbours, and
     every grown cell carries a witness that passes the exact checks."""
     from pickstop.regions import solve
-    from pickstop.regions.base_region import tray_world
     from pickstop.regions.envelope import Envelope
+    from pickstop.regions.pipeline import tray_world
     from pickstop.regions.reference import verify_witnesses
 
     scene = parse_scene(paper_doc)
@@ -318,7 +341,7 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
 
 
 def test_witnesses_clear_sees_an_object_on_a_witness_arm(planner, paper_doc):
-    from pickstop.regions.base_region import witnesses_clear
+    from pickstop.regions.validity import witnesses_clear
     from pickstop.robot.kinematics import Chain, fk_soa
     from pickstop.scene.world import Solid
 
@@ -366,8 +389,8 @@ def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, m
     With a screen that flags everything, the cells are still solved, by coal alone, and each
     witness holds exactly: on its grasp, free of the scene and of itself."""
     from pickstop.regions import solve
-    from pickstop.regions.base_region import tray_world
     from pickstop.regions.envelope import Envelope
+    from pickstop.regions.pipeline import tray_world
     from pickstop.regions.reference import pose_ok
 
     scene = parse_scene(paper_doc)

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from pickstop.regions.base_region import compute_tray_region
+from pickstop.regions.pipeline import compute_tray_region
 from pickstop.regions.reuse import ReuseCache, TrayAnchor
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import SceneError

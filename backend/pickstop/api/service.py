@@ -29,7 +29,7 @@ from pickstop.api.planner_process import PlannerProcess
 from pickstop.api.problems import Problem
 from pickstop.api.work import Cancelled, Work
 from pickstop.errors import InputError, PickStopError, RobotConfigError
-from pickstop.regions.base_region import RegionPlanner
+from pickstop.regions.planner import RegionPlanner
 from pickstop.robot.config import (
     RobotConfig,
     example_robot_data_share,

@@ -1,6 +1,6 @@
 """Is a tray's every part still graspable from where the base actually stopped?
 
-The plan's own off-grid test (:func:`pickstop.regions.base_region.feasible_near`: footprint,
+The plan's own off-grid test (:func:`pickstop.regions.offgrid.feasible_near`: footprint,
 IK by query, refinement seeded by the region's nearest verified cells, exact collision checks),
 the one its stop centres and Monte Carlo samples pass, at the real pose instead of a sample.
 """
@@ -13,8 +13,9 @@ from collections import OrderedDict
 import numpy as np
 
 from pickstop.frames import angle_gap
-from pickstop.regions.base_region import RegionPlanner, feasible_near
 from pickstop.regions.cells import TrayRegion
+from pickstop.regions.offgrid import feasible_near
+from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene
 
 CACHE = 4096  # results kept per checker (poses repeat across runs only by chance)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import coal
 import numpy as np
@@ -19,6 +18,7 @@ import pinocchio as pin
 
 from pickstop import frames
 from pickstop.frames import rot2
+from pickstop.regions.envelope import Envelope
 from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
@@ -127,7 +127,7 @@ def screen_arm(
     frames: list[tuple[np.ndarray, np.ndarray]],
     base_xy: np.ndarray,
     yaw: float,
-    envelope: Any = None,
+    envelope: Envelope | None = None,
     targets: Sequence[str] | np.ndarray | str | None = None,
     floor: float | None = None,
 ) -> np.ndarray:
@@ -306,7 +306,9 @@ class ExactArm:
         return hit
 
 
-def nearby(solids: list[Solid], centre: Any, radius: float) -> list[Solid]:
+def nearby(
+    solids: list[Solid], centre: np.ndarray | tuple[float, float], radius: float
+) -> list[Solid]:
     """Solids whose bounding box comes within ``radius`` of ``centre`` in the floor plane."""
     c = np.asarray(centre, dtype=float)[:2]
     out = []

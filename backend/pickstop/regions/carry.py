@@ -10,11 +10,12 @@ exact region replaces it when the tray is released.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import time
 
 import numpy as np
-import shapely
 
 from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.footprint import footprint_free
@@ -53,24 +54,68 @@ def carried_regions(
     out = []
     for (_, region), (keep, ix, iy), ok in zip(known, moved, fits, strict=True):
         keep, ix, iy = keep[ok], ix[ok], iy[ok]
-        mask = np.zeros((grid.ny, grid.nx), bool)
-        mask[iy, ix] = True
         out.append(
-            TrayRegion(
+            TrayRegion.of_cells(
                 region.tray_id,
                 region.yaw,
                 grid,
-                mask,
                 np.stack([iy, ix], 1),
                 region.part_ids,
                 region.thetas[keep],
                 region.grasp_index[keep],
-                grid.cells_polygon(iy, ix) if len(ix) else shapely.Polygon(),
                 {"carried": len(region.cells), "footprint_free": len(ix)},
                 None if len(ix) else f"tray {region.tray_id!r}: no carried cell has room",
                 time.perf_counter() - t0,
                 f"carried:{region.key}",
-                None,
             )
         )
     return out
+
+
+class LastRegions:
+    """The last region computed for each tray, with the tray as it stood: what a preview
+    carries. Keyed by tray id, yaw and what the tray is (its pose aside), the newest last."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size  # regions kept
+        self._by_tray: dict[tuple[str, float, str], tuple[Tray, TrayRegion]] = {}
+
+    def remember(self, scene: Scene, region: TrayRegion) -> None:
+        """Keep ``region``, computed in ``scene``, as its tray's last."""
+        key = (region.tray_id, region.yaw, carry_key(scene, region.tray_id))
+        self._by_tray.pop(key, None)
+        self._by_tray[key] = (scene.tray(region.tray_id), region)
+        if len(self._by_tray) > self.size:
+            self._by_tray.pop(next(iter(self._by_tray)))
+
+    def carried(
+        self, robot: RobotModel, scene: Scene, pairs: list[tuple[str, float]]
+    ) -> dict[tuple[str, float], TrayRegion]:
+        """For each ``(tray id, yaw)`` remembered: its last region carried to where the tray
+        stands in ``scene`` (:func:`carried_regions`)."""
+        known = []
+        for p in pairs:
+            hit = self._by_tray.get((*p, carry_key(scene, p[0])))
+            if hit is not None:
+                known.append((p, hit))
+        carried = carried_regions(robot, scene, [k for _, k in known])
+        return {p: r for (p, _), r in zip(known, carried, strict=True)}
+
+    def clear(self) -> None:
+        self._by_tray.clear()
+
+
+def carry_key(scene: Scene, tray_id: str) -> str:
+    """What a region carried with its tray must share with the region it was computed as: the
+    tray itself but for its pose, and the scene's settings every region depends on. A tray of
+    the same id in another scene, or with other parts, is another tray."""
+    tray = scene.tray(tray_id).model_dump(mode="json", exclude={"pose"})
+    blob = [
+        tray,
+        *(
+            scene.model_dump(
+                mode="json", include={"robot", "gripper", "base_grid", "floor_clearance"}
+            ).values()
+        ),
+    ]
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()

@@ -73,3 +73,75 @@ class TrayRegion:
     def area(self) -> float:
         """[m^2]"""
         return float(len(self.cells)) * self.grid.res**2
+
+    @classmethod
+    def of_cells(
+        cls,
+        tray_id: str,
+        yaw: float,
+        grid: CellGrid,
+        cells: np.ndarray,
+        part_ids: tuple[str, ...],
+        thetas: np.ndarray,
+        grasp_index: np.ndarray,
+        counts: dict[str, int],
+        reason: str | None,
+        seconds: float,
+        key: str = "",
+        envelope: Envelope | None = None,
+    ) -> TrayRegion:
+        """The region of feasible ``cells: (K, 2)`` (iy, ix) of ``grid``, their witnesses
+        ``thetas: (K, P, dof)`` and grasps ``grasp_index: (K, P)``; mask and polygon follow."""
+        K, P = len(cells), len(part_ids)
+        assert cells.shape == (K, 2) and thetas.shape[:2] == (K, P)
+        assert grasp_index.shape == (K, P)
+        mask = np.zeros((grid.ny, grid.nx), bool)
+        mask[cells[:, 0], cells[:, 1]] = True
+        polygon = grid.cells_polygon(cells[:, 0], cells[:, 1])
+        return cls(
+            tray_id,
+            yaw,
+            grid,
+            mask,
+            cells,
+            part_ids,
+            thetas,
+            grasp_index,
+            polygon,
+            counts,
+            reason,
+            seconds,
+            key,
+            envelope,
+        )
+
+    @classmethod
+    def empty(
+        cls,
+        tray_id: str,
+        yaw: float,
+        grid: CellGrid,
+        part_ids: tuple[str, ...],
+        dof: int,
+        counts: dict[str, int],
+        reason: str,
+        seconds: float,
+        key: str = "",
+        envelope: Envelope | None = None,
+    ) -> TrayRegion:
+        """No feasible cell, and ``reason`` why."""
+        P = len(part_ids)
+        return cls.of_cells(
+            tray_id,
+            yaw,
+            grid,
+            np.zeros((0, 2), int),
+            part_ids,
+            np.zeros((0, P, dof)),
+            np.zeros((0, P), int),
+            counts,
+            reason,
+            seconds,
+            key,
+            envelope,
+        )

@@ -5,10 +5,13 @@ solution per (cell, part, grasp) from a fixed seed, then an exact collision chec
 solution. ``oracle_region`` is dense multi-start IK: many uniform random seeds per (cell, part,
 grasp), escalated only where nothing valid was found yet, every converged solution checked.
 
-Both see what production sees: the same grid, yaw, footprint-free cells within reach, grasps,
-and collision model (arm links against the scene solids, enabled link pairs against each
-other). The sphere screens decide nothing but "surely free"; whatever they flag goes to coal.
-Witnesses are judged on the numpy FK (1 mm, 0.5 deg) and the joint limits.
+Both see what production sees, through production's own steps: the cells of
+:func:`~pickstop.regions.pipeline.base_cells` (within reach, footprint-free), the grasps and
+their :class:`~pickstop.regions.solve.Targets`, and :func:`~pickstop.regions.solve.verify`
+(arm links against the scene solids and the floor, enabled link pairs against each other: the
+sphere screens decide nothing but "surely free", whatever they flag goes to coal). Only the
+IK differs: seeded solves instead of the database. Witnesses are judged on the numpy FK
+(1 mm, 0.5 deg) and the joint limits.
 """
 
 from __future__ import annotations
@@ -19,77 +22,30 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import shapely
 
-from pickstop import frames
+from pickstop.frames import R_base_world
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
-from pickstop.regions.arm import screen_arm
-from pickstop.regions.base_region import RegionPlanner, tray_world
+from pickstop.regions import solve
 from pickstop.regions.cells import CellGrid, TrayRegion
-from pickstop.regions.footprint import footprint_free
-from pickstop.regions.solve import Targets
+from pickstop.regions.kit import RegionKit
+from pickstop.regions.pipeline import (
+    BaseCells,
+    base_cells,
+    no_cell_grasps,
+    no_parts,
+    tray_world,
+    ungraspable,
+)
+from pickstop.regions.solve import ArmWorld, Targets
 from pickstop.robot.kinematics import fk, fk_soa
-from pickstop.robot.screen import screen
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Scene, Tray
-from pickstop.scene.world import BoxArrays, Solid, scene_solids
+from pickstop.scene.world import scene_solids
 
 CHUNK = 16_384  # IK problems per refine_batch call: keeps the working set small
 BASELINE_ITERATIONS = 100
 ORACLE_SEEDS = (4, 16, 64, 256)  # cumulative random seeds per (cell, part, grasp), by round
-
-
-# -- what production sees ----------------------------------------------------------------------
-@dataclass(frozen=True)
-class Candidates:
-    """Footprint-free base cells within reach of a tray, selected as production selects them."""
-
-    grid: CellGrid
-    cells: np.ndarray  # (M, 2) int (iy, ix)
-    centres: np.ndarray  # (M, 2) [m]
-    counts: dict[str, int]
-    reason: str | None  # why there is no candidate, if there is none
-
-
-def candidate_cells(planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float) -> Candidates:
-    """The cells :func:`compute_tray_region` tries: within reach of the tray and clear."""
-    grid = CellGrid.of(scene)
-    counts = {"grid": grid.nx * grid.ny}
-    none = np.zeros((0, 2), int)
-    tc = np.array([tray.pose.x, tray.pose.y])
-    reach = planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
-    lo = np.floor((tc - reach - [grid.x0, grid.y0]) / grid.res).astype(int)
-    hi = np.ceil((tc + reach - [grid.x0, grid.y0]) / grid.res).astype(int)
-    IX2, IY2 = np.meshgrid(
-        np.arange(max(lo[0], 0), min(hi[0], grid.nx)), np.arange(max(lo[1], 0), min(hi[1], grid.ny))
-    )
-    IX, IY = IX2.ravel(), IY2.ravel()
-    cen = grid.centres(IX, IY)
-    near = np.hypot(*(cen - tc).T) <= reach
-    IX, IY, cen = IX[near], IY[near], cen[near]
-    counts["in_reach"] = len(IX)
-    if len(IX) == 0:
-        far = (
-            f"tray {tray.id!r} is farther than the arm reaches ({reach:.2f} m) from every grid cell"
-        )
-        return Candidates(grid, none, np.zeros((0, 2)), counts, far)
-    free = footprint_free(scene, planner.robot, cen, yaw)
-    IX, IY, cen = IX[free], IY[free], cen[free]
-    counts["footprint_free"] = len(IX)
-    reason: str | None = None
-    if len(IX) == 0:
-        reason = f"no cell within reach of tray {tray.id!r} has room for the base footprint"
-    return Candidates(grid, np.stack([IY, IX], 1), cen, counts, reason)
-
-
-def grasp_targets(
-    grasps: GraspSet, yaw: float, centres: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """``T_base_tool`` of every grasp from bases at ``centres: (M, 2)`` [m] facing ``yaw``:
-    ``Rs: (G, 3, 3)`` (the same from every cell) and ``ps: (M, G, 3)`` [m]."""
-    tg = Targets.of(grasps, centres, frames.R_base_world(yaw))
-    return tg.Rs_base_tool, tg.ps_base_tool
 
 
 @dataclass(frozen=True)
@@ -142,73 +98,42 @@ class ReachBound:
 
 @dataclass
 class _Setup:
-    """One tray's problem: candidate cells, grasp targets in the base frame, solids, checks."""
+    """One tray's problem: candidate cells, grasps, the world the arm is checked against."""
 
-    planner: RegionPlanner
+    planner: RegionKit
     tray: Tray
     yaw: float
-    cand: Candidates
+    cand: BaseCells
     grasps: list[GraspSet]
-    solids: list[Solid]
-    boxes: BoxArrays
+    world: ArmWorld  # no envelope: a reference records nothing for a cache
+    R_base_world: np.ndarray  # (3, 3)
     bound: ReachBound
     stats: dict[str, int]
-    floor: float  # [m] the scene's floor clearance
 
-    def targets(self, k: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Part ``k``'s grasp targets from candidate ``cells: (M,)``: R (G, 3, 3), p (M, G, 3)."""
-        return grasp_targets(self.grasps[k], self.yaw, self.cand.centres[cells])
-
-    def screen(
-        self, cells: np.ndarray, thetas: np.ndarray, target: str | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Sphere screens of ``thetas: (N, dof)`` at candidate ``cells: (N,)``: (arm against
-        the solids, self) flags, each ``(N,)``; False is surely free. target: the part being
-        grasped (no obstacle for the hand)."""
-        pl = self.planner
-        env = np.zeros(len(cells), bool)
-        own = np.zeros(len(cells), bool)
-        for s in range(0, len(cells), CHUNK):
-            th = np.ascontiguousarray(thetas[s : s + CHUNK].T)
-            _, _, frames = fk_soa(pl.solver.chain, th, frames=True)
-            cen = self.cand.centres[cells[s : s + CHUNK]]
-            env[s : s + CHUNK] = screen_arm(
-                pl.arm, self.boxes, frames, cen, self.yaw, targets=target, floor=self.floor
-            )
-            own[s : s + CHUNK] = screen(pl.self_spheres, frames)
-        return env, own
-
-    def exact_ok(
-        self, cell: int, theta: np.ndarray, env: bool, own: bool, target: str | None = None
-    ) -> bool:
-        """Coal on what the screens flagged: the arm against the solids, the robot itself."""
-        self.stats["exact_checks"] += 1
-        if own and self.planner.exact_self.colliding(theta[None])[0]:
-            return False
-        x, y = self.cand.centres[cell]
-        return not (
-            env
-            and self.planner.exact_arm.colliding(
-                theta, float(x), float(y), self.yaw, self.solids, target, self.floor
-            )
-        )
+    def targets(self, k: int, cells: np.ndarray) -> Targets:
+        """Part ``k``'s grasp targets from candidate ``cells: (M,)``."""
+        return Targets.of(self.grasps[k], self.cand.centres[cells], self.R_base_world)
 
 
 def _setup(
-    planner: RegionPlanner, scene: Scene, tray: Tray, yaw: float, cand: Candidates
+    planner: RegionKit,
+    scene: Scene,
+    tray: Tray,
+    yaw: float,
+    cand: BaseCells,
+    grasps: list[GraspSet],
 ) -> _Setup:
-    _, solids, boxes, _ = tray_world(planner, scene, tray, yaw)
+    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
     return _Setup(
         planner,
         tray,
         yaw,
         cand,
-        planner.grasps(scene, tray),
-        solids,
-        boxes,
+        grasps,
+        ArmWorld(boxes, solids, yaw, None, scene.floor_clearance),
+        R_base_world,
         ReachBound.of(planner.solver),
         {"ik_problems": 0, "ik_converged": 0, "exact_checks": 0},
-        scene.floor_clearance,
     )
 
 
@@ -233,7 +158,8 @@ def _solve_part(
     """
     solver = st.planner.solver
     M, dof = len(cells), solver.chain.dof
-    R_t, p_t = st.targets(k, cells)
+    tg = st.targets(k, cells)
+    R_t, p_t = tg.Rs_base_tool, tg.ps_base_tool
     G = len(R_t)
     reachable = st.bound.contains(
         np.broadcast_to(R_t, (M, G, 3, 3)).reshape(-1, 3, 3), p_t.reshape(-1, 3)
@@ -258,18 +184,22 @@ def _solve_part(
         ok = np.flatnonzero(conv)
         ok = ok[pose_ok(solver, th[ok], R_t[pg[ok]], p_t[pa[ok], pg[ok]])]
         st.stats["ik_converged"] += len(ok)
-        part = st.grasps[k].part_id
-        env, own = st.screen(cells[pa[ok]], th[ok], part)
-        free = ~env & ~own
-        # Problems are ordered (cell, grasp, seed): the first valid solution of a cell wins.
-        sure = ok[free]
-        _, first = np.unique(pa[sure], return_index=True)
-        hit = sure[first]
+        # Problems are ordered (cell, grasp, seed): the first verified solution of a cell
+        # wins, a screen-free one before any coal has to clear.
+        rows = ok[
+            solve.verify(
+                st.planner,
+                st.world,
+                th[ok],
+                st.cand.centres[cells[pa[ok]]],
+                pa[ok],
+                st.grasps[k].part_id,
+                st.stats,
+            )
+        ]
+        _, first = np.unique(pa[rows], return_index=True)
+        hit = rows[first]
         found[pa[hit]], th_out[pa[hit]], g_out[pa[hit]] = True, th[hit], pg[hit]
-        for i in np.flatnonzero(~free):
-            j, a = ok[i], pa[ok[i]]
-            if not found[a] and st.exact_ok(cells[a], th[j], env[i], own[i], part):
-                found[a], th_out[a], g_out[a] = True, th[j], pg[j]
     return found, th_out, g_out
 
 
@@ -286,7 +216,7 @@ def pose_ok(solver: BatchSolver, thetas: np.ndarray, Rs: np.ndarray, ps: np.ndar
 
 
 def _region(
-    planner: RegionPlanner,
+    planner: RegionKit,
     scene: Scene,
     tray_id: str,
     yaw: float | None,
@@ -299,74 +229,61 @@ def _region(
 ) -> TrayRegion:
     tray = scene.tray(tray_id)
     yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
-    cand = candidate_cells(planner, scene, tray, yaw)
-    grid, counts = cand.grid, dict(cand.counts)
+    grid = CellGrid.of(scene)
+    cand = base_cells(planner, scene, tray, yaw, grid)
+    counts = {"grid": grid.nx * grid.ny, **cand.counts}
     part_ids = tuple(p.id for p in tray.parts)
-    P, dof = len(part_ids), planner.robot.dof
+    dof = planner.robot.dof
 
     def result(idx: np.ndarray, th: np.ndarray, gi: np.ndarray, reason: str | None) -> TrayRegion:
-        sel = cand.cells[idx]
-        mask = np.zeros((grid.ny, grid.nx), bool)
-        mask[sel[:, 0], sel[:, 1]] = True
         counts["feasible"] = len(idx)
-        return TrayRegion(
-            tray.id,
-            yaw,
-            grid,
-            mask,
-            sel,
-            part_ids,
-            th,
-            gi,
-            grid.cells_polygon(sel[:, 0], sel[:, 1]) if len(sel) else shapely.Polygon(),
-            counts,
-            reason,
-            time.perf_counter() - t0,
+        seconds = time.perf_counter() - t0
+        sel = cand.cells[idx]
+        return TrayRegion.of_cells(
+            tray.id, yaw, grid, sel, part_ids, th, gi, counts, reason, seconds
         )
 
     def empty(reason: str) -> TrayRegion:
-        return result(np.zeros(0, int), np.zeros((0, P, dof)), np.zeros((0, P), int), reason)
+        counts["feasible"] = 0
+        seconds = time.perf_counter() - t0
+        return TrayRegion.empty(tray.id, yaw, grid, part_ids, dof, counts, reason, seconds)
 
     if not tray.parts:
-        return empty(f"tray {tray.id!r} has no parts")
+        return empty(no_parts(tray))
     if cand.reason is not None:
         return empty(cand.reason)
-    idx = np.arange(len(cand.cells))
+    idx = np.arange(len(cand.ix))
     if cells is not None:
         want = np.asarray(cells, dtype=int).reshape(-1, 2)
-        lin = cand.cells[:, 0] * grid.nx + cand.cells[:, 1]
+        lin = cand.iy * grid.nx + cand.ix
         idx = idx[np.isin(lin, want[:, 0] * grid.nx + want[:, 1])]
         counts["requested"] = len(want)
     counts["evaluated"] = len(idx)
     if len(idx) == 0:
         return empty(f"none of the requested cells is a free cell within reach of {tray.id!r}")
-    st = _setup(planner, scene, tray, yaw, cand)
+    grasps = planner.grasps(scene, tray)
+    why = ungraspable(planner, scene, tray, grasps)
+    if why is not None:
+        return empty(why)
+    st = _setup(planner, scene, tray, yaw, cand, grasps)
     alive = idx
-    witness = np.zeros((len(cand.cells), P, dof))
-    grasp_of = np.zeros((len(cand.cells), P), int)
+    witness = np.zeros((len(cand.ix), len(part_ids), dof))
+    grasp_of = np.zeros((len(cand.ix), len(part_ids)), int)
     for k, gs in enumerate(st.grasps):
-        if len(gs.Ts_world_tool) == 0:
-            return empty(
-                f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
-                "fits the open hand without touching the tray, a neighbour or a table"
-            )
         found, th, gi = _solve_part(st, k, alive, rounds, seeds, max_iter, prune)
         alive = alive[found]
         witness[alive, k], grasp_of[alive, k] = th[found], gi[found]
         counts[f"feasible_after_{gs.part_id}"] = len(alive)
         if len(alive) == 0:
             counts.update(st.stats)
-            return empty(
-                f"no base cell lets the arm grasp part {gs.part_id!r} of tray {tray.id!r} "
-                f"without collision (of {len(idx)} reachable free cells evaluated)"
-            )
+            return empty(no_cell_grasps(gs.part_id, tray, len(idx)))
     counts.update(st.stats)
     return result(alive, witness[alive], grasp_of[alive], None)
 
 
 # -- the two references ------------------------------------------------------------------------
 def baseline_region(
-    planner: RegionPlanner,
+    planner: RegionKit,
     scene: Scene,
     tray_id: str,
     yaw: float | None = None,
@@ -395,7 +312,7 @@ def baseline_region(
 
 
 def oracle_region(
-    planner: RegionPlanner,
+    planner: RegionKit,
     scene: Scene,
     tray_id: str,
     yaw: float | None = None,
@@ -445,7 +362,7 @@ class WitnessCheck:
         return self.pose_failures + self.arm_collisions + self.self_collisions
 
 
-def verify_witnesses(planner: RegionPlanner, scene: Scene, region: TrayRegion) -> WitnessCheck:
+def verify_witnesses(planner: RegionKit, scene: Scene, region: TrayRegion) -> WitnessCheck:
     """Re-check every witness of ``region`` exactly, against every solid of the scene."""
     tray = scene.tray(region.tray_id)
     grasps = planner.grasps(scene, tray)
@@ -456,9 +373,9 @@ def verify_witnesses(planner: RegionPlanner, scene: Scene, region: TrayRegion) -
     Rs = np.empty((K, P, 3, 3))
     ps = np.empty((K, P, 3))
     for k in range(P):
-        R, p = grasp_targets(grasps[k], region.yaw, cen)
-        Rs[:, k] = R[region.grasp_index[:, k]]
-        ps[:, k] = p[np.arange(K), region.grasp_index[:, k]]
+        tg = Targets.of(grasps[k], cen, R_base_world(region.yaw))
+        Rs[:, k] = tg.Rs_base_tool[region.grasp_index[:, k]]
+        ps[:, k] = tg.ps_base_tool[np.arange(K), region.grasp_index[:, k]]
     th = region.thetas.reshape(K * P, -1)
     pose_bad = ~pose_ok(planner.solver, th, Rs.reshape(-1, 3, 3), ps.reshape(-1, 3))
     own = planner.exact_self.colliding(th)
@@ -507,7 +424,7 @@ def dilate(mask: np.ndarray, width: int) -> np.ndarray:
 
 
 def comparison_cells(
-    planner: RegionPlanner,
+    planner: RegionKit,
     scene: Scene,
     region: TrayRegion,
     width: int = 2,
@@ -516,7 +433,8 @@ def comparison_cells(
 ) -> ComparisonCells:
     """The region's cells, every candidate within ``width`` cells of its boundary (outside it)
     and ``sample`` random other candidates (footprint-free, within reach)."""
-    cand = candidate_cells(planner, scene, scene.tray(region.tray_id), region.yaw).cells
+    tray = scene.tray(region.tray_id)
+    cand = base_cells(planner, scene, tray, region.yaw, CellGrid.of(scene)).cells
     near = dilate(region.mask, width)[cand[:, 0], cand[:, 1]]
     inside = region.mask[cand[:, 0], cand[:, 1]]
     band = cand[near & ~inside]

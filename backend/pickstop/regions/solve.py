@@ -18,15 +18,16 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import ArmSpheres, ExactArm, screen_arm
+from pickstop.regions.arm import screen_arm
 from pickstop.regions.envelope import Envelope
+from pickstop.regions.kit import RegionKit
 from pickstop.regions.reuse import RefineMemo
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
@@ -44,18 +45,7 @@ GROW_ITERATIONS = 20  # a seed for another grasp turns the wrist: 0.3 rad per st
 REFINE_GIVE_UP = ((3, 0.01),)  # after 3 iterations, candidates still 1 cm off stop
 GROW_GIVE_UP = ((5, 0.02), (10, 0.003))
 GROW_WAVES = 12  # rings of cells grown at most
-
-
-class RegionKit(Protocol):
-    """What solving needs of a region planner (:class:`~pickstop.regions.base_region.
-    RegionPlanner` is one): the database, the IK solver and the collision checks."""
-
-    db: ReachDatabase
-    solver: BatchSolver
-    arm: ArmSpheres
-    exact_arm: ExactArm
-    self_spheres: Any
-    exact_self: Any
+VERIFY_CHUNK = 16_384  # configurations screened at once (bounds the joint frames' memory)
 
 
 @dataclass(frozen=True)
@@ -130,7 +120,7 @@ class ArmWorld:
     boxes: BoxArrays
     solids: list[Solid]
     yaw: float  # [rad]
-    env: Envelope
+    env: Envelope | None  # where the screen's rejections are recorded (None: nowhere)
     floor: float = FLOOR_CLEARANCE
 
 
@@ -324,6 +314,7 @@ def verify(
     base_xy: np.ndarray,
     owner: np.ndarray | None = None,
     targets: np.ndarray | str | None = None,
+    counts: dict[str, int] | None = None,
 ) -> np.ndarray:
     """``(B,)`` True where ``thetas: (B, dof)`` on a base at ``base_xy: (B, 2)`` is free of the
     scene, of the floor and of itself, the robot's whole collision geometry (hand included)
@@ -332,13 +323,21 @@ def verify(
     owner: ``(B,)`` the problem each row solves; once one row of a problem is verified, the
     coal checks of its other flagged rows are skipped (they count as not verified).
     targets: the part each row grasps (one for all, or per row): no obstacle for the hand.
+    counts: if given, its ``"exact_checks"`` counts the rows checked by coal.
     """
     p = planner
-    _, _, frames = fk_soa(p.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
-    env_hit = screen_arm(
-        p.arm, world.boxes, frames, base_xy, world.yaw, world.env, targets, world.floor
-    )
-    self_hit = screen_self(p.self_spheres, frames)
+    B = len(thetas)
+    env_hit = np.zeros(B, bool)
+    self_hit = np.zeros(B, bool)
+    for s in range(0, B, VERIFY_CHUNK):
+        sl = slice(s, s + VERIFY_CHUNK)
+        th = np.ascontiguousarray(thetas[sl].T)
+        _, _, frames = fk_soa(p.solver.chain, th, frames=True)
+        tg = targets if targets is None or isinstance(targets, str) else targets[sl]
+        env_hit[sl] = screen_arm(
+            p.arm, world.boxes, frames, base_xy[sl], world.yaw, world.env, tg, world.floor
+        )
+        self_hit[sl] = screen_self(p.self_spheres, frames)
     flagged = env_hit | self_hit
     good = ~flagged
     done = set() if owner is None else set(owner[good].tolist())
@@ -348,6 +347,8 @@ def verify(
             continue
         x, y = base_xy[j]
         target = targets if targets is None or isinstance(targets, str) else str(targets[j])
+        if counts is not None:
+            counts["exact_checks"] = counts.get("exact_checks", 0) + 1
         bad = (self_hit[j] and p.exact_self.colliding(thetas[j][None])[0]) or (
             env_hit[j]
             and p.exact_arm.colliding(thetas[j], x, y, world.yaw, world.solids, target, world.floor)

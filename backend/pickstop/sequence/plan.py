@@ -28,9 +28,10 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
-from pickstop.regions.base_region import RegionPlanner, feasible_near
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.footprint import floor_outline, upper_body
+from pickstop.regions.offgrid import feasible_near
+from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
 from pickstop.scene.world import scene_solids
 from pickstop.sequence import plan_model as pm

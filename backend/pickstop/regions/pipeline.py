@@ -1,0 +1,248 @@
+"""The region pipeline: a tray's base region from scratch, step by step.
+
+Cells within the arm's reach of the tray, where the base footprint fits; the grasps of every
+part; the cells the database serves; part by part, IK by query and verification
+(:mod:`pickstop.regions.solve`); growth into open neighbours from the solved cells' witnesses.
+Whatever the computation looks at is marked on the region's envelope, which
+:mod:`pickstop.regions.validity` reads to tell when the region may be reused.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickstop import frames
+from pickstop.regions import solve
+from pickstop.regions.arm import nearby
+from pickstop.regions.cells import CellGrid, TrayRegion
+from pickstop.regions.envelope import Envelope
+from pickstop.regions.footprint import footprint_check
+from pickstop.regions.kit import RegionKit
+from pickstop.regions.reuse import TrayAnchor, grasps_digest
+from pickstop.regions.solve import ArmWorld, Targets
+from pickstop.scene.grasps import GraspSet
+from pickstop.scene.model import Scene, Tray
+from pickstop.scene.world import BoxArrays, Solid, scene_solids
+
+
+@dataclass(frozen=True)
+class BaseCells:
+    """The cells a tray's region is solved over: within the arm's reach of the tray and
+    where the base footprint fits."""
+
+    ix: np.ndarray  # (M,) int
+    iy: np.ndarray  # (M,) int
+    centres: np.ndarray  # (M, 2) [m]
+    counts: dict[str, int]  # cells "in_reach", and of them "footprint_free" (if checked)
+    reason: str | None  # why there is none, if there is none
+
+    @property
+    def cells(self) -> np.ndarray:
+        """``(M, 2)`` int (iy, ix)."""
+        return np.stack([self.iy, self.ix], 1)
+
+
+def tray_reach(planner: RegionKit, tray: Tray) -> float:
+    """[m] How far from the tray's centre a base may stand and still reach into the tray."""
+    return planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
+
+
+def base_cells(
+    planner: RegionKit,
+    scene: Scene,
+    tray: Tray,
+    yaw: float,
+    grid: CellGrid,
+    env: Envelope | None = None,
+) -> BaseCells:
+    """The cells of ``grid`` within reach of ``tray`` (a bounding window, then the disc) where
+    the base at ``yaw`` [rad] fits. env: marked with the columns of the base at every cell in
+    reach, the owners of overhangs that block one, and the free cells."""
+    tc = np.array([tray.pose.x, tray.pose.y])
+    reach = tray_reach(planner, tray)
+    lo = np.floor((tc - reach - [grid.x0, grid.y0]) / grid.res).astype(int)
+    hi = np.ceil((tc + reach - [grid.x0, grid.y0]) / grid.res).astype(int)
+    ix = np.arange(max(lo[0], 0), min(hi[0], grid.nx))
+    iy = np.arange(max(lo[1], 0), min(hi[1], grid.ny))
+    IX2, IY2 = np.meshgrid(ix, iy)
+    IX, IY = IX2.ravel(), IY2.ravel()
+    cen = grid.centres(IX, IY)
+    near = np.hypot(*(cen - tc).T) <= reach
+    IX, IY, cen = IX[near], IY[near], cen[near]
+    counts = {"in_reach": len(IX)}
+    fp = planner.robot.footprint
+    if env is not None:
+        env.mark_columns(cen, fp.bounding_radius, fp.height)
+    if len(IX) == 0:
+        return BaseCells(IX, IY, cen, counts, out_of_reach(tray, reach))
+    free, overhangs = footprint_check(scene, planner.robot, cen, yaw)
+    IX, IY, cen = IX[free], IY[free], cen[free]
+    counts["footprint_free"] = len(IX)
+    if env is not None:
+        env.hit_owners |= overhangs
+        env.free_xy = cen
+    return BaseCells(IX, IY, cen, counts, None if len(IX) else no_room(tray))
+
+
+def compute_tray_region(
+    planner: RegionKit, scene: Scene, tray: Tray, yaw: float, key: str = ""
+) -> TrayRegion:
+    """The region of ``tray`` at base ``yaw`` [rad] from scratch (see the module); ``key``
+    is stored with it (:func:`pickstop.regions.validity.own_key`)."""
+    t0 = time.perf_counter()
+    robot = planner.robot
+    grid = CellGrid.of(scene)
+    counts = {"grid": grid.nx * grid.ny}
+    part_ids = tuple(p.id for p in tray.parts)
+
+    env = Envelope.empty(scene.floor.min, scene.floor.max)
+    # The open hands at every candidate grasp: what reaches in there may change the grasps.
+    for part in tray.parts:
+        env.mark_box(*planner.hand_space(scene, tray, part))
+
+    def empty(reason: str) -> TrayRegion:
+        seconds = time.perf_counter() - t0
+        return TrayRegion.empty(
+            tray.id, yaw, grid, part_ids, robot.dof, counts, reason, seconds, key, env
+        )
+
+    if not tray.parts:
+        return empty(no_parts(tray))
+    base = base_cells(planner, scene, tray, yaw, grid, env)
+    counts.update(base.counts)
+    if base.reason is not None:
+        return empty(base.reason)
+    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
+    IX, IY, cen = base.ix, base.iy, base.centres
+
+    grasp_sets = planner.grasps(scene, tray)
+    why = ungraspable(planner, scene, tray, grasp_sets)
+    if why is not None:
+        return empty(why)
+    world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance)
+    anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
+    memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
+    keys = anchor.cell_keys(IX, IY)
+    targets = [Targets.of(gs, cen, R_base_world, keys, memo) for gs in grasp_sets]
+    # Cells the database cannot serve for some part are left to the growth below.
+    alive = np.flatnonzero(
+        memo.served(keys, lambda idx: solve.served(planner.db, [t.take(idx) for t in targets]))
+    )
+    counts["served"] = len(alive)
+    witness = np.zeros((len(IX), len(part_ids), robot.dof))
+    grasp_of = np.zeros((len(IX), len(part_ids)), int)
+    for k, tg in enumerate(targets):
+        found, th, gi = solve.solve_part(planner, world, tg.take(alive), cen[alive])
+        alive = alive[found]
+        witness[alive, k] = th[found]
+        grasp_of[alive, k] = gi[found]
+        counts[f"feasible_after_{tg.grasps.part_id}"] = len(alive)
+        if len(alive) == 0:
+            return empty(no_cell_grasps(tg.grasps.part_id, tray, counts["footprint_free"]))
+    solved = np.zeros(len(IX), bool)
+    solved[alive] = True
+    counts["grown"] = solve.grow(
+        planner, world, targets, cen, np.stack([IY, IX], 1), solved, witness, grasp_of
+    )
+    alive = np.flatnonzero(solved)
+    counts["feasible"] = len(alive)
+    return TrayRegion.of_cells(
+        tray.id,
+        yaw,
+        grid,
+        np.stack([IY[alive], IX[alive]], 1),
+        part_ids,
+        witness[alive],
+        grasp_of[alive],
+        counts,
+        None,
+        time.perf_counter() - t0,
+        key,
+        env,
+    )
+
+
+def reuse_key(
+    planner: RegionKit,
+    scene: Scene,
+    tray: Tray,
+    yaw: float,
+    anchor: TrayAnchor,
+    grasp_sets: list[GraspSet],
+) -> str:
+    """What the refinements from cells anchored to ``tray`` depend on: everything the region
+    does except the tray's position in whole cells and the rest of the scene."""
+    pose = tray.pose.model_dump()
+    pose.pop("x"), pose.pop("y")
+    blob = {
+        "tray": tray.model_dump(exclude={"pose", "name"}),
+        "pose": pose,
+        "phase": anchor.phase,
+        "yaw": yaw,
+        "res": scene.base_grid.resolution,
+        "hand": planner.hand.key,
+        "robot": planner.robot.robot_hash,
+        "db": planner.db.id,
+        "algo": solve.VERSION,
+        "grasps": grasps_digest(tray, grasp_sets),
+    }
+    return hashlib.sha256(json.dumps(blob, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def tray_world(
+    planner: RegionKit, scene: Scene, tray: Tray, yaw: float
+) -> tuple[float, list[Solid], BoxArrays, np.ndarray]:
+    """Reach radius around the tray [m], the solids near it (exact and as arrays), R_base_world."""
+    tc = np.array([tray.pose.x, tray.pose.y])
+    reach = tray_reach(planner, tray)
+    solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
+    return reach, solids, BoxArrays.of(solids), frames.R_base_world(yaw)
+
+
+# -- why a region is empty: one wording for the pipeline and the reference solvers -------------
+def no_parts(tray: Tray) -> str:
+    return f"tray {tray.id!r} has no parts"
+
+
+def out_of_reach(tray: Tray, reach: float) -> str:
+    return f"tray {tray.id!r} is farther than the arm reaches ({reach:.2f} m) from every grid cell"
+
+
+def no_room(tray: Tray) -> str:
+    return f"no cell within reach of tray {tray.id!r} has room for the base footprint"
+
+
+def ungraspable(
+    planner: RegionKit, scene: Scene, tray: Tray, grasp_sets: list[GraspSet]
+) -> str | None:
+    """Why the first part of ``tray`` without a grasp the open hand fits has none (None if
+    every part has one)."""
+    for gs in grasp_sets:
+        if len(gs.Ts_world_tool) == 0:
+            low = (
+                f"; no top-down grasp: the open hand reaches {planner.hand.reach:.3f} m past "
+                "its grasp point, which would put it below the tray floor for a part this low"
+                if gs.too_low
+                else ""
+            )
+            return (
+                f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
+                "fits the robot's open hand without touching the tray, a neighbour or a table, "
+                f"or coming within the floor clearance of {scene.floor_clearance:.3f} m "
+                f"({gs.near_floor} of them too close to the floor)" + low
+            )
+    return None
+
+
+def no_cell_grasps(part_id: str, tray: Tray, cells: int) -> str:
+    """No cell of the ``cells`` reachable free ones tried lets the arm grasp ``part_id``."""
+    return (
+        f"no base cell lets the arm grasp part {part_id!r} of tray {tray.id!r} without "
+        f"collision (of {cells} reachable free cells)"
+    )

@@ -1,0 +1,126 @@
+"""The region planner: a region kit with its region caches and its worker processes.
+
+:meth:`RegionPlanner.regions` answers every task tray at every yaw of a scene: from the memo of
+the last layouts, from the per-tray cache while :mod:`pickstop.regions.validity` says a region
+still holds, else computed by :mod:`pickstop.regions.pipeline` (several at once in forked
+processes, :mod:`pickstop.regions.workers`). The last region of each tray is kept for previews
+(:mod:`pickstop.regions.carry`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from pickstop.regions.carry import LastRegions
+from pickstop.regions.cells import TrayRegion
+from pickstop.regions.kit import RegionKit
+from pickstop.regions.pipeline import compute_tray_region
+from pickstop.regions.validity import CacheEntry, own_key, snapshot, still_valid
+from pickstop.regions.workers import RegionWorkers
+from pickstop.scene.model import Scene
+
+LAYOUTS = 8  # the regions of this many layouts kept whole
+LAYOUTS_PER_TRAY = 4  # cached regions per own key (tray, yaw, ...): a few layouts around it
+
+
+@dataclass
+class RegionPlanner(RegionKit):
+    """The regions of scenes for one robot and database, cached (see the module)."""
+
+    cache: dict[str, list[CacheEntry]] = field(default_factory=dict)  # by own key
+    cache_size: int = 256  # own keys kept
+    workers: int = 1  # processes for several regions at once (forked: they share the database)
+    _layouts: dict[str, dict[tuple[str, float], TrayRegion]] = field(
+        default_factory=dict, init=False, repr=False
+    )  # the regions of the last layouts
+    _last: LastRegions = field(init=False, repr=False)
+    _workers: RegionWorkers | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self._last = LastRegions(4 * self.cache_size)
+
+    def tray_region(self, scene: Scene, tray_id: str, yaw: float | None = None) -> TrayRegion:
+        """The region of one tray, reused from the cache while nothing it looked at changed."""
+        tray = scene.tray(tray_id)
+        yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
+        hit = self._cached(scene, tray_id, yaw)
+        if hit is not None:
+            self._last.remember(scene, hit)
+            return hit
+        region = compute_tray_region(self, scene, tray, yaw, own_key(self, scene, tray, yaw))
+        self._store(scene, region)
+        return region
+
+    def regions(
+        self, scene: Scene, workers: int | None = None
+    ) -> dict[tuple[str, float], TrayRegion]:
+        """Regions of every tray the task needs, at every yaw of the policy.
+
+        workers: processes for the regions not in the cache (default: the planner's
+        ``workers``); they are forked from this process, so they share its database.
+        """
+        pairs = [(t, y) for t in scene.task_trays for y in scene.base_yaw.yaws]
+        # The regions are a function of the layout: the same layout (a change of sigma, rule
+        # or objective) takes them as they were, without checking each cached region anew.
+        layout = scene.model_dump_json(
+            exclude={"name", "description", "sigma", "error_model", "motion", "start", "goal"}
+        )
+        hit = self._layouts.get(layout)
+        if hit is not None:
+            for region in hit.values():
+                self._last.remember(scene, region)
+            return dict(hit)
+        workers = self.workers if workers is None else workers
+        todo = [(t, y) for t, y in pairs if self._cached(scene, t, y) is None]
+        if workers > 1 and len(todo) > 1:
+            for region in self._pool(workers).regions(scene, todo):
+                self._store(scene, region)
+        out = {(t, y): self.tray_region(scene, t, y) for t, y in pairs}
+        self._layouts[layout] = out
+        while len(self._layouts) > LAYOUTS:
+            self._layouts.pop(next(iter(self._layouts)))
+        return dict(out)
+
+    def _cached(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion | None:
+        tray = scene.tray(tray_id)
+        snap = snapshot(scene, tray.id)
+        for entry in self.cache.get(own_key(self, scene, tray, yaw), []):
+            if still_valid(self, entry, snap):
+                return entry.region
+        return None
+
+    def known_regions(
+        self, scene: Scene, pairs: list[tuple[str, float]]
+    ) -> dict[tuple[str, float], TrayRegion]:
+        """For each ``(tray id, yaw)`` planned before: the last region computed for the tray
+        wherever it stood, carried rigidly to where it stands now and clipped to the cells
+        where the base footprint fits (for a preview: nothing is checked but the footprint)."""
+        return self._last.carried(self.robot, scene, pairs)
+
+    def forget(self) -> None:
+        """Drop every region kept (layouts, cache, last regions); grasps and other memos of
+        the kit stay. The next request computes its regions afresh."""
+        self._layouts.clear()
+        self.cache.clear()
+        self._last.clear()
+
+    def _store(self, scene: Scene, region: TrayRegion) -> None:
+        self._last.remember(scene, region)
+        entries = self.cache.setdefault(region.key, [])
+        entries.insert(0, CacheEntry(region, snapshot(scene, region.tray_id)))
+        del entries[LAYOUTS_PER_TRAY:]
+        if len(self.cache) > self.cache_size:
+            self.cache.pop(next(iter(self.cache)))
+
+    def _pool(self, workers: int) -> RegionWorkers:
+        if self._workers is None or self._workers.processes != workers:
+            self.close()
+            self._workers = RegionWorkers(self, workers)
+        return self._workers
+
+    def close(self) -> None:
+        """Stop the worker processes, if any."""
+        if self._workers is not None:
+            self._workers.close()
+            self._workers = None

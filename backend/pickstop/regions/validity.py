@@ -1,0 +1,130 @@
+"""Cache validity: when a region computed before is still the answer for a changed scene.
+
+A region depends on its own tray, yaw, grid, floor, gripper, robot and database (its own key)
+and on the other objects of the scene (a snapshot of their definitions and solids). A cached
+region stays valid while every object that changed neither was, where it stood, something the
+region's computation looked at (its envelope: hands, footprints, flagged solids), nor is, where
+it stands now, within that envelope, over a free cell, or in the way of a witness arm.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pickstop.regions import solve
+from pickstop.regions.arm import screen_arm
+from pickstop.regions.cells import TrayRegion
+from pickstop.regions.footprint import blocked_by
+from pickstop.regions.kit import RegionKit
+from pickstop.robot.kinematics import fk_soa
+from pickstop.scene.model import Scene, Tray
+from pickstop.scene.world import (
+    BoxArrays,
+    Solid,
+    part_solid,
+    pose_matrix,
+    shape_solid,
+    tray_body_solids,
+)
+
+
+def own_key(planner: RegionKit, scene: Scene, tray: Tray, yaw: float) -> str:
+    """What the region of ``tray`` depends on apart from the other objects."""
+    blob = {
+        "tray": tray.model_dump(),
+        "yaw": yaw,
+        "grid": [scene.grid_extent.model_dump(), scene.base_grid.resolution],
+        "floor": scene.floor.model_dump(),
+        "floor_clearance": scene.floor_clearance,
+        "gripper": scene.gripper.model_dump(),
+        "hand": planner.hand.key,
+        "robot": planner.robot.robot_hash,
+        "db": planner.db.id,
+        "algo": solve.VERSION,
+    }
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
+
+
+#: Every other object of a scene: its definition, its solids and their owner names.
+Snapshot = dict[str, tuple[str, list[Solid], frozenset[str]]]
+
+
+@dataclass(frozen=True)
+class CacheEntry:
+    """A computed region and the scene around its tray when it was computed."""
+
+    region: TrayRegion
+    snapshot: Snapshot
+    cleared: set[str] = field(default_factory=set)  # new definitions no witness collides with
+
+
+def snapshot(scene: Scene, exclude: str) -> Snapshot:
+    """Every object but the tray ``exclude``: definition, solids, owner names."""
+    out = {}
+    for o in scene.obstacles:
+        solid = shape_solid(o.geometry, pose_matrix(o.pose), o.id)
+        out[f"obstacle:{o.id}"] = (o.model_dump_json(), [solid], frozenset([o.id]))
+    for t in scene.trays:
+        if t.id != exclude:
+            solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
+            owners = frozenset([t.id, *(p.id for p in t.parts)])
+            out[f"tray:{t.id}"] = (t.model_dump_json(), solids, owners)
+    return out
+
+
+def witnesses_clear(planner: RegionKit, region: TrayRegion, solids: list[Solid]) -> bool:
+    """Is every witness arm of ``region`` free of ``solids``? The sphere screen first, coal
+    for what it flags (the hands and footprints are covered by the region's envelope)."""
+    if not len(region.cells) or not solids:
+        return True
+    K, P, dof = region.thetas.shape
+    xy = np.repeat(region.grid.centres(region.cells[:, 1], region.cells[:, 0]), P, axis=0)
+    lo = np.min([s.aabb()[0] for s in solids], axis=0)
+    hi = np.max([s.aabb()[1] for s in solids], axis=0)
+    reach = planner.reach_xy + float(planner.arm.bound_r.max())
+    near = np.flatnonzero(
+        (xy[:, 0] > lo[0] - reach)
+        & (xy[:, 0] < hi[0] + reach)
+        & (xy[:, 1] > lo[1] - reach)
+        & (xy[:, 1] < hi[1] + reach)
+    )
+    if not len(near):
+        return True
+    th = region.thetas.reshape(K * P, dof)[near]
+    _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    flagged = np.flatnonzero(
+        screen_arm(planner.arm, BoxArrays.of(solids), frames, xy[near], region.yaw)
+    )
+    x, y = xy[near, 0], xy[near, 1]
+    return not any(
+        planner.exact_arm.colliding(th[j], x[j], y[j], region.yaw, solids) for j in flagged
+    )
+
+
+def still_valid(planner: RegionKit, entry: CacheEntry, snap: Snapshot) -> bool:
+    """Is the cached region still the answer for the scene ``snap`` describes?"""
+    env = entry.region.envelope
+    if env is None:
+        return False
+    for k in entry.snapshot.keys() | snap.keys():
+        old, new = entry.snapshot.get(k), snap.get(k)
+        if old is not None and new is not None and old[0] == new[0]:
+            continue
+        if old is not None and (
+            old[2] & env.hit_owners or any(env.touches(*s.aabb()) for s in old[1])
+        ):
+            return False  # where it was, it rejected something or shaped hand or footprint
+        if new is None or new[0] in entry.cleared:
+            continue
+        if any(env.touches(*s.aabb()) for s in new[1]):
+            return False  # where it is, it may block a hand or the footprint
+        if blocked_by(planner.robot, new[1], env.free_xy, entry.region.yaw).any():
+            return False  # where it is, it overhangs a free cell
+        if not witnesses_clear(planner, entry.region, new[1]):
+            return False  # where it is, it collides with a witness arm
+        entry.cleared.add(new[0])
+    return True
