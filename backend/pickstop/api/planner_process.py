@@ -45,6 +45,7 @@ log = logging.getLogger("pickstop.api")
 POLL = 0.05  # seconds between checks for a Cancelled while waiting on the child
 ACK_WAIT = 30.0  # seconds a stopped computation may take to unwind before the child restarts
 KINDS = ("plan", "preview", "regions")
+SETTINGS_ENV = "PICKSTOP_CHILD_SETTINGS"
 
 
 class PlannerProcessError(UnavailableError):
@@ -54,8 +55,11 @@ class PlannerProcessError(UnavailableError):
 class PlannerProcess:
     """The child that computes for one service (see the module docstring)."""
 
-    def __init__(self, settings: Settings) -> None:
+    def __init__(self, settings: Settings, entry: str) -> None:
+        """entry: ``module:function`` the child runs with the socket's descriptor; it builds
+        the service that answers and hands it to :func:`serve`."""
         self.settings = settings
+        self.entry = entry
         self._lock = threading.Lock()  # guards the child handle, the pending calls and sends
         self._ids = itertools.count(1)
         self._pending: dict[int, Future[Any]] = {}
@@ -78,13 +82,13 @@ class PlannerProcess:
             return self._conn
         # A fresh interpreter (never a fork of a threaded server), given one end of a socket
         # pair; it does not import the parent's main module, whatever started the service.
+        module, fn = self.entry.split(":")
         ours, theirs = socket.socketpair()
         env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
         proc = subprocess.Popen(
-            [sys.executable, "-c", "from pickstop.api.planner_process import child_main; "
-             f"child_main({theirs.fileno()})"],
+            [sys.executable, "-c", f"from {module} import {fn}; {fn}({theirs.fileno()})"],
             pass_fds=[theirs.fileno()],
-            env={**env, "PICKSTOP_CHILD_SETTINGS": self.settings.model_dump_json()},
+            env={**env, SETTINGS_ENV: self.settings.model_dump_json()},
         )  # fmt: skip
         theirs.close()
         parent = Connection(ours.detach())
@@ -211,17 +215,26 @@ def _dump_error(e: BaseException) -> bytes:
 
 
 # -- the child side --------------------------------------------------------------------------
-def child_main(fd: int) -> None:
-    """The child: serve the parent's calls on the socket ``fd`` until it says stop or goes
-    away."""
-    from pickstop.api.workers import _die_with_parent
+def die_with_parent() -> None:
+    """Linux: the kernel sends this process SIGTERM if the parent dies (even by kill -9)."""
+    import ctypes
+    import signal
 
-    _die_with_parent()
-    from pickstop.api.service import Service
+    with contextlib.suppress(OSError):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
 
+
+def child_settings() -> Settings:
+    """In the child: the parent's settings, as it passed them."""
+    return Settings.model_validate_json(os.environ.pop(SETTINGS_ENV))
+
+
+def serve(fd: int, service: Any) -> None:
+    """In the child: answer the parent's calls on the socket ``fd`` with ``service`` (whose
+    ``plan``, ``preview``, ``regions``, ``preload``, ``loaded`` and ``close`` it uses) until
+    the parent says stop or goes away."""
+    die_with_parent()
     conn = Connection(fd)
-    settings = Settings.model_validate_json(os.environ.pop("PICKSTOP_CHILD_SETTINGS"))
-    service = Service(settings.model_copy(update={"planner_processes": 0}), job_runner=False)
     try:
         service.preload()
         _serve(conn, service)

@@ -24,6 +24,7 @@ import numpy as np
 import shapely
 
 from pickstop.api import limits as lim
+from pickstop.api import planner_process
 from pickstop.api.body import type_errors
 from pickstop.api.planner_process import PlannerProcess
 from pickstop.api.problems import Problem
@@ -98,7 +99,11 @@ class Service:
         self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="pickstop-plan")
         # Plans, previews and regions run in a child process (planner_process.py) unless the
         # settings keep them on this process's threads.
-        self.remote = PlannerProcess(settings) if settings.planner_processes > 0 else None
+        self.remote = (
+            PlannerProcess(settings, f"{__name__}:planner_child")
+            if settings.planner_processes > 0
+            else None
+        )
         self._slots: dict[tuple[str, str], _Slot] = {}
         self._slots_lock = threading.Lock()
         self._jobs: queue.Queue[str | None] = queue.Queue()
@@ -648,3 +653,10 @@ class Service:
         reach_catalog.delete_database(cat, db_id)
         shutil.rmtree(self.data_dir / "reach" / db_id, ignore_errors=True)
         return True
+
+
+def planner_child(fd: int) -> None:
+    """The planner process (api/planner_process.py): a service of its own, without jobs or
+    children, answering the parent's calls on the socket ``fd``."""
+    settings = planner_process.child_settings().model_copy(update={"planner_processes": 0})
+    planner_process.serve(fd, Service(settings, job_runner=False))

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from pickstop.api.planner_process import die_with_parent
 from pickstop.settings import Settings
 
 # The event loop and HTTP parser the API is served with: uvloop and httptools (both C) answer
@@ -52,7 +53,7 @@ class WorkerPool:
             if pid == 0:  # the worker: serve until told to stop, never return into the parent
                 code = 1
                 try:
-                    _die_with_parent()
+                    die_with_parent()
                     code = serve(sock, settings, i, log_level)
                 finally:
                     os._exit(code)
@@ -121,15 +122,6 @@ def wait_healthy(url: str, pool: WorkerPool, timeout: float = 300.0) -> None:
         time.sleep(0.3)
     pool.should_exit = True
     raise PickStopError(f"the API workers did not answer at {url} within {timeout:g} s")
-
-
-def _die_with_parent() -> None:
-    """Linux: the kernel sends this process SIGTERM if the parent dies (even by kill -9)."""
-    import ctypes
-    from contextlib import suppress
-
-    with suppress(OSError):
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
 
 
 def serve(sock: socket.socket, settings: Settings, index: int, log_level: str) -> int:
