@@ -427,7 +427,7 @@ class _Planning:
             )
             raise InfeasiblePlanError(
                 f"the {name} ({p.x:.2f}, {p.y:.2f}) is not a valid base position: {where}, and "
-                f"at its yaw {math.degrees(p.yaw):.0f} deg {paths.undocked[k]}",
+                f"{paths.undocked[k]}",
                 field=name,
             )
 
