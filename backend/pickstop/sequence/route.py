@@ -129,8 +129,8 @@ class FloorMap:
         if not out:
             return np.zeros((0, 2))
         pts = np.array(out)
-        keep = [i for i in range(len(pts)) if all(np.linalg.norm(pts[i] - pts[j]) > 1e-3
-                                                  for j in range(i))]  # fmt: skip
+        gaps = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+        keep = [i for i in range(len(pts)) if not (gaps[i, :i] <= 1e-3).any()]  # one of each
         return pts[keep]
 
     def leg_ok(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
