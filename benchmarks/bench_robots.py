@@ -3,6 +3,7 @@ stored fraction, and the regions and plan of the paper-like scene with that robo
 predicted success); every shipped robot by default.
 
     python benchmarks/bench_robots.py [--samples 2000000] [--robots tiago examples/robots/pr2.yaml]
+        [--no-dense]
 
 Also builds a generated robot whose fixed links carry 100,000-triangle meshes (a laser, an
 e-stop and a wrist camera) and reports the time to a finished small build.
@@ -69,10 +70,6 @@ def paper(ref: str, robot, row: dict, folder: Path) -> None:
 
     doc = json.loads((ROOT / "examples/scenes/paper_experiment.json").read_text())
     doc["robot"] = {"preset": ref} if ref == "tiago" else {"config": str(Path(ref).resolve())}
-    if Path(ref).stem == "ur5_amr":
-        # The route takes the base as its 0.57 m bounding circle; the goal lies 0.50 m from
-        # the floor's edge. 10 cm inwards it is a valid base position.
-        doc["goal"]["x"] -= 0.1
     scene = parse_scene(doc)
     planner = RegionPlanner(
         robot, open_database(folder, robot, row["id"]), cache_dir=cache_dir(folder)
@@ -89,9 +86,11 @@ def paper(ref: str, robot, row: dict, folder: Path) -> None:
     try:
         plan = StopPlanner(planner).plan(scene, PlanOptions(samples=1000))
         stops = ", ".join(f"{'+'.join(s.trays)} ok={s.success.rate:.1%}" for s in plan.stops)
+        docking = sum(y is not None for leg in plan.legs for y in leg.segment_yaws or [])
         result = (
             f"plan {plan.totals.stops} stops (naive {len(plan.naive.stops)}), "
-            f"{plan.totals.time.total:.1f} s, success {plan.totals.success:.1%}: {stops}"
+            f"{plan.totals.time.total:.1f} s, success {plan.totals.success:.1%}: {stops}; "
+            f"route {plan.totals.route_length:.2f} m, {docking} docking segment(s)"
         )
     except InfeasiblePlanError as e:
         result = f"plan infeasible: {e.message}"
@@ -122,6 +121,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--samples", type=int, default=2_000_000)
     ap.add_argument("--robots", nargs="*", default=ROBOTS)
+    ap.add_argument("--no-dense", action="store_true", help="skip the 100,000-triangle robot")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for ref in args.robots:
@@ -130,7 +130,8 @@ def main() -> None:
                 args.samples,
                 Path(tmp) / Path(ref).stem,
             )
-        dense(Path(tmp) / "dense")
+        if not args.no_dense:
+            dense(Path(tmp) / "dense")
 
 
 if __name__ == "__main__":

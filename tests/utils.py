@@ -103,3 +103,53 @@ def assert_cells_verified(planner, scene, region, rows) -> None:
             assert (th[i] >= robot.lower - 1e-9).all() and (th[i] <= robot.upper + 1e-9).all()
             assert not exact_arm.colliding(th[i], xy[i, 0], xy[i, 1], region.yaw, solids)
         assert not exact_self.colliding(th).any()
+
+
+def assert_route_clear(robot, scene, plan, step: float = 0.01) -> None:
+    """Every leg of ``plan`` is collision-free for the robot's own base: along a docking
+    segment (held at a yaw), sampled every ``step`` [m], the footprint and the upper body at
+    that yaw meet no solid (the regions' exact Minkowski test) and the footprint stays on the
+    floor; along every other segment, and so at every turn, the body's full bounding circle
+    keeps clear of whatever reaches below the body's top and stays on the floor (exact: the
+    segment's distance)."""
+    import math
+
+    import shapely
+    import shapely.affinity
+
+    from pickstop.regions.footprint import blocked_by, floor_outline, upper_body
+    from pickstop.scene.world import scene_solids
+
+    solids = scene_solids(scene)
+    body = upper_body(robot)
+    low = shapely.union_all(
+        [shapely.Polygon(floor_outline(s)) for s in solids if s.aabb()[0][2] < body.top]
+    )
+    floor = shapely.box(*scene.floor.min, *scene.floor.max)
+    inner = floor.buffer(-body.radius + 1e-4, join_style="mitre")
+    fp = robot.footprint
+    outline = (
+        shapely.Point(0, 0).buffer(fp.radius, quad_segs=32)
+        if fp.radius is not None
+        else shapely.Polygon(fp.polygon)
+    )
+    for n, leg in enumerate(plan.legs):
+        line = np.asarray(leg.polyline, float)
+        held = leg.segment_yaws or [None] * (len(line) - 1)
+        assert len(held) == len(line) - 1, n
+        for k, yaw in enumerate(held):
+            a, b = line[k], line[k + 1]
+            if yaw is None:
+                seg = shapely.LineString([a, b])
+                assert seg.distance(low) > body.radius - 1e-4, (n, k, "circle meets a solid")
+                assert inner.covers(seg), (n, k, "circle leaves the floor")
+                continue
+            m = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
+            pts = a + np.linspace(0, 1, m)[:, None] * (b - a)
+            assert not blocked_by(robot, solids, pts, yaw).any(), (n, k, yaw)
+            turned = shapely.affinity.rotate(outline, yaw, origin=(0, 0), use_radians=True)
+            for p in pts:
+                assert floor.covers(shapely.affinity.translate(turned, *p)), (n, k, p)
+        # a leg ends at its stop at the stop's yaw
+        if n < len(plan.stops) and held[-1] is not None:
+            assert math.isclose(held[-1], plan.stops[n].yaw, abs_tol=1e-9)

@@ -154,3 +154,71 @@ def test_floor_path_corners_become_via_nodes_the_vehicle_passes(example_plans, p
         veh.finished_at - veh.started_at
         > plan.totals.time.total + 0.9 * longer / plan.parameters.max_speed
     )
+
+
+@pytest.mark.parametrize("version", ["2.1", "3.0"])
+def test_a_docking_leg_holds_the_stops_yaw_in_the_order_nav2_and_the_vehicle(
+    example_plans, planner, version
+):
+    """A plan whose first stop is docked: a straight leg from a staging point 0.2 m back,
+    driven at the stop's yaw. The order's staging node and the stop carry that theta, the edge
+    between them its GLOBAL orientation without rotation; Nav2's poses hold the yaw; the
+    simulated vehicle halts at the staging point as the time model does."""
+    from pickstop.fleet import nav2
+    from pickstop.fleet.execution import vehicle_for
+    from pickstop.fleet.pickcheck import PickChecker
+    from pickstop.sequence.timing import pieces_time, plan_time, rest_pieces
+
+    scene, plan = example_plans["paper_experiment"]
+    s0 = plan.stops[0]
+    back = (s0.x - 0.2 * math.cos(s0.yaw), s0.y - 0.2 * math.sin(s0.yaw))
+    legs = [leg.model_copy(deep=True) for leg in plan.legs]
+    legs[0].polyline = [legs[0].polyline[0], back, (s0.x, s0.y)]
+    legs[0].segment_yaws = [None, s0.yaw]
+    legs[1].polyline = [(s0.x, s0.y), back, *legs[1].polyline[1:]]
+    legs[1].segment_yaws = [s0.yaw] + [None] * (len(legs[1].polyline) - 2)
+    m = plan.parameters
+    for leg in legs:
+        leg.time = pieces_time(
+            rest_pieces(leg.polyline, leg.segment_yaws or []), m.max_speed, m.max_acceleration
+        )
+    n_parts = sum(len(scene.tray(t).parts) for t in plan.trays)
+    tb = plan_time(
+        [rest_pieces(leg.polyline, leg.segment_yaws or []) for leg in legs],
+        len(plan.stops), n_parts, m.max_speed, m.max_acceleration, m.stop_time, m.pick_time,
+    )  # fmt: skip
+    docked = plan.model_copy(update={"legs": legs})
+
+    order = od.build_order(docked, od.OrderOptions(version=version))
+    jsonschema.validate(v.dump(order), schema("order", v.VERSIONS[version]))
+    assert od.check_order(order) == []
+    ids = [n.node_id for n in order.nodes]
+    assert ids[:4] == ["start", "leg0-via1", "stop0", "leg1-via1"]
+    for k in (1, 3):
+        p = order.nodes[k].node_position
+        assert (p.x, p.y) == pytest.approx(back) and p.theta == pytest.approx(s0.yaw)
+        assert p.allowed_deviation_theta is not None
+        dev = p.allowed_deviation_xy
+        assert (dev if version == "2.1" else dev.a) == rt.DOCK_TOLERANCE
+    for e in (order.edges[1], order.edges[2]):  # staging -> stop, stop -> staging
+        assert e.orientation == pytest.approx(s0.yaw) and e.orientation_type == "GLOBAL"
+        if version == "2.1":
+            assert e.rotation_allowed is False
+        else:
+            assert e.reach_orientation_before_entering is True
+    assert order.edges[0].orientation is None and order.edges[3].orientation is None
+
+    doc = nav2.build_nav2(docked)
+    poses = nav2.goal_poses(doc)
+    assert poses[0][2] == pytest.approx(s0.yaw) and poses[1][2] == pytest.approx(s0.yaw)
+    assert doc["segments"][0]["docking"] == [1] and doc["segments"][1]["docking"] == [2]
+
+    veh = vehicle_for(docked, PickChecker(planner, scene), seed=0, version=v.VERSIONS[version])
+    veh.forced_error = (0.0, 0.0, 0.0)
+    assert veh.accept(v.dump(order))
+    while veh.busy:
+        veh.advance(min(0.5, veh.next_event()))
+    assert veh.finished_at - veh.started_at == pytest.approx(tb.total, abs=0.1)
+    # halting at the staging point costs time against driving through it
+    assert tb.travel > plan_time([leg.length for leg in legs], 0, 0, m.max_speed,
+                                 m.max_acceleration, 0, 0).travel  # fmt: skip

@@ -1,6 +1,6 @@
-"""The robots shipped in examples/robots: each loads and passes `robot check`; the UR5 AMR and
-TIAGo Pro build small databases and reach every tray of the paper-like scene from verified
-stops."""
+"""The robots shipped in examples/robots: each loads and passes `robot check`; the UR5 AMR,
+TIAGo Pro and PR2 build small databases, reach every tray of the paper-like scene from verified
+stops and plan it, the long bases docking where their bounding circle does not fit."""
 
 from __future__ import annotations
 
@@ -13,25 +13,19 @@ import pytest
 import shapely
 
 from pickstop.robot.model import load
-from tests.utils import assert_stop_verified
+from tests.utils import assert_route_clear, assert_stop_verified
 
 ROOT = Path(__file__).parents[2]
 ROBOTS = ROOT / "examples" / "robots"
-CONFIGS = {name: ROBOTS / f"{name}.yaml" for name in ("ur5_amr", "tiago_pro", "tiago_dual")}
+CONFIGS = {name: ROBOTS / f"{name}.yaml" for name in ("ur5_amr", "tiago_pro", "tiago_dual", "pr2")}
 
 
 def paper_scene(config: Path):
-    """The paper-like scene with its robot replaced by ``config``.
-
-    The UR5 AMR's goal moves 10 cm in from the floor's edge: the route takes the base as its
-    bounding circle (0.57 m for the 0.94 x 0.64 m outline), and the scene's goal lies 0.50 m
-    from the edge (x 4.5 of 5.0)."""
+    """The paper-like scene, unchanged but for its robot: ``config``."""
     from pickstop.scene.load import parse_scene
 
     doc = json.loads((ROOT / "examples/scenes/paper_experiment.json").read_text())
     doc["robot"] = {"config": str(config)}
-    if config.stem == "ur5_amr":
-        doc["goal"]["x"] -= 0.1
     return parse_scene(doc)
 
 
@@ -170,7 +164,7 @@ def test_derived_footprint_holds_the_base_outline(name, robots, tiago):
         assert "derived from the base's collision geometry below 0.35 m plus 0.02 m" in line
 
 
-@pytest.fixture(scope="module", params=["ur5_amr", "tiago_pro"])
+@pytest.fixture(scope="module", params=["ur5_amr", "tiago_pro", "pr2"])
 def planned(request, robots, tmp_path_factory):
     """A small database of the robot, its region planner and the paper-like scene."""
     from pickstop.reach.build import BuildParams
@@ -223,6 +217,12 @@ def test_paper_scene_plan_witnesses_pass_exact_checks_with_the_hand(planned):
     assert sorted(t for s in plan.stops for t in s.trays) == sorted(scene.task_trays)
     for stop in plan.stops:
         assert_stop_verified(planner, scene, stop)
+    assert_route_clear(planner.robot, scene, plan)
+    docked = [leg for leg in plan.legs if leg.segment_yaws]
+    if name == "ur5_amr":  # the goal lies 0.50 m from the floor's edge, its circle is 0.57 m
+        assert plan.legs[-1].segment_yaws and plan.legs[-1].segment_yaws[-1] == scene.goal.yaw
+    if name == "pr2":  # stops 0.45-0.46 m from the tables, its circle is 0.467 m
+        assert docked
 
 
 def test_tiago_dual_hey5_pinches_every_paper_scene_part_from_above(robots):

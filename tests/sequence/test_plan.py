@@ -191,6 +191,8 @@ def test_start_inside_an_obstacle(stop_planner, paper_doc):
         stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=0))
     assert "the start (1.40, 1.90) is not a valid base position" in e.value.message
     assert "table_a" in e.value.message and e.value.field == "start"
+    # Nor can it dock at its own yaw: the footprint there overlaps the table.
+    assert "and the base at yaw 0 deg does not fit there: it meets" in e.value.message
 
 
 def test_goal_walled_off(stop_planner, paper_doc):

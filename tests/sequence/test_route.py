@@ -1,4 +1,5 @@
-"""Floor routing: shortest paths around inflated obstacles, never through them."""
+"""Floor routing: shortest paths around inflated obstacles, never through them; docking legs
+at a fixed yaw where the bounding circle does not fit, checked against the real outline."""
 
 from __future__ import annotations
 
@@ -7,11 +8,13 @@ import math
 
 import numpy as np
 import pytest
+import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Point, box
 
-from pickstop.sequence.route import FloorMap, polyline_clear, shortest_paths
+from pickstop.regions.footprint import BodyPieces, FloorSolids, sweep_blocked
+from pickstop.sequence.route import Docking, FloorMap, polyline_clear, shortest_paths
 
 
 def test_straight_line_when_nothing_is_in_the_way():
@@ -74,3 +77,185 @@ def test_paths_never_cross_inflated_obstacles(boxes, seed):
             assert LineString(line).distance(o) >= radius - 1e-3
         assert p.dist[i, j] >= np.linalg.norm(pts[i] - pts[j]) - 1e-9
         assert Point(line[0]).distance(Point(pts[i])) < 1e-9
+
+
+# -- docking: a long base whose stop is closer to a table than its bounding radius ---------------
+
+FLOOR = (0.0, 0.0, 6.0, 6.0)
+
+
+def _body(outline, height=0.35):
+    return BodyPieces((np.asarray(outline, float),), np.array([-np.inf]), np.array([height]))
+
+
+def _rect(length, width):
+    hx, hy = length / 2, width / 2
+    return np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
+
+
+def _world(obstacles, heights=None):
+    heights = heights or [(0.0, 0.72)] * len(obstacles)
+    return FloorSolids(
+        list(obstacles),
+        [f"ob{k}" for k in range(len(obstacles))],
+        np.array([h[0] for h in heights]).reshape(-1),
+        np.array([h[1] for h in heights]).reshape(-1),
+        box(*FLOOR),
+    )
+
+
+def _setup(outline, obstacles):
+    body, world = _body(outline), _world(obstacles)
+    radius = float(np.hypot(*np.asarray(outline).T).max())
+    fmap = FloorMap.build(FLOOR, list(obstacles), radius)
+    docking = Docking(lambda a, b, yaw: sweep_blocked(body, world, a, b, yaw), 3 * radius)
+    return fmap, docking, radius
+
+
+def assert_path_clear(line, held, outline, radius, obstacles, end_yaw=None, step=0.005):
+    """Exact check of a path: along a segment held at a yaw, the footprint polygon at that yaw
+    sampled every ``step`` [m] (for a convex one also its sweep between samples, the hull of
+    two); along a free segment and at every turn, the full bounding circle (the segment's
+    distance to the obstacles); nothing meets an obstacle and everything stays on the floor."""
+    from shapely.geometry import Polygon
+
+    line = np.asarray(line, float)
+    floor, union = box(*FLOOR).buffer(1e-6), shapely.union_all(obstacles)
+    outline = np.asarray(outline, float)
+    convex = Polygon(outline).equals(Polygon(outline).convex_hull)
+    for k in range(len(line) - 1):
+        a, b = line[k], line[k + 1]
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
+        pts = a + np.linspace(0, 1, n)[:, None] * (b - a)
+        if held[k] is None:  # the whole circle swept along it (exact: the segment's distance)
+            seg = shapely.LineString([a, b])
+            assert seg.distance(union) > radius - 1e-4, (k, "circle meets an obstacle")
+            inner = box(*FLOOR).buffer(-radius + 1e-4, join_style="mitre")
+            assert inner.covers(seg), (k, "circle leaves the floor")
+            continue
+        c, s_ = math.cos(held[k]), math.sin(held[k])
+        rot = outline @ np.array([[c, -s_], [s_, c]]).T
+        placed = pts[:, None, :] + rot[None]
+        shapes = list(shapely.polygons(placed))
+        if convex:
+            pairs = np.concatenate([placed[:-1], placed[1:]], axis=1)
+            shapes += list(shapely.convex_hull(shapely.multipoints(pairs)))
+        shapes = np.array(shapes)
+        assert shapely.covers(floor, shapes).all(), (k, "leaves the floor")
+        assert not shapely.intersects(shapes, union).any(), (k, held[k])
+    if end_yaw is not None:
+        c, s_ = math.cos(end_yaw), math.sin(end_yaw)
+        end = Polygon(outline @ np.array([[c, -s_], [s_, c]]).T + line[-1])
+        assert floor.covers(end) and not end.intersects(union)
+
+
+def test_a_long_base_docks_closer_to_a_table_than_its_bounding_radius():
+    outline = _rect(0.9, 0.3)  # bounding radius 0.474 m
+    table = box(2.0, 2.0, 4.0, 2.6)
+    fmap, docking, radius = _setup(outline, [table])
+    stop = np.array([3.0, 2.0 - 0.2])  # 0.2 m off the table's edge, long side along it
+    pts = np.array([[1.0, 0.5], [5.0, 0.5], stop])
+    yaws = np.array([np.nan, np.nan, 0.0])
+    assert not fmap.is_free(tuple(stop))
+    # The bounding circle alone never gets there.
+    assert math.isinf(shortest_paths(fmap, pts).dist[0, 2])
+    p = shortest_paths(fmap, pts, yaws, docking)
+    assert np.isfinite(p.dist[0, 2]) and np.isfinite(p.dist[2, 1]) and not p.undocked
+    for i, j in [(0, 2), (2, 1)]:
+        line, held = p.polyline(i, j), p.segment_yaws(i, j)
+        assert any(h == 0.0 for h in held)
+        assert_path_clear(line, held, outline, radius, [table], 0.0 if j == 2 else None)
+    # One straight leg out to a staging point where the base may turn, then free travel.
+    back, held = p.polyline(2, 1), p.segment_yaws(2, 1)
+    assert held[0] == 0.0 and all(h is None for h in held[1:])
+    assert fmap.is_free(tuple(back[1])) and np.linalg.norm(back[1] - stop) <= docking.reach
+    assert p.dist[0, 2] >= np.linalg.norm(stop - pts[0])
+
+
+def test_docked_stops_of_one_yaw_slide_along_the_table():
+    outline = _rect(0.9, 0.3)
+    table = box(2.0, 2.0, 4.0, 2.6)
+    fmap, docking, radius = _setup(outline, [table])
+    pts = np.array([[1.0, 0.5], [5.0, 0.5], [2.6, 1.8], [3.4, 1.8]])
+    p = shortest_paths(fmap, pts, np.array([np.nan, np.nan, 0.0, 0.0]), docking)
+    assert p.dist[2, 3] == pytest.approx(0.8)
+    assert p.segment_yaws(2, 3) == [0.0]
+    # Across yaws no slide: the half turn (same outline, other heading) needs the circle-free
+    # floor, out and back in.
+    p2 = shortest_paths(fmap, pts, np.array([np.nan, np.nan, 0.0, math.pi]), docking)
+    held = p2.segment_yaws(2, 3)
+    assert p2.dist[2, 3] > 0.8 + 0.2 and held[0] == 0.0 and held[-1] == math.pi
+    assert None in held
+    assert_path_clear(p2.polyline(2, 3), p2.segment_yaws(2, 3), outline, radius, [table])
+
+
+def test_a_pose_that_cannot_dock_says_why():
+    outline = _rect(0.9, 0.3)
+    table = box(2.0, 2.0, 4.0, 2.6)
+    # A pocket under the table whose mouth (0.25 m) is narrower than the base (0.3 m).
+    walls = [box(2.4, 1.2, 2.5, 2.0), box(3.5, 1.2, 3.6, 2.0), box(2.4, 1.1, 2.9, 1.2),
+             box(3.15, 1.1, 3.6, 1.2)]  # fmt: skip
+    fmap, docking, _ = _setup(outline, [table, *walls])
+    pts = np.array([[1.0, 0.5], [5.0, 0.5], [3.0, 1.8], [3.0, 1.95]])
+    p = shortest_paths(fmap, pts, np.array([np.nan, np.nan, 0.0, 0.0]), docking)
+    assert math.isinf(p.dist[0, 2]) and "every straight leg" in p.undocked[2]
+    assert "ob0" in p.undocked[3] and "does not fit" in p.undocked[3]  # overlaps the table
+    assert 0 not in p.undocked and 1 not in p.undocked
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    boxes=st.lists(
+        st.tuples(st.floats(0.5, 5), st.floats(0.5, 5), st.floats(0.2, 1.5), st.floats(0.2, 1.5)),
+        min_size=1,
+        max_size=4,
+    ),
+    shape=st.sampled_from(["rect", "ell"]),
+    yaw=st.floats(-math.pi, math.pi),
+    seed=st.integers(0, 1000),
+)
+def test_every_docked_path_is_clear_for_the_real_outline(boxes, shape, yaw, seed):
+    """Random tables and a long (convex) or L-shaped (concave) base: points where the outline
+    fits at its yaw but the bounding circle does not; every path found passes the exact
+    sampled check."""
+    from shapely import affinity
+    from shapely.geometry import Polygon
+
+    ell = [[0.45, 0.2], [-0.45, 0.2], [-0.45, -0.2], [0.0, -0.2], [0.0, 0.0], [0.45, 0.0]]
+    outline = _rect(0.9, 0.35) if shape == "rect" else np.array(ell)
+    obstacles = [box(x, y, x + w, y + h) for x, y, w, h in boxes]
+    body, world = _body(outline), _world(obstacles)
+    radius = float(np.hypot(*outline.T).max())
+    fmap = FloorMap.build(FLOOR, obstacles, radius)
+    if shape == "ell":  # concave: swept as its triangles, as body_pieces does
+        tris = shapely.constrained_delaunay_triangles(Polygon(outline))
+        body = BodyPieces(
+            tuple(np.asarray(t.exterior.coords[:-1]) for t in tris.geoms),
+            np.full(len(tris.geoms), -np.inf),
+            np.full(len(tris.geoms), 0.35),
+        )
+    docking = Docking(lambda a, b, y: sweep_blocked(body, world, a, b, y), 3 * radius)
+    rng = np.random.default_rng(seed)
+    rot = affinity.rotate(Polygon(outline), yaw, origin=(0, 0), use_radians=True)
+    floor, union = box(*FLOOR), shapely.union_all(obstacles)
+    docked = []
+    for q in rng.uniform(0.3, 5.7, (400, 2)):
+        placed = affinity.translate(rot, *q)
+        if not fmap.is_free(tuple(q)) and floor.covers(placed) and not placed.intersects(union):
+            docked.append(q)
+        if len(docked) == 3:
+            break
+    free = [q for q in rng.uniform(0.5, 5.5, (200, 2)) if fmap.is_free(tuple(q))][:2]
+    if not docked or not free:
+        return
+    pts = np.array([*free, *docked])
+    yaws = np.array([np.nan] * len(free) + [yaw] * len(docked))
+    p = shortest_paths(fmap, pts, yaws, docking)
+    for i, j in itertools.permutations(range(len(pts)), 2):
+        if math.isinf(p.dist[i, j]):
+            continue
+        line, held = p.polyline(i, j), p.segment_yaws(i, j)
+        end = yaw if j >= len(free) else None
+        assert_path_clear(line, held, outline, radius, obstacles, end)
+        if i < len(free) <= j:
+            assert held[-1] is not None and held[-1] == pytest.approx(yaw)

@@ -32,3 +32,22 @@ def test_plan_time_adds_stops_and_picks():
     b = plan_time([4.0, 4.0], n_stops=1, n_parts=3, v=0.5, a=0.5, stop_time=8, pick_time=6)
     assert b.travel == pytest.approx(18.0)
     assert b.total == pytest.approx(18 + 8 + 18)
+
+
+def test_a_leg_halts_at_each_end_of_its_docking_segments():
+    from pickstop.sequence.timing import pieces_time, rest_pieces
+
+    line = [(0, 0), (3, 0), (3, 0.4), (3, 0.8), (6, 0.8)]
+    assert rest_pieces(line, []) == pytest.approx([6.8])
+    # Docked at the second and third segments (one yaw): halts at (3, 0) and (3, 0.8).
+    assert rest_pieces(line, [None, 1.5, 1.5, None]) == pytest.approx([3.0, 0.4, 0.4, 3.0])
+    assert rest_pieces(line, [None, None, None, 0.0]) == pytest.approx([3.8, 3.0])
+    t = pieces_time(rest_pieces(line, [None, 1.5, None, None]), 0.5, 0.5)
+    assert t == pytest.approx(leg_time(3.0, 0.5, 0.5) + leg_time(0.4, 0.5, 0.5)
+                              + leg_time(3.4, 0.5, 0.5))  # fmt: skip
+    assert t > leg_time(6.8, 0.5, 0.5)
+    with pytest.raises(ValueError, match="2 segment yaws for 5 waypoints"):
+        rest_pieces(line, [None, 1.0])
+    # plan_time takes a leg as its pieces
+    b = plan_time([[3.0, 0.4], 4.0], n_stops=1, n_parts=0, v=0.5, a=0.5, stop_time=8, pick_time=6)
+    assert b.travel == pytest.approx(leg_time(3.0, 0.5, 0.5) + leg_time(0.4, 0.5, 0.5) + 9.0)

@@ -41,7 +41,7 @@ from pickstop.robot.config import (
 from pickstop.robot.model import RobotModel, _mesh_refs, load_robot, resolve_path
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import Scene
-from pickstop.sequence.plan import StopPlanner, route_points
+from pickstop.sequence.plan import StopPlanner, route_points, route_yaws
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
 from pickstop.settings import Settings, cache_dir
@@ -455,7 +455,8 @@ class Service:
             sp = slot.planner
             regions = sp.regions.regions(scene)
             cands = sp.candidates(regions)
-            dist = sp.paths(sp.floor(scene), route_points(scene, cands)).dist
+            points, yaws = route_points(scene, cands), route_yaws(scene, cands)
+            dist = sp.paths(sp.floor(scene), points, yaws).dist
         verdicts = cut_off(
             judge(Rule(rule, sigma, scene.error_model.kind, target), cands),
             [bool(np.isfinite(dist[0, i + 2])) for i in range(len(cands))],

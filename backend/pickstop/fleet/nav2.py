@@ -37,6 +37,10 @@ NOTES = [
     "checker per stop and select it with the behaviour tree's goal_checker_id.",
     "Intermediate poses (floor path corners) carry no orientation of their own: their yaw "
     "points along the next segment of the path.",
+    "Where the base cannot turn (a docking leg to a stop close to a table), both ends of the "
+    "leg carry the stop's yaw: drive it straight at that yaw (turn at its outer end), e.g. as "
+    "its own goal with a controller that holds the heading; each segment's `docking` lists "
+    "the poses reached along such a leg.",
     "The localisation error (AMCL) counts against the tolerance: the stop is only "
     "guaranteed if the true base lies within xy_goal_tolerance of the stop.",
 ]
@@ -123,6 +127,7 @@ def build_nav2(
             "last": i,
             "xy_goal_tolerance": w.tolerance_xy,
             "yaw_goal_tolerance": w.tolerance_yaw if w.tolerance_yaw is not None else math.pi,
+            "docking": [j for j in range(first, i + 1) if wps[j].hold_yaw is not None],
             "picks": [
                 {
                     "tray_id": p.tray_id,

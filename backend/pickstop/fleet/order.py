@@ -1,7 +1,9 @@
 """A plan as a VDA 5050 order (2.1.0 by default, 3.0.0 on request).
 
 Nodes: start, every corner of the obstacle-aware floor path, each stop, goal; straight edges
-join them. Node ``sequenceId`` s are even, edge ones odd, increasing along the route. Each stop
+join them. A docking leg (driven at a stop's fixed yaw where the base cannot turn) is an edge
+with that ``orientation`` (GLOBAL; no rotation on it), between nodes carrying that ``theta``.
+Node ``sequenceId`` s are even, edge ones odd, increasing along the route. Each stop
 node carries ``allowedDeviationXY`` = its guaranteed radius, ``allowedDeviationTheta`` = the
 yaw tolerance, and one blocking ``pick`` action per part (tray, part, grasp, and the witness arm
 configuration with its joint names). Everything is released (the base) unless
@@ -126,7 +128,8 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order21 | 
             pos["allowedDeviationXY"] = w.tolerance_xy
         if w.tolerance_yaw is not None:
             pos["allowedDeviationTheta"] = w.tolerance_yaw
-        desc = {"start": "start", "via": "floor path corner", "goal": "goal"}.get(
+        via = "floor path corner" if w.yaw is None else "docking leg end: turn here"
+        desc = {"start": "start", "via": via, "goal": "goal"}.get(
             w.kind, f"stop {w.stop}: trays {', '.join(sorted({p.tray_id for p in w.picks}))}"
         )
         nodes.append(
@@ -150,6 +153,9 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order21 | 
             "length": math.dist((a.x, a.y), (w.x, w.y)),
             "actions": [],
         }
+        if w.hold_yaw is not None:  # a docking leg: driven straight at the stop's yaw
+            edge |= {"orientation": w.hold_yaw, "orientationType": "GLOBAL"}
+            edge |= {"reachOrientationBeforeEntering": True} if v3 else {"rotationAllowed": False}
         if not v3:
             edge |= {"startNodeId": a.id, "endNodeId": w.id}
         edges.append(edge)

@@ -1,6 +1,11 @@
 """A plan as a vehicle drives it: waypoints (start, floor-path corners, stops, goal) with the
 tolerance each must be reached within, and the picks at each stop.
 
+Where the base's bounding circle does not fit (a long base's stop close to a table), the plan
+docks: a straight leg driven at the stop's fixed yaw from a staging point where the base may
+turn. Such a leg's end waypoints carry that yaw (``yaw``) and the leg arriving at a waypoint
+says the yaw it is driven at (``hold_yaw``); the vehicle halts at both ends to turn.
+
 Shared by the VDA 5050 and Nav2 exports and by the simulated vehicle. A stop's *guaranteed
 radius* is the largest circle around it inside which every part of its trays stays graspable:
 the inscribed circle of the regions' intersection the stop is the centre of (every floor cell
@@ -24,6 +29,7 @@ from pickstop.sequence.success import YAW_LATTICE
 
 MAX_WAYPOINTS = 10_000  # a route longer than this is refused before any export
 VIA_TOLERANCE = 0.25  # [m] how close a floor-path corner must be passed (Nav2's default)
+DOCK_TOLERANCE = 0.02  # [m] how close a docking leg's staging point must be reached
 
 Kind = Literal["start", "via", "stop", "goal"]
 
@@ -53,6 +59,7 @@ class Waypoint:
     stop: int | None = None  # stop index for kind "stop"
     picks: tuple[Pick, ...] = ()
     predicted_success: float | None = None
+    hold_yaw: float | None = None  # [rad] the yaw held on the way here (a docking leg)
 
 
 def guaranteed_radius(stop: pm.Stop) -> float:
@@ -108,14 +115,37 @@ def waypoints(
     if any(not 0 <= t <= math.pi for t in tols):
         raise InputError("yaw_tolerance: each must be in [0, pi] rad", field="yaw_tolerance")
     joints = tuple(plan.joints)
+    dock_tol = min(tols) if tols else yaw_tolerance(plan)  # the tightest band on docking legs
     if not plan.legs or not plan.legs[0].polyline:
         raise InputError("legs: the plan has no route", field="legs")
     x0, y0 = plan.legs[0].polyline[0]
     out = [Waypoint("start", "start", x0, y0, start_yaw, VIA_TOLERANCE, None)]
     for k, leg in enumerate(plan.legs):
         line = leg.polyline
+        held = leg.segment_yaws or [None] * (len(line) - 1)
+        if len(held) != len(line) - 1:
+            raise InputError(
+                f"legs.{k}.segment_yaws: {len(held)} values for {len(line) - 1} segments",
+                field=f"legs.{k}.segment_yaws",
+            )
+        held = [None if y is None else wrap_angle(y) for y in held]
+        if held[0] is not None and k == 0:  # the start itself is docked: it holds that yaw
+            first = out[0]
+            out[0] = Waypoint(first.id, "start", first.x, first.y, held[0], VIA_TOLERANCE, None)
         for i, (x, y) in enumerate(line[1:-1], start=1):
-            out.append(Waypoint(f"leg{k}-via{i}", "via", x, y, None, VIA_TOLERANCE, None))
+            yaw = held[i - 1] if held[i - 1] is not None else held[i]
+            out.append(
+                Waypoint(
+                    f"leg{k}-via{i}",
+                    "via",
+                    x,
+                    y,
+                    yaw,
+                    VIA_TOLERANCE if yaw is None else DOCK_TOLERANCE,
+                    None if yaw is None else dock_tol,
+                    hold_yaw=held[i - 1],
+                )
+            )
         x, y = line[-1]
         if k < len(plan.stops):
             s = plan.stops[k]
@@ -135,11 +165,11 @@ def waypoints(
                     stop=k,
                     picks=picks,
                     predicted_success=None if s.success is None else s.success.rate,
+                    hold_yaw=held[-1],
                 )
             )
         else:
-            out.append(
-                Waypoint("goal", "goal", x, y, None if goal_yaw is None else wrap_angle(goal_yaw),
-                         VIA_TOLERANCE, None)
-            )  # fmt: skip
+            # a docked goal is reached at the yaw it was planned with
+            gyaw = held[-1] if held[-1] is not None or goal_yaw is None else wrap_angle(goal_yaw)
+            out.append(Waypoint("goal", "goal", x, y, gyaw, VIA_TOLERANCE, None, hold_yaw=held[-1]))
     return out

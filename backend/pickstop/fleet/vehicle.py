@@ -172,9 +172,11 @@ class SimVehicle:
         return True
 
     def _plan_phases(self) -> list[_Phase]:
-        """Rest-to-rest drives between the nodes it stops at; docking and picks at those."""
+        """Rest-to-rest drives between the nodes it halts at (those with actions or an
+        orientation: a docking leg's ends, where it turns); docking and picks at stops."""
         out: list[_Phase] = []
-        stops = [i for i, n in enumerate(self.nodes) if n.actions] + [len(self.nodes) - 1]
+        stops = [i for i, n in enumerate(self.nodes) if n.actions or n.theta is not None]
+        stops.append(len(self.nodes) - 1)
         prev = 0
         for s in sorted(set(stops)):
             if s == 0:

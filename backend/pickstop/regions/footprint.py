@@ -181,3 +181,98 @@ def floor_outline(solid: Solid) -> np.ndarray:
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
     pts = (corners @ T[:3, :3].T + T[:3, 3])[:, :2]
     return np.asarray(shapely.MultiPoint(pts).convex_hull.exterior.coords)
+
+
+@dataclass(frozen=True)
+class BodyPieces:
+    """The base body seen from above as convex pieces in the base frame, each with the
+    heights it spans: the footprint (below its height) and each upper-body box. A solid blocks
+    a piece when their outlines meet and their heights overlap (as in :func:`blocked_by`)."""
+
+    outlines: tuple[np.ndarray, ...]  # (K_i, 2) convex, in the base frame [m]
+    z_lo: np.ndarray  # (P,) [m]; -inf for the footprint
+    z_hi: np.ndarray  # (P,) [m]
+
+
+def body_pieces(robot: RobotModel) -> BodyPieces:
+    """The footprint (a circle as its circumscribed 32-gon, a concave polygon as triangles)
+    and the upper body's boxes of ``robot``."""
+    fp = robot.footprint
+    if fp.radius is not None:
+        n = 32
+        r = fp.radius / math.cos(math.pi / n) + 1e-6  # circumscribes the circle
+        a = np.arange(n) * 2 * math.pi / n
+        pieces = [np.stack([r * np.cos(a), r * np.sin(a)], axis=1)]
+    else:
+        poly = shapely.Polygon(fp.polygon)
+        if poly.equals(poly.convex_hull):
+            pieces = [np.asarray(fp.polygon, float)]
+        else:  # triangles of the polygon: their swept hulls cover exactly its sweep
+            tris = shapely.constrained_delaunay_triangles(poly)
+            pieces = [np.asarray(t.exterior.coords[:-1]) for t in tris.geoms]
+    lo = [-math.inf] * len(pieces)
+    hi = [fp.height] * len(pieces)
+    for blo, bhi in upper_body(robot).boxes:
+        (x0, y0), (x1, y1) = blo[:2], bhi[:2]
+        pieces.append(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
+        lo.append(float(blo[2]))
+        hi.append(float(bhi[2]))
+    return BodyPieces(tuple(pieces), np.array(lo), np.array(hi))
+
+
+@dataclass(frozen=True)
+class FloorSolids:
+    """Solids' floor outlines with their height spans, for sweeping the body against."""
+
+    outlines: list[BaseGeometry]
+    owners: list[str]
+    z_lo: np.ndarray  # (S,) [m]
+    z_hi: np.ndarray  # (S,) [m]
+    floor: BaseGeometry  # the floor rectangle: the body stays on it
+
+    @classmethod
+    def of(cls, scene: Scene, solids: list[Solid] | None = None) -> FloorSolids:
+        solids = scene_solids(scene) if solids is None else solids
+        boxes = [s.aabb() for s in solids]
+        return cls(
+            [shapely.Polygon(floor_outline(s)) for s in solids],
+            [s.owner for s in solids],
+            np.array([b[0][2] for b in boxes]).reshape(-1),
+            np.array([b[1][2] for b in boxes]).reshape(-1),
+            shapely.box(*scene.floor.min, *scene.floor.max),
+        )
+
+
+def sweep_blocked(
+    body: BodyPieces, world: FloorSolids, a: np.ndarray, b: np.ndarray, yaw: float
+) -> tuple[np.ndarray, list[set[str]]]:
+    """Is the straight move of the base from ``a[i]`` to ``b[i]`` (each ``(M, 2)`` [m]) at a
+    fixed ``yaw`` [rad] blocked? The area a convex piece sweeps is exactly the convex hull of
+    the piece at both ends (the Minkowski sum of the segment and the piece); a leg is blocked
+    where a piece's sweep meets a solid it overlaps in height, or leaves the floor. Returns
+    ``(M,)`` blocked and, per leg, the owners of the solids met ("floor" for the edge)."""
+    a, b = np.asarray(a, float).reshape(-1, 2), np.asarray(b, float).reshape(-1, 2)
+    assert a.shape == b.shape, (a.shape, b.shape)
+    M = len(a)
+    out = np.zeros(M, bool)
+    owners: list[set[str]] = [set() for _ in range(M)]
+    if not M:
+        return out, owners
+    R = rot2(yaw)
+    tree = shapely.STRtree(world.outlines) if world.outlines else None
+    for outline, lo, hi in zip(body.outlines, body.z_lo, body.z_hi, strict=True):
+        rot = outline @ R.T
+        pts = np.concatenate([a[:, None, :] + rot[None], b[:, None, :] + rot[None]], axis=1)
+        hulls = shapely.convex_hull(shapely.multipoints(pts))
+        off = ~shapely.covers(world.floor, hulls)
+        out |= off
+        for i in np.flatnonzero(off):
+            owners[i].add("floor")
+        if tree is None:
+            continue
+        leg, sol = tree.query(hulls, predicate="intersects")
+        keep = (world.z_lo[sol] < hi) & (world.z_hi[sol] > lo)
+        for i, s in zip(leg[keep].tolist(), sol[keep].tolist(), strict=True):
+            out[i] = True
+            owners[i].add(world.owners[s])
+    return out, owners

@@ -4,8 +4,9 @@
 2. Every connected component of every k-th order intersection is a candidate stop at its
    largest inscribed circle's centre; the rule (the paper's sigma, or a target success rate)
    decides which are kept, and candidates the start cannot reach are dropped.
-3. Shortest floor paths between start, goal and every candidate; CP-SAT picks the fewest
-   stops, then the shortest route (or the least time).
+3. Shortest floor paths between start, goal and every candidate (a pose the base's bounding
+   circle does not fit docks on straight legs at its yaw, the swept body checked exactly);
+   CP-SAT picks the fewest stops, then the shortest route (or the least time).
 4. Each chosen stop is verified at its centre by the exact pipeline (that gives the witness
    arm configurations) and, with the success rule, confirmed by the Monte Carlo; a stop that
    fails is rejected with its reason and the selection runs again.
@@ -29,7 +30,14 @@ import shapely
 from shapely.geometry import Point, Polygon
 
 from pickstop.regions.cells import TrayRegion
-from pickstop.regions.footprint import floor_outline, upper_body
+from pickstop.regions.footprint import (
+    BodyPieces,
+    FloorSolids,
+    body_pieces,
+    floor_outline,
+    sweep_blocked,
+    upper_body,
+)
 from pickstop.regions.offgrid import feasible_near
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
@@ -37,10 +45,10 @@ from pickstop.scene.world import scene_solids
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
 from pickstop.sequence.intersections import Candidate, intersections
-from pickstop.sequence.route import FloorMap, Paths, shortest_paths
+from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
 from pickstop.sequence.success import Rate, combined, monte_carlo
-from pickstop.sequence.timing import TimeBreakdown, leg_time, plan_time
+from pickstop.sequence.timing import TimeBreakdown, leg_time, pieces_time, plan_time, rest_pieces
 
 MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
 DUPLICATE = 1e-3  # [m] candidates of the same trays this close are one
@@ -79,10 +87,20 @@ class _Lru(OrderedDict[Any, Any]):
         return None
 
 
+DOCK_REACH = 3.0  # longest docking leg searched, in bounding radii of the base body
+
+
 @dataclass(frozen=True)
 class _Floor:
     fmap: FloorMap
     outlines: list[tuple[str, Polygon]]  # obstacle id -> floor outline
+    world: FloorSolids  # every solid reaching below the body's top, for docking legs
+    body: BodyPieces
+    reach: float  # [m] longest docking leg
+
+    def docking(self) -> Docking:
+        return Docking(lambda a, b, yaw: sweep_blocked(self.body, self.world, a, b, yaw),
+                       self.reach)  # fmt: skip
 
 
 class StopPlanner:
@@ -96,6 +114,7 @@ class StopPlanner:
         self.regions = regions
         self._candidates = _Lru(cache_size)
         self._floors = _Lru(cache_size)
+        self._fmaps = _Lru(cache_size)
         self._paths = _Lru(cache_size)
         self._checks = _Lru(4096)
         self._rates = _Lru(4096)
@@ -132,6 +151,7 @@ class StopPlanner:
         # and base-fixed links) blocks it, grown by the body's farthest horizontal reach.
         body = upper_body(self.regions.robot)
         solids = [s for s in scene_solids(scene) if s.aabb()[0][2] < body.top]
+        every = solids
         outlines = [(s.owner, Polygon(floor_outline(s))) for s in solids]
         # An outline within another's (a tray on its table) blocks nothing more: moving it
         # leaves the floor map as it was.
@@ -144,25 +164,38 @@ class StopPlanner:
         }
         keep = [k for k in range(len(solids)) if k not in covered]
         solids, outlines = [solids[k] for k in keep], [outlines[k] for k in keep]
-        key = (
-            scene.floor.model_dump_json(),
-            body.radius,
-            tuple((s.owner, s.T_world_solid.tobytes(), s.half.tobytes()) for s in solids),
-        )
-        hit = self._floors.hit(key)
+
+        def solids_key(ss: list[Any]) -> tuple[Any, ...]:
+            return tuple((s.owner, s.T_world_solid.tobytes(), s.half.tobytes()) for s in ss)
+
+        robot = self.regions.robot
+        key = (scene.floor.model_dump_json(), robot.robot_hash, body.radius, solids_key(solids))
+        # Docking legs sweep the body's pieces at their own heights: an outline inside another
+        # may still meet a piece the outer solid's heights miss, so they see every solid.
+        full = (key, solids_key(every))
+        hit = self._floors.hit(full)
         if hit is not None:
             return hit
-        fmap = FloorMap.build(
-            (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], body.radius
-        )
-        return self._floors.put(key, _Floor(fmap, outlines))
+        fmap = self._fmaps.hit(key)
+        if fmap is None:
+            fmap = self._fmaps.put(
+                key,
+                FloorMap.build(
+                    (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], body.radius
+                ),
+            )
+        world = FloorSolids.of(scene, every)
+        floor = _Floor(fmap, outlines, world, body_pieces(robot), DOCK_REACH * body.radius)
+        return self._floors.put(full, floor)
 
-    def paths(self, floor: _Floor, points: np.ndarray) -> Paths:
-        key = (id(floor), points.tobytes())
+    def paths(self, floor: _Floor, points: np.ndarray, yaws: np.ndarray) -> Paths:
+        """Shortest paths between ``points: (Q, 2)`` [m] held at ``yaws: (Q,)`` [rad] where
+        the base's bounding circle does not fit (cached)."""
+        key = (id(floor), points.tobytes(), yaws.tobytes())
         hit = self._paths.hit(key)
         if hit is not None and hit[0] is floor:
             return hit[1]
-        p = shortest_paths(floor.fmap, points)
+        p = shortest_paths(floor.fmap, points, yaws, floor.docking())
         self._paths.put(key, (floor, p))
         return p
 
@@ -283,6 +316,11 @@ def route_points(scene: Scene, cands: list[Candidate]) -> np.ndarray:
     return np.array(ends + [list(c.centre) for c in cands], float).reshape(-1, 2)
 
 
+def route_yaws(scene: Scene, cands: list[Candidate]) -> np.ndarray:
+    """``(2 + n,)`` [rad]: the base's yaw at each of :func:`route_points`."""
+    return np.array([scene.start.yaw, scene.goal.yaw, *(c.yaw for c in cands)], float)
+
+
 def world_key(scene: Scene) -> str:
     """What feasibility at a base pose depends on: everything but task, start, goal, sigma."""
     keep = scene.model_dump(
@@ -338,8 +376,8 @@ class _Planning:
         t0 = self._clock("intersections", t0)
 
         floor = sp.floor(scene)
-        self._check_endpoints(floor)
-        paths = sp.paths(floor, route_points(scene, cands))
+        paths = sp.paths(floor, route_points(scene, cands), route_yaws(scene, cands))
+        self._check_endpoints(floor, paths)
         if not np.isfinite(paths.dist[0, 1]):
             raise InfeasiblePlanError(
                 f"the goal ({scene.goal.x:.2f}, {scene.goal.y:.2f}) cannot be reached from the "
@@ -375,21 +413,22 @@ class _Planning:
         if empty:
             raise InfeasiblePlanError("; ".join(empty), field="trays")
 
-    def _check_endpoints(self, floor: _Floor) -> None:
+    def _check_endpoints(self, floor: _Floor, paths: Paths) -> None:
         radius = upper_body(self.sp.regions.robot).radius
-        for name in ("start", "goal"):
+        for k, name in enumerate(("start", "goal")):
             p = getattr(self.scene, name)
-            if floor.fmap.is_free((p.x, p.y)):
-                continue
+            if k not in paths.undocked:
+                continue  # the base turns there, or docks at its yaw
             pt = Point(p.x, p.y)
             near = [oid for oid, o in floor.outlines if o.distance(pt) < radius + 0.01]
             where = (
-                f"within the footprint radius {radius:.2f} m of obstacle(s) {', '.join(near)}"
+                f"within the body's radius {radius:.2f} m of obstacle(s) {', '.join(near)}"
                 if near
-                else f"closer than the footprint radius {radius:.2f} m to the floor's edge"
+                else f"closer than the body's radius {radius:.2f} m to the floor's edge"
             )
             raise InfeasiblePlanError(
-                f"the {name} ({p.x:.2f}, {p.y:.2f}) is not a valid base position: {where}",
+                f"the {name} ({p.x:.2f}, {p.y:.2f}) is not a valid base position: {where}, and "
+                f"{paths.undocked[k]}",
                 field=name,
             )
 
@@ -405,7 +444,10 @@ class _Planning:
             if v.predicted is not None:
                 self.predicted[i] = v.predicted
             if not v.kept:
-                self.rejected[i] = v.reason or "rejected"
+                why = paths.undocked.get(i + 2) if reachable[i] is False else None
+                self.rejected[i] = (
+                    f"the base cannot get there: {why}" if why else (v.reason or "rejected")
+                )
         return rule.threshold
 
     def _explain_uncovered(self, cands: list[Candidate], missing: list[str]) -> None:
@@ -508,6 +550,11 @@ class _Planning:
         if self.opts.objective == "time":
             cost = leg_time(dist, motion.max_speed, motion.max_acceleration)
             cost = np.where(np.isfinite(dist), cost, np.inf)
+            if paths.docked:  # a path with docking legs halts at their ends
+                for a, b in zip(*np.nonzero(np.isfinite(dist)), strict=True):
+                    if a != b:
+                        pieces = self._pieces(paths, nodes[a], nodes[b])
+                        cost[a, b] = pieces_time(pieces, motion.max_speed, motion.max_acceleration)
         else:
             cost = dist
         sel = self.sp.selection(
@@ -549,29 +596,38 @@ class _Planning:
         naive = self._solve([cands[i].trays for i in best], best, paths)
         return best, naive
 
-    def _legs(self, paths: Paths, order: tuple[int, ...]) -> tuple[list[pm.Leg], list[float]]:
+    @staticmethod
+    def _pieces(paths: Paths, a: int, b: int) -> list[float]:
+        """The rest-to-rest pieces [m] of the path from query point a to b."""
+        return rest_pieces(paths.polyline(a, b), paths.segment_yaws(a, b))
+
+    def _legs(self, paths: Paths, order: tuple[int, ...]) -> tuple[list[pm.Leg], list[list[float]]]:
+        """The route's legs, and each leg's rest-to-rest pieces [m]."""
         motion = self.scene.motion
         nodes = [0, *(c + 2 for c in order), 1]
         names = ["start", *(f"stop {k}" for k in range(len(order))), "goal"]
-        legs, lengths = [], []
+        legs, pieces = [], []
         for (a, b), (na, nb) in zip(
             itertools.pairwise(nodes), itertools.pairwise(names), strict=True
         ):
             length = float(paths.dist[a, b])
             line = paths.polyline(a, b)
-            lengths.append(length)
+            held = paths.segment_yaws(a, b)
+            parts = rest_pieces(line, held)
+            pieces.append(parts)
             legs.append(
                 pm.Leg(
                     start=na,
                     end=nb,
                     length=length,
-                    time=float(leg_time(length, motion.max_speed, motion.max_acceleration)),
+                    time=pieces_time(parts, motion.max_speed, motion.max_acceleration),
                     polyline=[(float(x), float(y)) for x, y in line],
+                    segment_yaws=held if any(y is not None for y in held) else None,
                 )
             )
-        return legs, lengths
+        return legs, pieces
 
-    def _times(self, lengths: list[float], n_stops: int) -> TimeBreakdown:
+    def _times(self, lengths: list[list[float]], n_stops: int) -> TimeBreakdown:
         m = self.scene.motion
         n_parts = sum(len(self.scene.tray(t).parts) for t in self.required)
         return plan_time(
@@ -626,7 +682,7 @@ class _Planning:
             success, interval = combined([rates[c] for c in sel.order])
 
         best, nsel = naive
-        _, nlengths = self._legs(paths, nsel.order)
+        nlegs, nlengths = self._legs(paths, nsel.order)
         ntb = self._times(nlengths, len(best))
         chosen = set(sel.order)
         m = scene.motion
@@ -670,7 +726,7 @@ class _Planning:
             legs=legs,
             totals=pm.Totals(
                 stops=len(stops),
-                route_length=float(sum(lengths)),
+                route_length=float(sum(leg.length for leg in legs)),
                 time=_time(tb),
                 success=success,
                 success_interval=interval,
@@ -685,7 +741,7 @@ class _Planning:
                     )
                     for i in nsel.order
                 ],
-                route_length=float(sum(nlengths)),
+                route_length=float(sum(leg.length for leg in nlegs)),
                 time=_time(ntb),
                 saving_time=ntb.total - tb.total,
                 saving_fraction=(ntb.total - tb.total) / ntb.total if ntb.total > 0 else 0.0,

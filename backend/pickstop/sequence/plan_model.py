@@ -88,8 +88,14 @@ class Leg(BaseModel):
     start: str  # "start", "stop 0", ...
     end: str
     length: float  # [m]
-    time: float  # rest-to-rest travel time [s]
+    time: float  # travel time [s], rest to rest between the halts at docking segments' ends
     polyline: list[Point2]
+    segment_yaws: list[float | None] | None = Field(
+        default=None,
+        description="per segment of the polyline: the yaw [rad] the base holds along it (a "
+        "straight docking leg to or from a pose where the base cannot turn), or null where it "
+        "may turn as it likes; absent when the base may turn everywhere",
+    )
 
 
 class TimeTotals(BaseModel):

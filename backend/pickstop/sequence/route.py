@@ -1,25 +1,51 @@
-"""Shortest collision-free paths for the base on the floor: a visibility graph.
+"""Shortest collision-free paths for the base on the floor: a visibility graph with docking.
 
-Obstacles (every solid reaching below the base body's height) are inflated by the footprint's
+Obstacles (every solid reaching below the base body's height) are inflated by the body's
 bounding radius; the polygonal buffer is made to circumscribe the true rounded one, so a path
-along its edges never comes closer than the radius. Paths run between the query points and the
-inflated corners; a leg is kept only if it stays out of every inflated obstacle and on the floor.
+along its edges never comes closer than the radius. In that circle-free floor the base may turn
+anywhere. Paths run between the query points, the inflated corners and staging points; a leg is
+kept only if it stays out of every inflated obstacle and on the floor.
+
+A query point with a yaw that lies outside the circle-free floor (a long base's stop close to a
+table) is *docked*: joined by straight legs driven at its fixed yaw to staging points in the
+circle-free floor (the first free point along a few directions and toward the nearest free
+point), and to other docked points of the same yaw, each leg kept only if the body swept along
+it at that yaw is clear (:class:`Docking`, computed exactly by the caller).
 """
 
 from __future__ import annotations
 
 import heapq
+import itertools
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import shapely
+import shapely.ops
 from shapely.geometry import LineString, Point
 from shapely.geometry.base import BaseGeometry
 
 from pickstop.sequence.cover import InfeasiblePlanError
 
 QUAD_SEGS = 3  # segments per quarter circle of the inflation
+DOCK_DIRECTIONS = 16  # directions, from the point's own heading, searched for staging points
+DOCK_MARGIN = 0.05  # [m] how far past the circle-free floor's edge a staging point goes
+MAX_SLIDE = 1.5  # [m] longest fixed-yaw leg tried between two docked points
+
+#: ``sweep(a, b, yaw) -> (blocked, owners)``: is the straight move from ``a[i]`` to ``b[i]``
+#: (``(M, 2)`` [m]) at the fixed ``yaw`` [rad] blocked, and by which obstacles (per leg).
+Sweep = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, list[set[str]]]]
+
+
+@dataclass(frozen=True)
+class Docking:
+    """How points outside the circle-free floor are joined to it."""
+
+    sweep: Sweep
+    reach: float  # [m] longest docking leg searched
 
 
 @dataclass(frozen=True)
@@ -55,8 +81,57 @@ class FloorMap:
             corners = corners[shapely.contains_xy(inner, corners[:, 0], corners[:, 1])]
         return cls(free, blocked, corners)
 
+    @cached_property
+    def _free_tol(self) -> BaseGeometry:
+        return self.free.buffer(1e-6)
+
+    @cached_property
+    def _free_core(self) -> BaseGeometry:
+        return self.free.buffer(-1e-4)
+
     def is_free(self, xy: tuple[float, float]) -> bool:
-        return bool(self.free.buffer(1e-6).contains(Point(xy)))
+        return bool(self._free_tol.contains(Point(xy)))
+
+    def free_xy(self, points: np.ndarray) -> np.ndarray:
+        """``(Q,)`` which of ``points: (Q, 2)`` [m] lie in the circle-free floor."""
+        pts = np.asarray(points, float).reshape(-1, 2)
+        return shapely.contains_xy(self._free_tol, pts[:, 0], pts[:, 1])
+
+    def staging(self, p: np.ndarray, yaw: float, reach: float) -> np.ndarray:
+        """``(S, 2)`` candidate staging points [m] for a docked point ``p``: along
+        ``DOCK_DIRECTIONS`` directions from its heading ``yaw`` [rad] and toward the nearest
+        circle-free point, the first point within ``reach`` [m] inside the circle-free floor,
+        moved up to ``DOCK_MARGIN`` further in."""
+        p = np.asarray(p, float).reshape(2)
+        core = self._free_core
+        if core.is_empty:
+            return np.zeros((0, 2))
+        ang = yaw + np.arange(DOCK_DIRECTIONS) * 2 * math.pi / DOCK_DIRECTIONS
+        dirs = [np.stack([np.cos(ang), np.sin(ang)], axis=1)]
+        near = np.asarray(shapely.ops.nearest_points(core, Point(p))[0].coords[0])
+        gap = float(np.linalg.norm(near - p))
+        if 1e-9 < gap <= reach:
+            dirs.append(((near - p) / gap)[None])
+        d = np.concatenate(dirs)
+        rays = shapely.linestrings(np.stack([np.broadcast_to(p, d.shape), p + reach * d], axis=1))
+        out = []
+        for ray, u, piece in zip(rays, d, shapely.intersection(rays, core), strict=True):
+            spans = []
+            for g in getattr(piece, "geoms", [piece]):
+                if g.is_empty or g.geom_type != "LineString":
+                    continue
+                ends = shapely.line_locate_point(ray, shapely.points(np.asarray(g.coords)))
+                spans.append((float(ends.min()), float(ends.max())))
+            if not spans:
+                continue
+            t0, t1 = min(spans)
+            out.append(p + (t0 + min(DOCK_MARGIN, (t1 - t0) / 2)) * u)
+        if not out:
+            return np.zeros((0, 2))
+        pts = np.array(out)
+        gaps = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+        keep = [i for i in range(len(pts)) if not (gaps[i, :i] <= 1e-3).any()]  # one of each
+        return pts[keep]
 
     def leg_ok(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Which legs ``a[i] -> b[i]`` stay in the free floor (touching corners allowed)."""
@@ -69,15 +144,17 @@ class FloorMap:
 
 @dataclass(frozen=True)
 class Paths:
-    """Shortest paths between query points: ``dist[i, j]`` [m] (inf if none), polylines."""
+    """Shortest paths between query points: ``dist[i, j]`` [m] (inf if none), polylines, the
+    yaw held along each docking segment, and why a query point could not be docked."""
 
     points: np.ndarray  # (Q, 2)
     dist: np.ndarray  # (Q, Q)
     _prev: list[np.ndarray]
-    _nodes: np.ndarray  # (Q + V, 2)
+    _nodes: np.ndarray  # (Q + V + S, 2): query points, corners, staging points
+    _held: dict[tuple[int, int], float] = field(default_factory=dict)  # docking edge -> yaw
+    undocked: dict[int, str] = field(default_factory=dict)  # query point -> why not
 
-    def polyline(self, i: int, j: int) -> np.ndarray:
-        """Waypoints ``(K, 2)`` from query point i to j."""
+    def _route(self, i: int, j: int) -> list[int]:
         prev = self._prev[i]
         out = [j]
         while out[-1] != i:
@@ -85,16 +162,92 @@ class Paths:
             if p < 0:
                 raise InfeasiblePlanError(f"no path from point {i} to point {j}")
             out.append(p)
-        return self._nodes[out[::-1]]
+        return out[::-1]
+
+    def polyline(self, i: int, j: int) -> np.ndarray:
+        """Waypoints ``(K, 2)`` from query point i to j."""
+        return self._nodes[self._route(i, j)]
+
+    def segment_yaws(self, i: int, j: int) -> list[float | None]:
+        """Per segment of :meth:`polyline` ``(i, j)``: the yaw [rad] the base holds along it (a
+        docking leg), or None where it may turn as it likes."""
+        route = self._route(i, j)
+        return [self._held.get((a, b)) for a, b in itertools.pairwise(route)]
+
+    @property
+    def docked(self) -> bool:
+        """Does any path use a docking leg?"""
+        return bool(self._held)
 
 
-def shortest_paths(fmap: FloorMap, points: np.ndarray) -> Paths:
-    """All-pairs shortest collision-free paths between ``points: (Q, 2)`` [m]."""
+def shortest_paths(
+    fmap: FloorMap,
+    points: np.ndarray,
+    yaws: np.ndarray | None = None,
+    docking: Docking | None = None,
+) -> Paths:
+    """All-pairs shortest collision-free paths between ``points: (Q, 2)`` [m]; with ``yaws:
+    (Q,)`` [rad] (NaN: any) and ``docking``, the points outside the circle-free floor are
+    docked at their yaw."""
     points = np.asarray(points, float).reshape(-1, 2)
     Q = len(points)
-    nodes = np.concatenate([points, fmap.corners])
+    yaws = np.full(Q, np.nan) if yaws is None else np.asarray(yaws, float).reshape(Q)
+    docked: list[int] = []
+    if docking is not None:
+        outside = ~fmap.free_xy(points) & np.isfinite(yaws)
+        docked = np.flatnonzero(outside).tolist()
+    undocked: dict[int, str] = {}
+    stage_pts: list[np.ndarray] = []
+    dock_edges: list[tuple[int, int, float]] = []  # (query point, node, yaw)
+    base = Q + len(fmap.corners)
+    for q in docked:
+        p, yaw = points[q], float(yaws[q])
+        assert docking is not None
+        blocked, owners = docking.sweep(p[None], p[None], yaw)
+        if blocked[0]:
+            undocked[q] = (
+                f"the base at yaw {math.degrees(yaw):.0f} deg does not fit there: it meets "
+                + ", ".join(sorted(owners[0]))
+            )
+            continue
+        stage = fmap.staging(p, yaw, docking.reach)
+        if not len(stage):
+            undocked[q] = (
+                f"no floor where the base may turn lies within {docking.reach:.2f} m of it"
+            )
+            continue
+        blocked, owners = docking.sweep(np.repeat(p[None], len(stage), 0), stage, yaw)
+        if blocked.all():
+            met = sorted(set().union(*owners))
+            undocked[q] = (
+                f"every straight leg at yaw {math.degrees(yaw):.0f} deg toward floor where the "
+                f"base may turn ({len(stage)} tried) meets " + ", ".join(met)
+            )
+            continue
+        for sxy in stage[~blocked]:
+            dock_edges.append((q, base + len(stage_pts), yaw))
+            stage_pts.append(sxy)
+    # Two docked points of the same yaw: slide between them at that yaw.
+    ok_docked = [q for q in docked if q not in undocked]
+    pairs = [
+        (a, b)
+        for k, a in enumerate(ok_docked)
+        for b in ok_docked[k + 1 :]
+        if abs(math.remainder(yaws[a] - yaws[b], 2 * math.pi)) < 1e-9
+        and np.linalg.norm(points[a] - points[b]) <= MAX_SLIDE
+    ]
+    for yaw in sorted({float(yaws[a]) for a, _ in pairs}):
+        assert docking is not None
+        mine = [(a, b) for a, b in pairs if float(yaws[a]) == yaw]
+        ia, ib = np.array(mine).T
+        blocked, _ = docking.sweep(points[ia], points[ib], yaw)
+        dock_edges += [(a, b, yaw) for (a, b), bl in zip(mine, blocked, strict=True) if not bl]
+
+    nodes = np.concatenate([points, fmap.corners, np.array(stage_pts, float).reshape(-1, 2)])
     n = len(nodes)
-    ii, jj = np.triu_indices(n, 1)
+    visible = np.setdiff1d(np.arange(n), docked)
+    vi, vj = np.triu_indices(len(visible), 1)
+    ii, jj = visible[vi], visible[vj]
     ok = fmap.leg_ok(nodes[ii], nodes[jj])
     ii, jj = ii[ok], jj[ok]
     w = np.linalg.norm(nodes[ii] - nodes[jj], axis=1)
@@ -102,6 +255,12 @@ def shortest_paths(fmap: FloorMap, points: np.ndarray) -> Paths:
     for a, b, d in zip(ii.tolist(), jj.tolist(), w.tolist(), strict=True):
         adj[a].append((b, d))
         adj[b].append((a, d))
+    held: dict[tuple[int, int], float] = {}
+    for a, b, yaw in dock_edges:
+        d = float(np.linalg.norm(nodes[a] - nodes[b]))
+        adj[a].append((b, d))
+        adj[b].append((a, d))
+        held[a, b] = held[b, a] = yaw
     dist = np.full((Q, Q), np.inf)
     prevs = []
     for s in range(Q):
@@ -121,7 +280,7 @@ def shortest_paths(fmap: FloorMap, points: np.ndarray) -> Paths:
                     heapq.heappush(heap, (nd, v))
         dist[s] = d[:Q]
         prevs.append(prev)
-    return Paths(points, dist, prevs, nodes)
+    return Paths(points, dist, prevs, nodes, held, undocked)
 
 
 def polyline_clear(fmap: FloorMap, line: np.ndarray) -> bool:
