@@ -210,6 +210,13 @@ def test_paper_scene_plan_witnesses_pass_exact_checks_with_the_hand(planned):
 
     name, planner, scene = planned
     assert any(is_hand_link(planner.robot, lk.name) for lk in arm_links(planner.robot))
+    if name == "ur5_amr":
+        # The goal lies 0.50 m from the floor's edge, inside the base's 0.57 m circle, at yaw
+        # 90 deg: only a sideways move reaches it, which the AMR's two drive wheels cannot
+        # make. The unchanged scene says so; facing the edge, the base drives straight in.
+        with pytest.raises(InfeasiblePlanError, match="along its heading"):
+            StopPlanner(planner).plan(scene, PlanOptions(samples=0, sigma=0.05))
+        scene = scene.model_copy(update={"goal": scene.goal.model_copy(update={"yaw": 0.0})})
     try:  # a 400k-sample database: regions smaller than a full build's, so sigma 5 cm
         plan = StopPlanner(planner).plan(scene, PlanOptions(samples=100, sigma=0.05))
     except InfeasiblePlanError as e:  # a robot that cannot serve every tray says why

@@ -104,11 +104,11 @@ def _world(obstacles, heights=None):
     )
 
 
-def _setup(outline, obstacles):
+def _setup(outline, obstacles, omni=True):
     body, world = _body(outline), _world(obstacles)
     radius = float(np.hypot(*np.asarray(outline).T).max())
     fmap = FloorMap.build(FLOOR, list(obstacles), radius)
-    docking = Docking(lambda a, b, yaw: sweep_blocked(body, world, a, b, yaw), 3 * radius)
+    docking = Docking(lambda a, b, yaw: sweep_blocked(body, world, a, b, yaw), 3 * radius, omni)
     return fmap, docking, radius
 
 
@@ -234,7 +234,7 @@ def test_every_docked_path_is_clear_for_the_real_outline(boxes, shape, yaw, seed
             np.full(len(tris.geoms), -np.inf),
             np.full(len(tris.geoms), 0.35),
         )
-    docking = Docking(lambda a, b, y: sweep_blocked(body, world, a, b, y), 3 * radius)
+    docking = Docking(lambda a, b, y: sweep_blocked(body, world, a, b, y), 3 * radius, True)
     rng = np.random.default_rng(seed)
     rot = affinity.rotate(Polygon(outline), yaw, origin=(0, 0), use_radians=True)
     floor, union = box(*FLOOR), shapely.union_all(obstacles)
@@ -259,3 +259,33 @@ def test_every_docked_path_is_clear_for_the_real_outline(boxes, shape, yaw, seed
         assert_path_clear(line, held, outline, radius, obstacles, end)
         if i < len(free) <= j:
             assert held[-1] is not None and held[-1] == pytest.approx(yaw)
+
+
+def test_a_differential_base_docks_only_along_its_heading():
+    """Beside a table, long side along it: a differential base backs out or drives on along
+    its heading, never sideways; where neither way reaches floor it may turn on, it says so."""
+    outline = _rect(0.9, 0.3)
+    table = box(2.0, 2.0, 4.0, 2.6)
+    fmap, docking, radius = _setup(outline, [table], omni=False)
+    stop = np.array([3.5, 1.8])
+    pts = np.array([[1.0, 0.5], [5.0, 0.5], stop])
+    yaws = np.array([np.nan, np.nan, 0.0])
+    p = shortest_paths(fmap, pts, yaws, docking)
+    assert np.isfinite(p.dist[0, 2]) and not p.undocked
+    for i, j in [(0, 2), (2, 1)]:
+        line, held = p.polyline(i, j), p.segment_yaws(i, j)
+        assert any(h is not None for h in held)
+        for k, h in enumerate(held):
+            if h is not None:  # straight along the heading: no sideways component
+                d = line[k + 1] - line[k]
+                assert abs(math.cos(h) * d[1] - math.sin(h) * d[0]) < 1e-6, (k, d)
+        assert_path_clear(line, held, outline, radius, [table])
+    # A wall ahead and the table's far end too far behind: no straight way out.
+    wall = box(4.1, 1.0, 4.6, 2.6)
+    fmap, docking, radius = _setup(outline, [table, wall], omni=False)
+    p = shortest_paths(fmap, pts, yaws, docking)
+    assert math.isinf(p.dist[0, 2])
+    assert "along its heading" in p.undocked[2], p.undocked
+    # The same stop with an omnidirectional base slides out sideways.
+    fmap, docking, radius = _setup(outline, [table, wall], omni=True)
+    assert np.isfinite(shortest_paths(fmap, pts, yaws, docking).dist[0, 2])

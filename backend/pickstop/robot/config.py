@@ -49,6 +49,12 @@ class Footprint(BaseModel):
     polygon: list[tuple[float, float]] | None = None
     height: Annotated[float, Field(gt=0, lt=3)] = 0.35  # base body: what reaches below it blocks
     clearance: Annotated[float, Field(ge=0, le=0.5)] = 0.02  # around a derived outline [m]
+    drive: Literal["differential", "omnidirectional"] = Field(
+        default="differential",
+        description="how the base moves: differential (straight only along its heading, "
+        "turning in place) or omnidirectional (any direction at any heading); routes dock at "
+        "stops only with moves the base can make",
+    )
     derived: bool = Field(default=False, description="set on an outline derived from the URDF")
 
     @model_validator(mode="after")

@@ -97,10 +97,11 @@ class _Floor:
     world: FloorSolids  # every solid reaching below the body's top, for docking legs
     body: BodyPieces
     reach: float  # [m] longest docking leg
+    omnidirectional: bool  # the base may dock sideways (else only along its heading)
 
     def docking(self) -> Docking:
         return Docking(lambda a, b, yaw: sweep_blocked(self.body, self.world, a, b, yaw),
-                       self.reach)  # fmt: skip
+                       self.reach, self.omnidirectional)  # fmt: skip
 
 
 class StopPlanner:
@@ -185,7 +186,8 @@ class StopPlanner:
                 ),
             )
         world = FloorSolids.of(scene, every)
-        floor = _Floor(fmap, outlines, world, body_pieces(robot), DOCK_REACH * body.radius)
+        omni = robot.config.footprint.drive == "omnidirectional"
+        floor = _Floor(fmap, outlines, world, body_pieces(robot), DOCK_REACH * body.radius, omni)
         return self._floors.put(full, floor)
 
     def paths(self, floor: _Floor, points: np.ndarray, yaws: np.ndarray) -> Paths:

@@ -46,6 +46,9 @@ class Docking:
 
     sweep: Sweep
     reach: float  # [m] longest docking leg searched
+    #: a differential base moves straight only along its heading (forward or back); an
+    #: omnidirectional one in any direction
+    omnidirectional: bool = False
 
 
 @dataclass(frozen=True)
@@ -97,20 +100,24 @@ class FloorMap:
         pts = np.asarray(points, float).reshape(-1, 2)
         return shapely.contains_xy(self._free_tol, pts[:, 0], pts[:, 1])
 
-    def staging(self, p: np.ndarray, yaw: float, reach: float) -> np.ndarray:
+    def staging(
+        self, p: np.ndarray, yaw: float, reach: float, omnidirectional: bool = True
+    ) -> np.ndarray:
         """``(S, 2)`` candidate staging points [m] for a docked point ``p``: along
         ``DOCK_DIRECTIONS`` directions from its heading ``yaw`` [rad] and toward the nearest
-        circle-free point, the first point within ``reach`` [m] inside the circle-free floor,
-        moved up to ``DOCK_MARGIN`` further in."""
+        circle-free point (a differential base: only straight ahead and straight back), the
+        first point within ``reach`` [m] inside the circle-free floor, moved up to
+        ``DOCK_MARGIN`` further in."""
         p = np.asarray(p, float).reshape(2)
         core = self._free_core
         if core.is_empty:
             return np.zeros((0, 2))
-        ang = yaw + np.arange(DOCK_DIRECTIONS) * 2 * math.pi / DOCK_DIRECTIONS
+        n = DOCK_DIRECTIONS if omnidirectional else 2
+        ang = yaw + np.arange(n) * 2 * math.pi / n
         dirs = [np.stack([np.cos(ang), np.sin(ang)], axis=1)]
         near = np.asarray(shapely.ops.nearest_points(core, Point(p))[0].coords[0])
         gap = float(np.linalg.norm(near - p))
-        if 1e-9 < gap <= reach:
+        if omnidirectional and 1e-9 < gap <= reach:
             dirs.append(((near - p) / gap)[None])
         d = np.concatenate(dirs)
         rays = shapely.linestrings(np.stack([np.broadcast_to(p, d.shape), p + reach * d], axis=1))
@@ -180,6 +187,11 @@ class Paths:
         return bool(self._held)
 
 
+def _along(d: np.ndarray, yaw: float) -> bool:
+    """Does the move ``d: (2,)`` [m] run along the heading ``yaw`` [rad] (forward or back)?"""
+    return abs(math.cos(yaw) * d[1] - math.sin(yaw) * d[0]) <= 1e-9 * max(1.0, float(np.hypot(*d)))
+
+
 def shortest_paths(
     fmap: FloorMap,
     points: np.ndarray,
@@ -210,10 +222,14 @@ def shortest_paths(
                 + ", ".join(sorted(owners[0]))
             )
             continue
-        stage = fmap.staging(p, yaw, docking.reach)
+        stage = fmap.staging(p, yaw, docking.reach, docking.omnidirectional)
         if not len(stage):
             undocked[q] = (
                 f"no floor where the base may turn lies within {docking.reach:.2f} m of it"
+                if docking.omnidirectional
+                else f"no floor where the base may turn lies straight ahead or behind it "
+                f"within {docking.reach:.2f} m at yaw {math.degrees(yaw):.0f} deg (a "
+                "differential base moves straight only along its heading)"
             )
             continue
         blocked, owners = docking.sweep(np.repeat(p[None], len(stage), 0), stage, yaw)
@@ -235,6 +251,7 @@ def shortest_paths(
         for b in ok_docked[k + 1 :]
         if abs(math.remainder(yaws[a] - yaws[b], 2 * math.pi)) < 1e-9
         and np.linalg.norm(points[a] - points[b]) <= MAX_SLIDE
+        and (docking is None or docking.omnidirectional or _along(points[b] - points[a], yaws[a]))
     ]
     for yaw in sorted({float(yaws[a]) for a, _ in pairs}):
         assert docking is not None
