@@ -162,8 +162,9 @@ def _hand(robot: RobotModel, links: Any) -> dict[str, Any]:
 
 
 def _footprint_line(fp: dict[str, Any]) -> str:
+    drive = f"; {fp.get('drive', 'differential')} drive"
     if fp.get("radius") is not None:
-        return f"radius {fp['radius']} m"
+        return f"radius {fp['radius']} m{drive}"
     xs, ys = zip(*fp["polygon"], strict=True)
     how = (
         f"derived from the base's collision geometry below {fp['height']} m plus "
@@ -174,7 +175,7 @@ def _footprint_line(fp: dict[str, Any]) -> str:
     return (
         f"polygon of {len(xs)} vertices ({how}): x {min(xs):.3f}..{max(xs):.3f} m, "
         f"y {min(ys):.3f}..{max(ys):.3f} m, bounding radius "
-        f"{max(math.hypot(x, y) for x, y in fp['polygon']):.3f} m"
+        f"{max(math.hypot(x, y) for x, y in fp['polygon']):.3f} m{drive}"
     )
 
 
