@@ -29,8 +29,9 @@ RANK_LENGTH = 0.1
 
 
 @dataclass(frozen=True)
-class Candidates:
-    """Approximate IK solutions of one target, best first."""
+class IKSeeds:
+    """Stored configurations whose tool pose is near one target: approximate IK solutions,
+    best first, the seeds that refinement turns into exact ones."""
 
     rows: np.ndarray  # (k,) database rows
     thetas: np.ndarray  # (k, dof) joint values [rad or m]
@@ -40,8 +41,8 @@ class Candidates:
 
 
 @dataclass(frozen=True)
-class CandidateSet:
-    """Candidates of many targets in CSR form: target i owns ``rows[offsets[i]:offsets[i+1]]``."""
+class IKSeedSet:
+    """The seeds of many targets in CSR form: target i owns ``rows[offsets[i]:offsets[i+1]]``."""
 
     offsets: np.ndarray  # (M + 1,) int64
     rows: np.ndarray  # (total,) int64
@@ -147,9 +148,7 @@ class ReachDatabase:
             return np.empty(0, np.int64)
         return np.concatenate([np.arange(self.offsets[i], self.offsets[i + 1]) for i in pos])
 
-    def _rank(
-        self, rows: np.ndarray, p: np.ndarray, q: np.ndarray, limit: int | None
-    ) -> Candidates:
+    def _rank(self, rows: np.ndarray, p: np.ndarray, q: np.ndarray, limit: int | None) -> IKSeeds:
         pos_err = np.linalg.norm(self.positions[rows] - p, axis=1)
         dot = np.abs(self.quats[rows] @ q)
         rot_err = 2.0 * np.arccos(np.minimum(dot, 1.0))
@@ -157,7 +156,7 @@ class ReachDatabase:
         if limit is not None:
             order = order[:limit]
         rows = rows[order]
-        return Candidates(
+        return IKSeeds(
             rows=rows,
             thetas=self.thetas(rows),
             pos_err=pos_err[order],
@@ -167,8 +166,8 @@ class ReachDatabase:
 
     def query(
         self, p: Any, q: Any, *, neighbours: bool = False, limit: int | None = None
-    ) -> Candidates:
-        """Candidates for one target pose ``T_base_tool`` (``p: (3,)`` [m], ``q: (4,)`` wxyz).
+    ) -> IKSeeds:
+        """The seeds of one target pose ``T_base_tool`` (``p: (3,)`` [m], ``q: (4,)`` wxyz).
 
         neighbours: also the adjacent voxels (the paper's vicinity of the target).
         """
@@ -219,8 +218,8 @@ class ReachDatabase:
         keys = self.voxel.keys_from_cells(cells[:, None, :] + offs, orient[:, None])
         return self.lookup_keys(keys)
 
-    def query_many(self, ps: Any, qs: Any, *, order: bool = True) -> CandidateSet:
-        """Candidates of many targets (own voxel), each target's ranked best first if ``order``."""
+    def query_many(self, ps: Any, qs: Any, *, order: bool = True) -> IKSeedSet:
+        """The seeds of many targets (own voxel), each target's ranked best first if ``order``."""
         ps, qs = check_poses(ps, qs)
         starts, ends = self.lookup(ps, qs)
         counts = ends - starts
@@ -234,7 +233,7 @@ class ReachDatabase:
             dot = np.abs(np.einsum("ij,ij->i", self.quats[rows], qs[owner]))
             score = pos_err + RANK_LENGTH * 2.0 * np.arccos(np.minimum(dot, 1.0))
             rows = rows[np.lexsort((score, owner))]
-        return CandidateSet(offsets=offsets, rows=rows.astype(np.int64))
+        return IKSeedSet(offsets=offsets, rows=rows.astype(np.int64))
 
 
 def build_command(row: dict[str, Any], robot: RobotModel) -> str:

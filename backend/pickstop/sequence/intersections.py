@@ -18,8 +18,9 @@ MIN_AREA = 1e-8  # [m^2] slivers below this are numerical leftovers
 
 
 @dataclass(frozen=True)
-class Candidate:
-    """A place to stop: a connected component serving ``trays``."""
+class Intersection:
+    """One connected component of the intersection of the regions of ``trays``, with its
+    largest inscribed circle: a candidate stop, serving those trays from its centre."""
 
     trays: frozenset[str]
     yaw: float  # [rad]
@@ -55,7 +56,7 @@ def inscribed_circle(poly: Polygon, tolerance: float = 1e-3) -> tuple[tuple[floa
 
 def intersections(
     regions: dict[str, BaseGeometry], yaw: float = 0.0, max_order: int | None = None
-) -> list[Candidate]:
+) -> list[Intersection]:
     """Every connected component of every non-empty intersection of ``regions``.
 
     regions: tray id -> region geometry at one yaw. Subsets grow one tray at a time and stop
@@ -64,7 +65,7 @@ def intersections(
     """
     ids = sorted(t for t, g in regions.items() if polygon_parts(g))
     cleaned = {t: shapely.union_all(polygon_parts(regions[t])) for t in ids}
-    out: list[Candidate] = []
+    out: list[Intersection] = []
     # Level k: subsets as (sorted tray tuple, their intersection geometry).
     level: list[tuple[tuple[str, ...], BaseGeometry]] = [((t,), cleaned[t]) for t in ids]
     k = 1
@@ -72,7 +73,7 @@ def intersections(
         for trays, geom in level:
             for part in polygon_parts(geom):
                 centre, radius = inscribed_circle(part)
-                out.append(Candidate(frozenset(trays), yaw, part, centre, radius))
+                out.append(Intersection(frozenset(trays), yaw, part, centre, radius))
         if max_order is not None and k >= max_order:
             break
         nxt = []

@@ -44,7 +44,7 @@ from pickstop.scene.model import Scene, gripper_notes
 from pickstop.scene.world import scene_solids
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
-from pickstop.sequence.intersections import Candidate, intersections
+from pickstop.sequence.intersections import Intersection, intersections
 from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
 from pickstop.sequence.success import Rate, combined, monte_carlo
@@ -122,7 +122,7 @@ class StopPlanner:
         self._selections = _Lru(256)
 
     # -- pieces ------------------------------------------------------------------------------
-    def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Candidate]:
+    def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Intersection]:
         """All intersection components of the regions, per yaw, duplicates dropped."""
         key = tuple(
             sorted(
@@ -133,7 +133,7 @@ class StopPlanner:
         hit = self._candidates.hit(key)
         if hit is not None:
             return list(hit)
-        out: list[Candidate] = []
+        out: list[Intersection] = []
         for yaw in sorted({y for _, y in regions}):
             polys = {t: r.polygon for (t, y), r in regions.items() if y == yaw}
             for c in intersections(polys, yaw):
@@ -312,13 +312,13 @@ class StopPlanner:
         return _Planning(self, scene, opts, preview=True).run()
 
 
-def route_points(scene: Scene, cands: list[Candidate]) -> np.ndarray:
+def route_points(scene: Scene, cands: list[Intersection]) -> np.ndarray:
     """``(2 + n, 2)`` floor points [m]: the start, the goal, then each candidate's centre."""
     ends = [[scene.start.x, scene.start.y], [scene.goal.x, scene.goal.y]]
     return np.array(ends + [list(c.centre) for c in cands], float).reshape(-1, 2)
 
 
-def route_yaws(scene: Scene, cands: list[Candidate]) -> np.ndarray:
+def route_yaws(scene: Scene, cands: list[Intersection]) -> np.ndarray:
     """``(2 + n,)`` [rad]: the base's yaw at each of :func:`route_points`."""
     return np.array([scene.start.yaw, scene.goal.yaw, *(c.yaw for c in cands)], float)
 
@@ -438,7 +438,7 @@ class _Planning:
         opts = self.opts
         return Rule(opts.rule, self.sigma, self.kind, opts.target, opts.seed)
 
-    def _apply_rule(self, cands: list[Candidate], paths: Paths) -> float:
+    def _apply_rule(self, cands: list[Intersection], paths: Paths) -> float:
         """Reject candidates by the rule and by reachability; returns the threshold radius."""
         rule = self._rule()
         reachable = [bool(np.isfinite(paths.dist[0, i + 2])) for i in range(len(cands))]
@@ -452,7 +452,7 @@ class _Planning:
                 )
         return rule.threshold
 
-    def _explain_uncovered(self, cands: list[Candidate], missing: list[str]) -> None:
+    def _explain_uncovered(self, cands: list[Intersection], missing: list[str]) -> None:
         parts = []
         for t in missing:
             mine = [(i, c) for i, c in enumerate(cands) if t in c.trays]
@@ -470,7 +470,7 @@ class _Planning:
     def _select_verified(
         self,
         regions: dict[tuple[str, float], TrayRegion],
-        cands: list[Candidate],
+        cands: list[Intersection],
         paths: Paths,
     ) -> tuple[Selection, dict[int, list[pm.Witness]], dict[int, Rate]]:
         opts, sp, scene = self.opts, self.sp, self.scene
@@ -580,7 +580,7 @@ class _Planning:
     def _naive(
         self,
         regions: dict[tuple[str, float], TrayRegion],
-        cands: list[Candidate],
+        cands: list[Intersection],
         paths: Paths,
         sel: Selection,
     ) -> tuple[list[int], Selection]:
@@ -638,7 +638,7 @@ class _Planning:
 
     def _assemble(
         self,
-        cands: list[Candidate],
+        cands: list[Intersection],
         paths: Paths,
         sel: Selection,
         witnesses: dict[int, list[pm.Witness]],
@@ -751,7 +751,7 @@ class _Planning:
             ),
             optimal=sel.optimal,
             candidates=[
-                pm.CandidateInfo(
+                pm.IntersectionRecord(
                     index=i,
                     trays=sorted(c.trays),
                     yaw=c.yaw,

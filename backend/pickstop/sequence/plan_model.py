@@ -131,7 +131,10 @@ class Naive(BaseModel):
     saving_stops: int
 
 
-class CandidateInfo(BaseModel):
+class IntersectionRecord(BaseModel):
+    """An intersection (a candidate stop) as the plan judged it: chosen, kept or rejected, and
+    why."""
+
     index: int
     trays: list[str]
     yaw: float
@@ -194,7 +197,7 @@ class Plan(BaseModel):
     totals: Totals
     naive: Naive
     optimal: bool  # the stop selection was proven optimal
-    candidates: list[CandidateInfo]
+    candidates: list[IntersectionRecord]
     timings: Timings
     verified: bool = Field(
         default=True,

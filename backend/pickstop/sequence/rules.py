@@ -24,7 +24,7 @@ from typing import Literal
 import numpy as np
 import shapely
 
-from pickstop.sequence.intersections import Candidate
+from pickstop.sequence.intersections import Intersection
 from pickstop.sequence.success import Kind, disc_probability, radius_for, sample_errors
 
 RuleName = Literal["sigma", "success"]
@@ -64,7 +64,7 @@ class Verdict:
     predicted: float | None = None
 
 
-def judge(rule: Rule, candidates: Sequence[Candidate]) -> list[Verdict]:
+def judge(rule: Rule, candidates: Sequence[Intersection]) -> list[Verdict]:
     """The rule's verdict on each candidate (reachability aside: see :func:`cut_off`)."""
     if rule.name == "sigma":
         return [_sigma_verdict(rule.sigma, c.radius) for c in candidates]
