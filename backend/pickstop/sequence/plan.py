@@ -82,6 +82,7 @@ class _Lru(OrderedDict[Any, Any]):
 class _Floor:
     fmap: FloorMap
     outlines: list[tuple[str, Polygon]]  # obstacle id -> floor outline
+    key: str  # what the floor is (bounds, body reach, blocking solids), by value
 
 
 class StopPlanner:
@@ -89,6 +90,13 @@ class StopPlanner:
 
     A change of sigma, rule or objective reuses the regions, the candidates, the floor paths
     and the exact checks at candidate centres; moving a tray recomputes only what it affects.
+
+    Its caches are bounded LRUs keyed by value, so nothing needs invalidating: a key changes
+    with what its entry depends on (candidates: the regions' masks; floors: the floor, the
+    body's reach and the blocking solids; paths: the floor's key and the points; checks and
+    success rates: the world's key, trays, pose and error model; selections: their inputs).
+    The robot and database are fixed per planner (one per pair in
+    :class:`pickstop.pool.PlannerPool`).
     """
 
     def __init__(self, regions: RegionPlanner, cache_size: int = 64) -> None:
@@ -154,16 +162,14 @@ class StopPlanner:
         fmap = FloorMap.build(
             (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], body.radius
         )
-        return self._floors.put(key, _Floor(fmap, outlines))
+        return self._floors.put(key, _Floor(fmap, outlines, _digest(key)))
 
     def paths(self, floor: _Floor, points: np.ndarray) -> Paths:
-        key = (id(floor), points.tobytes())
+        key = (floor.key, points.tobytes())
         hit = self._paths.hit(key)
-        if hit is not None and hit[0] is floor:
-            return hit[1]
-        p = shortest_paths(floor.fmap, points)
-        self._paths.put(key, (floor, p))
-        return p
+        if hit is not None:
+            return hit
+        return self._paths.put(key, shortest_paths(floor.fmap, points))
 
     def check(
         self, scene: Scene, world_key: str, region: TrayRegion, xy: tuple[float, float]
