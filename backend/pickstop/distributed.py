@@ -100,9 +100,13 @@ class PoolPlugin(WorkerPlugin):
 
     def __init__(self) -> None:
         self.pools: dict[str, PlannerPool] = {}
+        self._lock: Any = None  # made on the worker (a lock does not pickle)
 
     def setup(self, worker: Any) -> None:
+        import threading
+
         self.pools = {}
+        self._lock = threading.Lock()  # a worker may run several tasks at once
 
     def teardown(self, worker: Any) -> None:
         for pool in self.pools.values():
@@ -110,10 +114,11 @@ class PoolPlugin(WorkerPlugin):
 
     def pool(self, data_dir: Path) -> PlannerPool:
         key = str(Path(data_dir).resolve())
-        pool = self.pools.get(key)
-        if pool is None:
-            pool = self.pools[key] = PlannerPool(Path(key))
-        return pool
+        with self._lock:
+            pool = self.pools.get(key)
+            if pool is None:
+                pool = self.pools[key] = PlannerPool(Path(key))
+            return pool
 
 
 def worker_pool(data_dir: Path) -> PlannerPool:
