@@ -32,7 +32,7 @@ from pickstop.fleet.execution import execute, report, table, vehicle_for
 from pickstop.fleet.pickcheck import PickChecker
 from pickstop.fleet.sim_node import VehicleNode
 from pickstop.fleet.tracker import OrderTracker
-from pickstop.loader import stop_planner_for
+from pickstop.pool import PlannerPool
 from pickstop.scene.load import load_scene
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan_model import PlanOptions
@@ -44,10 +44,11 @@ NAMES = ["paper_experiment", "five_trays", "factory_cell"]
 
 def executed_vs_predicted(args: argparse.Namespace, broker: mqtt.Broker) -> tuple[list, object]:
     rows, latencies, paper = [], [], None
+    pool = PlannerPool(data_dir(args.data_dir))
     for name in NAMES:
         path = SCENES / f"{name}.json"
         scene = load_scene(path)
-        sp = stop_planner_for(scene, path.parent, data_dir(args.data_dir), args.db)
+        sp = pool.stop_planner(scene, path.parent, args.db)
         check = PickChecker(sp.regions, scene)
         for rule, target in (("sigma", 0.95), ("success", 0.95), ("success", 0.85)):
             opts = PlanOptions(sigma=0.10, rule=rule, target=target, samples=1000)

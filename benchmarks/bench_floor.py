@@ -23,7 +23,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 
-from pickstop.loader import planner_for
+from pickstop.pool import PlannerPool
 from pickstop.reach.build import BuildParams
 from pickstop.regions.arm import screen_arm
 from pickstop.robot.floor import FLOOR_CLEARANCE, ExactFloor, FloorSpheres, below_floor
@@ -161,7 +161,7 @@ def main() -> None:
 
         row = build(load("tiago"), BuildParams(samples=args.build), folder)
         db_id = row["id"]
-    planner = planner_for(parse_scene(doc), SCENES, folder, db_id)
+    planner = PlannerPool(folder).region_planner(parse_scene(doc), SCENES, db_id)
     _database(folder, planner.db.id)
     _screen_vs_exact(planner, args.exact)
     _regions(planner, doc)

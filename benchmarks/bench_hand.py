@@ -24,7 +24,7 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pickstop.loader import planner_for
+from pickstop.pool import PlannerPool
 from pickstop.regions.pipeline import compute_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.sequence.plan import StopPlanner, world_key
@@ -54,7 +54,7 @@ def main() -> None:
     args = ap.parse_args()
     scenes = {n: parse_scene(json.loads((SCENES / f"{n}.json").read_text())) for n in NAMES}
     paper, factory = scenes["paper_experiment"], scenes["factory_cell"]
-    planner = planner_for(paper, SCENES, data_dir(), args.db)
+    planner = PlannerPool(data_dir()).region_planner(paper, SCENES, args.db)
     planner.workers = 1
     print(f"database: {planner.db.id} ({len(planner.db):,} configurations)")
     for scene in scenes.values():

@@ -34,15 +34,15 @@ import json, os, sys, time
 t0 = time.perf_counter()
 from pathlib import Path
 from pickstop.store.reach_catalog import open_database
-from pickstop.loader import robot_for
 from pickstop.regions.planner import RegionPlanner
+from pickstop.robot.model import load_robot
 from pickstop.robot.config import resolve_robot
 from pickstop.scene.load import load_scene
 from pickstop.settings import cache_dir
 t1 = time.perf_counter()
 scene = load_scene(sys.argv[1])
 config, root = resolve_robot(scene.robot.ref)
-robot = robot_for(config, root)
+robot = load_robot(config, root)
 t2 = time.perf_counter()
 data = Path(sys.argv[2])
 db = open_database(data, robot)

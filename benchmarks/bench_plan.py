@@ -23,7 +23,7 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pickstop.loader import planner_for
+from pickstop.pool import PlannerPool
 from pickstop.scene.load import parse_scene
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan import StopPlanner
@@ -48,10 +48,11 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
     scenes = {n: parse_scene(json.loads((SCENES / f"{n}.json").read_text())) for n in NAMES}
-    regions = planner_for(scenes["paper_experiment"], SCENES, data_dir(), args.db)
+    slot = PlannerPool(data_dir()).scene_slot(scenes["paper_experiment"], SCENES, args.db)
+    regions = slot.regions
     regions.workers = args.workers
     print(f"database: {regions.db.id} ({len(regions.db):,} configurations)")
-    sp = StopPlanner(regions)
+    sp = slot.planner
 
     print("\n== plans at sigma = 0.10 m, Gaussian error, 1,000 Monte Carlo samples per stop")
     for name, scene in scenes.items():

@@ -18,7 +18,7 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pickstop.loader import planner_for
+from pickstop.pool import PlannerPool
 from pickstop.regions.pipeline import compute_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.settings import data_dir
@@ -40,7 +40,7 @@ def main() -> None:
     ap.add_argument("--db")
     args = ap.parse_args()
     paper = parse_scene(json.loads((SCENES / "paper_experiment.json").read_text()))
-    planner = planner_for(paper, SCENES, data_dir(), args.db)
+    planner = PlannerPool(data_dir()).region_planner(paper, SCENES, args.db)
     print(f"database: {planner.db.id} ({len(planner.db):,} configurations)")
     tray = paper.tray("tray_3")
     planner.grasps(paper, tray)

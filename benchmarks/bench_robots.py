@@ -30,14 +30,11 @@ ROBOTS = [
 
 def bench(ref: str, samples: int, folder: Path) -> None:
     from pickstop.reach.build import BuildParams
-    from pickstop.robot.artifacts import _MEMO, _QUALITY
     from pickstop.robot.check import check_robot
     from pickstop.robot.model import load
     from pickstop.settings import cache_dir
     from pickstop.store.reach_build import build
 
-    _MEMO.clear()
-    _QUALITY.clear()
     t0 = time.perf_counter()
     report = check_robot(ref, cache_dir(folder))
     t_check = time.perf_counter() - t0

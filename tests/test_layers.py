@@ -1,7 +1,7 @@
 """The layers are one-way: the core plans without the service, the planner UI is only a client.
 
-- Importing the core (robot, reach, scene, regions, sequence) loads no web framework, UI or
-  SQLite: it runs in a batch job, a Dask worker or a notebook as it is.
+- Importing the core (robot, reach, scene, regions, sequence, the planner pool) loads no web
+  framework, UI or SQLite: it runs in a batch job, a Dask worker or a notebook as it is.
 - The planner UI (``pickstop_ui``) imports nothing of the backend but the shared plan schema
   (``pickstop.sequence.plan_model``), the frames module and the scene format's pure parts
   (its defaults and the tray body's boxes, so a wall is drawn where it is checked); robot
@@ -32,6 +32,7 @@ CORE = [
     "pickstop.scene",
     "pickstop.regions",
     "pickstop.sequence",
+    "pickstop.pool",
 ]
 FORBIDDEN_IN_CORE = ("fastapi", "starlette", "uvicorn", "viser", "sqlite3", "sqlite_utils")
 UI_MAY_IMPORT = (
@@ -147,7 +148,7 @@ def test_the_core_loads_no_service_ui_or_sqlite(package):
     code = (
         "import importlib, pkgutil, sys\n"
         f"pkg = importlib.import_module({package!r})\n"
-        "for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + '.'):\n"
+        "for m in pkgutil.walk_packages(getattr(pkg, '__path__', []), pkg.__name__ + '.'):\n"
         "    importlib.import_module(m.name)\n"
         f"print(' '.join(sorted(set(sys.modules) & set({FORBIDDEN_IN_CORE!r}))))\n"
     )

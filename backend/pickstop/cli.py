@@ -262,7 +262,7 @@ def cmd_reach_query(args: argparse.Namespace) -> int:
 
 
 def cmd_regions(args: argparse.Namespace) -> int:
-    from pickstop.loader import planner_for
+    from pickstop.pool import PlannerPool
     from pickstop.regions.geojson import regions_geojson
     from pickstop.scene.load import load_scene
     from pickstop.settings import data_dir
@@ -273,12 +273,14 @@ def cmd_regions(args: argparse.Namespace) -> int:
     for t in trays:
         if t not in known:
             raise InputError(f"--tray {t!r}: no such tray in {args.scene}", field="tray")
-    planner = planner_for(
-        scene, Path(args.scene).resolve().parent, data_dir(args.data_dir), args.db
-    )
-    if not args.tray:  # every task tray: use all cores
-        planner.regions(scene, workers=os.cpu_count() or 1)
-    regions = [planner.tray_region(scene, t, y) for t in trays for y in scene.base_yaw.yaws]
+    pool = PlannerPool(data_dir(args.data_dir))
+    try:
+        planner = pool.region_planner(scene, Path(args.scene).resolve().parent, args.db)
+        if not args.tray:  # every task tray: use all cores
+            planner.regions(scene, workers=os.cpu_count() or 1)
+        regions = [planner.tray_region(scene, t, y) for t in trays for y in scene.base_yaw.yaws]
+    finally:
+        pool.close()
     doc = regions_geojson(regions, {t.id: t.name for t in scene.trays})
     if args.out:
         Path(args.out).write_text(json.dumps(doc, indent=1) + "\n")
@@ -315,15 +317,21 @@ def _plan_options(args: argparse.Namespace) -> Any:
         raise InputError(f"--{name}: {err['msg']}", field=name) from None
 
 
-def _plan_one(path: Path, args: argparse.Namespace, options: Any) -> Any:
-    from pickstop.loader import stop_planner_for
-    from pickstop.scene.load import load_scene
+def _pool(args: argparse.Namespace) -> Any:
+    """The planner pool of this command (scenes of one robot share its planners)."""
+    from pickstop.pool import PlannerPool
     from pickstop.settings import data_dir
 
+    return PlannerPool(data_dir(args.data_dir))
+
+
+def _plan_one(pool: Any, path: Path, args: argparse.Namespace, options: Any) -> Any:
+    from pickstop.scene.load import load_scene
+
     scene = load_scene(path)
-    sp = stop_planner_for(scene, path.resolve().parent, data_dir(args.data_dir), args.db)
-    sp.regions.workers = args.workers
-    return sp.plan(scene, options)
+    slot = pool.scene_slot(scene, path.resolve().parent, args.db)
+    slot.regions.workers = args.workers
+    return slot.planner.plan(scene, options)
 
 
 def _plan_row(plan: Any) -> dict[str, Any]:
@@ -346,7 +354,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     src = Path(args.scene)
     if src.is_dir():
         return _plan_batch(src, args, options)
-    plan = _plan_one(src, args, options)
+    pool = _pool(args)
+    try:
+        plan = _plan_one(pool, src, args, options)
+    finally:
+        pool.close()
     doc = plan.model_dump(mode="json")
     if args.out:
         out = Path(args.out)
@@ -380,18 +392,22 @@ def _plan_batch(folder: Path, args: argparse.Namespace, options: Any) -> int:
     codes: set[int] = set()
     if args.dask:
         return _plan_batch_dask(scenes, args, options, out)
-    for path in scenes:
-        t0 = time.perf_counter()
-        try:
-            plan = _plan_one(path, args, options)
-        except PickStopError as e:
-            codes.add(e.exit_code)
-            rows.append({"scene": path.name, "status": "error", "error": e.message,
-                         "seconds": round(time.perf_counter() - t0, 2)})  # fmt: skip
-            continue
-        if out is not None:
-            _write_json(out / f"{path.stem}.plan.json", plan.model_dump(mode="json"))
-        rows.append({"scene": path.name, "status": "ok", **_plan_row(plan)})
+    pool = _pool(args)
+    try:
+        for path in scenes:
+            t0 = time.perf_counter()
+            try:
+                plan = _plan_one(pool, path, args, options)
+            except PickStopError as e:
+                codes.add(e.exit_code)
+                rows.append({"scene": path.name, "status": "error", "error": e.message,
+                             "seconds": round(time.perf_counter() - t0, 2)})  # fmt: skip
+                continue
+            if out is not None:
+                _write_json(out / f"{path.stem}.plan.json", plan.model_dump(mode="json"))
+            rows.append({"scene": path.name, "status": "ok", **_plan_row(plan)})
+    finally:
+        pool.close()
     if args.json:
         _emit(rows)
     else:

@@ -8,9 +8,10 @@
   task's result has arrived, so the catalog never names an incomplete shard. A worker that dies
   loses only its running chunks: Dask reruns them (``retries``), and chunks are deterministic, so
   the rerun writes the same bytes.
-- Batch: one task per scene, keyed by the scene's position; a worker keeps its planner (robot,
-  database, caches) between tasks. Results are gathered by key, so a task rerun after a worker
-  died still yields its plan once.
+- Batch: one task per scene, keyed by the scene's position; each worker process keeps a
+  planner pool (robot, database, planners and their caches) between tasks
+  (:class:`PoolPlugin`). Results are gathered by key, so a task rerun after a worker died
+  still yields its plan once.
 """
 
 from __future__ import annotations
@@ -18,10 +19,19 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pickstop.errors import InputError, PickStopError
+from pickstop.pool import PlannerPool
 from pickstop.reach.build import BuildKernel, ChunkResult, ChunkRunner, compute_chunk
+
+if TYPE_CHECKING:
+    from distributed import WorkerPlugin
+else:
+    try:
+        from distributed import WorkerPlugin
+    except ImportError:  # Dask is optional: the plugin is only registered when it is there
+        WorkerPlugin = object
 
 RETRIES = 3
 
@@ -80,6 +90,51 @@ def dask_runner(client: Any) -> ChunkRunner:
 
 
 # -- batch planning ------------------------------------------------------------------------
+class PoolPlugin(WorkerPlugin):
+    """A Dask worker plugin that gives each worker process its planner pools (one per data
+    folder), kept between tasks: a worker loads a robot's database and planners once.
+    Registered idempotently, so a second batch on the same cluster finds the pools warm."""
+
+    name = "pickstop-planner-pool"
+    idempotent = True
+
+    def __init__(self) -> None:
+        self.pools: dict[str, PlannerPool] = {}
+        self._lock: Any = None  # made on the worker (a lock does not pickle)
+
+    def setup(self, worker: Any) -> None:
+        import threading
+
+        self.pools = {}
+        self._lock = threading.Lock()  # a worker may run several tasks at once
+
+    def teardown(self, worker: Any) -> None:
+        for pool in self.pools.values():
+            pool.close()
+
+    def pool(self, data_dir: Path) -> PlannerPool:
+        key = str(Path(data_dir).resolve())
+        with self._lock:
+            pool = self.pools.get(key)
+            if pool is None:
+                pool = self.pools[key] = PlannerPool(Path(key))
+            return pool
+
+
+def worker_pool(data_dir: Path) -> PlannerPool:
+    """The planner pool of this Dask worker process for ``data_dir`` (a pool of its own when
+    called outside a worker, or on a worker without the plugin)."""
+    try:
+        from distributed import get_worker
+
+        plugin = get_worker().plugins.get(PoolPlugin.name)
+    except (ImportError, ValueError):  # not in a Dask worker
+        plugin = None
+    if isinstance(plugin, PoolPlugin):
+        return plugin.pool(data_dir)
+    return PlannerPool(data_dir)
+
+
 def plan_task(
     doc: dict[str, Any], options: dict[str, Any], root: str, data_dir: str, db_id: str | None
 ) -> dict[str, Any]:
@@ -87,15 +142,15 @@ def plan_task(
     import os
 
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    from pickstop.loader import stop_planner_for
     from pickstop.scene.load import parse_scene
     from pickstop.scene.model import resolve_mesh_paths
     from pickstop.sequence.plan_model import PlanOptions
 
     try:
         scene = parse_scene(resolve_mesh_paths(doc, Path(root), source=root), root)
-        sp = stop_planner_for(scene, Path(root), Path(data_dir), db_id)
-        return sp.plan(scene, PlanOptions(**options)).model_dump(mode="json")
+        slot = worker_pool(Path(data_dir)).scene_slot(scene, Path(root), db_id)
+        with slot.lock:
+            return slot.planner.plan(scene, PlanOptions(**options)).model_dump(mode="json")
     except PickStopError as e:
         return {"error": e.message, "exit_code": e.exit_code}
 
@@ -111,6 +166,7 @@ def plan_batch(
     yields ``(index, result)`` once per item, in completion order."""
     from distributed import as_completed
 
+    client.register_plugin(PoolPlugin(), name=PoolPlugin.name)
     futures = {
         client.submit(plan_task, doc, options, str(root), str(data_dir), db_id,
                       key=f"plan-{k}-{name}-{_digest(doc)}", retries=RETRIES, pure=False): k

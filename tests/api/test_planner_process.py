@@ -11,6 +11,7 @@ import time
 from fastapi.testclient import TestClient
 
 from pickstop.api.app import create_app
+from pickstop.api.planner_process import PlannerProcess
 
 from .conftest import AUTH
 from .factories import paper, problem
@@ -22,10 +23,10 @@ def test_plans_are_computed_in_a_child_process(client, region_db):
     service = client.app.state.service
     quick = {"scene": paper(), "options": {"samples": 0}, "store": False}
     assert client.post(PLANS, json=quick, headers=AUTH).status_code == 200
-    assert service.remote is not None
-    pid = service.remote.pid
+    assert isinstance(service.planning, PlannerProcess)
+    pid = service.planning.pid
     assert pid is not None and pid != os.getpid()
-    assert not service._slots, "the API process loaded a planner of its own"
+    assert not list(service.planners.slots), "the API process loaded a planner of its own"
     health = client.get("/api/v1/health").json()
     assert {"robot": "tiago", "database": region_db[1].id} in health["loaded"]
     # Errors raised in the child arrive as the same problems: an infeasible plan is a 422.
@@ -39,7 +40,7 @@ def test_a_planner_process_that_dies_is_reported_and_replaced(api_settings):
         service = c.app.state.service
         quick = {"scene": paper(), "options": {"samples": 0}, "store": False}
         assert c.post(PLANS, json=quick, headers=AUTH).status_code == 200
-        first = service.remote.pid
+        first = service.planning.pid
         seed = time.time_ns() % 2**31  # nothing cached: a Monte Carlo of several seconds
         heavy = {"scene": paper(), "options": {"samples": 20000, "seed": seed}, "store": False}
         answer: list[object] = []
@@ -55,4 +56,4 @@ def test_a_planner_process_that_dies_is_reported_and_replaced(api_settings):
         assert answer[0].headers["Retry-After"] == "5"  # type: ignore[attr-defined]
         r = c.post(PLANS, json=quick, headers=AUTH)
         assert r.status_code == 200, r.text
-        assert service.remote.pid not in (None, first)
+        assert service.planning.pid not in (None, first)

@@ -26,6 +26,7 @@ from pickstop.api.problems import install, server_roots
 from pickstop.api.routes import databases, health, jobs, plans, robots, scenes
 from pickstop.api.schemas import BatchRequest, BuildRequest, PlanRequest, ProblemDetails
 from pickstop.api.service import Service
+from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
@@ -33,9 +34,13 @@ ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.
 
 
 def create_app(
-    settings: Settings | None = None, preload: bool = True, job_runner: bool = True
+    settings: Settings | None = None,
+    preload: bool = True,
+    job_runner: bool = True,
+    planners: PlannerPool | None = None,
 ) -> FastAPI:
-    """The app; ``job_runner``: this process runs the jobs (worker 0 of ``--workers N``)."""
+    """The app; ``job_runner``: this process runs the jobs (worker 0 of ``--workers N``);
+    ``planners``: a pool loaded already (a forked worker's, inherited from its parent)."""
     settings = settings or Settings()
 
     @asynccontextmanager
@@ -43,9 +48,9 @@ def create_app(
         # Planning threads hold the GIL in long stretches; switching more often keeps the
         # event loop (health, reads) responsive while a plan computes.
         sys.setswitchinterval(0.001)
-        svc = await asyncio.to_thread(Service, settings, job_runner)
+        svc = await asyncio.to_thread(Service, settings, job_runner, planners)
         if preload:
-            await asyncio.to_thread(svc.preload)
+            await asyncio.to_thread(svc.planning.preload)
         app.state.service = svc
         yield
         svc.close()

@@ -117,7 +117,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         s = svc(request)
         try:
             body, media = await asyncio.get_running_loop().run_in_executor(
-                s.pool, _export, s, plan_id, q
+                s.threads, _export, s, plan_id, q
             )
         except PickStopError as e:
             raise _problem(e) from None
@@ -168,7 +168,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
 
         try:
             broker = mqtt.parse_broker(configured)
-            order = await asyncio.get_running_loop().run_in_executor(s.pool, build)
+            order = await asyncio.get_running_loop().run_in_executor(s.threads, build)
         except PickStopError as e:
             raise _problem(e) from None
         params = {"plan_id": plan_id, **body.model_dump(), "order_id": order.order_id}
@@ -181,7 +181,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
             body.interface_name,
             body.timeout,
             body.wait_vehicle,
-            lambda: job["id"] in s._cancel,
+            lambda: s.jobs.cancelled(job["id"]),
         )
         response.headers["Location"] = f"/api/v1/jobs/{job['id']}"
         return _job_record(await run_in_threadpool(s.store.job, job["id"]))

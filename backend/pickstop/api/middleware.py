@@ -81,7 +81,7 @@ class StoredPlanFastPath:
         ):
             service = getattr(scope["app"].state, "service", None)
             plan_id = scope["path"][len(self.PREFIX) :]
-            body = service.cached_plan_body(plan_id) if service is not None else None
+            body = service.bodies.cached(plan_id) if service is not None else None
             if body is not None:
                 await send({"type": "http.response.start", "status": 200, "headers": [
                     (b"content-type", b"application/json"),

@@ -189,6 +189,23 @@ class PlannerProcess:
                 proc.kill()
                 proc.wait(timeout=5)
 
+    # -- the planning interface (as :class:`pickstop.api.planning.Planning`) -----------------
+    def plan(self, scene: Any, options: Any, db_id: str | None = None) -> Any:
+        return self.call("plan", scene, options, db_id)
+
+    def preview(self, scene: Any, options: Any, db_id: str | None = None) -> Any:
+        return self.call("preview", scene, options, db_id)
+
+    def regions(
+        self, scene: Any, sigma: float | None, db_id: str | None, rule: str = "sigma",
+        target: float = 0.95,
+    ) -> Any:  # fmt: skip
+        return self.call("regions", scene, sigma, db_id, rule, target)
+
+    def preload(self) -> None:
+        """Start the child (it loads the default planners) now rather than at the first call."""
+        self.start()
+
     @property
     def pid(self) -> int | None:
         proc = self._proc
@@ -229,17 +246,17 @@ def child_settings() -> Settings:
     return Settings.model_validate_json(os.environ.pop(SETTINGS_ENV))
 
 
-def serve(fd: int, service: Any) -> None:
-    """In the child: answer the parent's calls on the socket ``fd`` with ``service`` (whose
-    ``plan``, ``preview``, ``regions``, ``preload``, ``loaded`` and ``close`` it uses) until
-    the parent says stop or goes away."""
+def serve(fd: int, planning: Any, close: Any) -> None:
+    """In the child: answer the parent's calls on the socket ``fd`` with ``planning`` (a
+    :class:`~pickstop.api.planning.Planning`: its ``plan``, ``preview``, ``regions``,
+    ``preload`` and ``loaded``) until the parent says stop or goes away; then ``close()``."""
     die_with_parent()
     conn = Connection(fd)
     try:
-        service.preload()
-        _serve(conn, service)
+        planning.preload()
+        _serve(conn, planning)
     finally:
-        service.close()
+        close()
 
 
 def _serve(conn: Connection, service: Any) -> None:

@@ -11,21 +11,22 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from pickstop.api.registry import RobotRegistry
 from pickstop.robot.assets import RobotAssets, robot_assets
-from pickstop.robot.model import load_robot
 
 
-def assets_of(service: Any, name: str) -> RobotAssets:
+def assets_of(robots: RobotRegistry, name: str) -> RobotAssets:
     """The drawing assets of a preset or registered robot (made once per robot)."""
-    config, root = service.robot_config(name)
+    config, root = robots.config(name)
     key = (name, config.model_dump_json())
-    if key not in service.robot_assets:
-        service.robot_assets[key] = robot_assets(load_robot(config, root))
-    return service.robot_assets[key]
+    if key not in robots.assets:
+        robots.assets[key] = robot_assets(robots.planners.robot(config, root))
+    assets: RobotAssets = robots.assets[key]
+    return assets
 
 
-def model_of(service: Any, name: str) -> dict[str, Any]:
-    a = assets_of(service, name)
+def model_of(robots: RobotRegistry, name: str) -> dict[str, Any]:
+    a = assets_of(robots, name)
     return {
         "name": a.name,
         "urdf": a.urdf,
@@ -36,27 +37,27 @@ def model_of(service: Any, name: str) -> dict[str, Any]:
     }
 
 
-def file_of(service: Any, name: str, file_id: str) -> Path | None:
+def file_of(robots: RobotRegistry, name: str, file_id: str) -> Path | None:
     """The server file behind one of the robot's file ids, confined at this open (None: no
     such file, or it now leads outside the allowed folders)."""
-    path = assets_of(service, name).files.get(file_id)
+    path = assets_of(robots, name).files.get(file_id)
     if path is None:
         return None
     real = path.resolve(strict=False)
-    roots = [Path(r).resolve() for r in service.allowed_roots()]
+    roots = [Path(r).resolve() for r in robots.allowed_roots()]
     if not any(real.is_relative_to(r) for r in roots) or not real.is_file():
         return None
     return real
 
 
-def check_of(service: Any, name: str) -> dict[str, Any]:
+def check_of(robots: RobotRegistry, name: str) -> dict[str, Any]:
     """``pickstop robot check`` of a preset or registered robot (file names only, no paths)."""
     from pickstop.robot.check import check_config
     from pickstop.settings import cache_dir
 
-    config, root = service.robot_config(name)
+    config, root = robots.config(name)
     # A check takes seconds (disabled pairs, the screen and its quality): once per config.
     key = (name, config.model_dump_json())
-    if key not in service.robot_checks:
-        service.robot_checks[key] = check_config(config, root, name, cache_dir(service.data_dir))
-    return dict(service.robot_checks[key])
+    if key not in robots.checks:
+        robots.checks[key] = check_config(config, root, name, cache_dir(robots.data_dir))
+    return dict(robots.checks[key])

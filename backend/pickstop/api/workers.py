@@ -1,7 +1,8 @@
 """Several API processes on one listening socket (``pickstop serve --workers N``).
 
 The parent binds the port once (:func:`pickstop.stack.listen`), loads the default robot's
-reachability database and forks N processes that inherit both; the kernel spreads connections
+planners (its reachability database among them) into a planner pool and forks N processes that
+inherit both; the kernel spreads connections
 over them, so a reader is never queued behind another process's plan. Worker 0 alone runs
 jobs: it marks jobs a previous run left ``interrupted`` at start and picks up the jobs any
 worker queued from SQLite; a cancel that reaches another worker is passed on through the
@@ -39,14 +40,23 @@ def settings_env(settings: Settings) -> dict[str, str]:
 
 
 class WorkerPool:
-    """The worker processes of one socket, forked once the default robot's reachability
-    database is loaded, so that they share its arrays (copy-on-write: nothing writes them)
-    instead of loading one copy each. ``should_exit = True`` stops them."""
+    """The worker processes of one socket, forked once the default robot's planners (its
+    reachability database among them) are loaded into a pool, so that the workers share its
+    arrays (copy-on-write: nothing writes them) instead of loading one copy each; each worker's
+    service takes that pool as its own. ``should_exit = True`` stops them."""
 
     def __init__(self, sock: socket.socket, settings: Settings, log_level: str) -> None:
-        from pickstop.api.service import load_default_database
+        from contextlib import suppress
 
-        load_default_database(Path(settings.data_dir))
+        from pickstop.errors import PickStopError
+        from pickstop.pool import PlannerPool
+
+        # With planner processes, each worker's child loads its own planners (the database is
+        # memory-mapped, so shared all the same); without, the workers inherit the parent's.
+        planners = PlannerPool(Path(settings.data_dir))
+        if settings.planner_processes == 0:
+            with suppress(PickStopError):  # each worker's start-up says why (serving without)
+                planners.preload()
         self.pids: list[int] = []
         for i in range(settings.workers):
             pid = os.fork()
@@ -54,7 +64,7 @@ class WorkerPool:
                 code = 1
                 try:
                     die_with_parent()
-                    code = serve(sock, settings, i, log_level)
+                    code = serve(sock, settings, i, log_level, planners)
                 finally:
                     os._exit(code)
             self.pids.append(pid)
@@ -124,12 +134,15 @@ def wait_healthy(url: str, pool: WorkerPool, timeout: float = 300.0) -> None:
     raise PickStopError(f"the API workers did not answer at {url} within {timeout:g} s")
 
 
-def serve(sock: socket.socket, settings: Settings, index: int, log_level: str) -> int:
-    """One worker: the app on the inherited socket; worker 0 runs the jobs."""
+def serve(
+    sock: socket.socket, settings: Settings, index: int, log_level: str, planners: Any = None
+) -> int:
+    """One worker: the app on the inherited socket, its planners from ``planners`` (the
+    parent's pool, inherited); worker 0 runs the jobs."""
     import uvicorn
 
     from pickstop.api.app import create_app
 
-    app: Any = create_app(settings, job_runner=index == 0)
+    app: Any = create_app(settings, job_runner=index == 0, planners=planners)
     uvicorn.Server(uvicorn.Config(app, log_level=log_level, **SERVER_OPTIONS)).run(sockets=[sock])
     return 0

@@ -150,10 +150,11 @@ def cmd_dispatch(args: argparse.Namespace) -> int:
 
 def _checker(scene_path: str, scene: Any, args: argparse.Namespace, db: str | None) -> Any:
     from pickstop.fleet.pickcheck import PickChecker
-    from pickstop.loader import planner_for
+    from pickstop.pool import PlannerPool
     from pickstop.settings import data_dir
 
-    planner = planner_for(scene, Path(scene_path).resolve().parent, data_dir(args.data_dir), db)
+    pool = PlannerPool(data_dir(args.data_dir))
+    planner = pool.region_planner(scene, Path(scene_path).resolve().parent, db)
     return PickChecker(planner, scene)
 
 

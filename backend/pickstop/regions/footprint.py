@@ -34,13 +34,11 @@ class UpperBody:
     within_footprint: bool  # seen from above, inside the footprint's circle
 
 
-_UPPER: dict[str, UpperBody] = {}
-
-
 def upper_body(robot: RobotModel) -> UpperBody:
-    """The robot's base-fixed links above its footprint (computed once per robot)."""
-    hit = _UPPER.get(robot.robot_hash)
-    if hit is not None:
+    """The robot's base-fixed links above its footprint (made once per loaded robot and kept
+    in its ``memo``)."""
+    hit = robot.memo.get("upper_body")
+    if isinstance(hit, UpperBody):
         return hit
     from pickstop.robot.link_geometry import collision_links
 
@@ -68,7 +66,7 @@ def upper_body(robot: RobotModel) -> UpperBody:
         max(fp.bounding_radius, reach),
         fp.radius is not None and reach <= fp.radius,
     )
-    _UPPER[robot.robot_hash] = body
+    robot.memo["upper_body"] = body
     return body
 
 

@@ -1,9 +1,9 @@
 """Per-robot derived data that is slow to make: disabled pairs, the self-collision screen and
 other geometry derived from the robot alone (:func:`derived`).
 
-Kept in memory per process and on disk per robot hash (``<cache>/robots/``), so a build, a
-region planner or a worker makes them once. A cache file that does not load, or belongs to
-another robot, is made again.
+Kept in memory with the loaded robot (``RobotModel.memo``) and on disk per robot hash
+(``<cache>/robots/``), so a build, a region planner or a worker makes them once. A cache file
+that does not load, or belongs to another robot, is made again.
 """
 
 from __future__ import annotations
@@ -20,16 +20,16 @@ from pickstop.robot.model import RobotModel
 T = TypeVar("T")
 
 _FORMAT = 2
-_MEMO: dict[str, tuple[Any, Any]] = {}
+_SCREEN = "self_collision"  # robot.memo entry: (DisabledPairs, SphereModel, quality figures)
 
 
 def self_collision(robot: RobotModel, cache_dir: Path | None) -> tuple[Any, Any]:
     """``(DisabledPairs, SphereModel)`` of ``robot``."""
     from pickstop.robot.selfcollision import SphereModel, disabled_pairs
 
-    hit = _MEMO.get(robot.robot_hash)
-    if hit is not None and robot.robot_hash in _QUALITY:
-        return hit
+    hit = robot.memo.get(_SCREEN)
+    if hit is not None:
+        return hit[0], hit[1]
     folder = None if cache_dir is None else Path(cache_dir) / "robots"
     path = None if folder is None else folder / f"screen-{robot.robot_hash[:24]}-v{_FORMAT}.pkl"
     disabled = disabled_pairs(robot, cache_dir=folder)
@@ -46,8 +46,7 @@ def self_collision(robot: RobotModel, cache_dir: Path | None) -> tuple[Any, Any]
         model, quality = tightened_screen(robot, disabled)
         if path is not None:
             _write(path, (robot.robot_hash, model, quality))
-    _MEMO[robot.robot_hash] = (disabled, model)
-    _QUALITY[robot.robot_hash] = quality
+    robot.memo[_SCREEN] = (disabled, model, quality)
     return disabled, model
 
 
@@ -109,11 +108,11 @@ def tightened_screen(robot: RobotModel, disabled: Any) -> tuple[Any, dict[str, f
 #: drops more is tightened (finer spheres on the links responsible) until it does not.
 FALSE_REJECTION_BOUND = 0.05
 QUALITY_SAMPLES = 4000
-_QUALITY: dict[str, dict[str, float]] = {}
 
 
 def screen_quality(robot: RobotModel, cache_dir: Path | None) -> dict[str, float]:
     """The screen's figures against exact coal checks on random configurations (cached with
     the screen): ``false_rejection``, ``flagged``, ``colliding``, ``n``, ``rounds``."""
     self_collision(robot, cache_dir)
-    return _QUALITY[robot.robot_hash]
+    quality: dict[str, float] = robot.memo[_SCREEN][2]
+    return quality

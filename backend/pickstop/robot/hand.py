@@ -171,10 +171,11 @@ def hand_joints(robot: RobotModel) -> dict[str, float]:
 
 def hand_shape(robot: RobotModel) -> HandShape:
     """The robot's open hand in the TCP frame (made once per loaded robot)."""
-    if isinstance(robot.hand_cache, HandShape):
-        return robot.hand_cache
-    robot.hand_cache = _make_shape(robot)
-    return robot.hand_cache
+    hit = robot.memo.get("hand_shape")
+    if isinstance(hit, HandShape):
+        return hit
+    shape = robot.memo["hand_shape"] = _make_shape(robot)
+    return shape
 
 
 def _make_shape(robot: RobotModel) -> HandShape:

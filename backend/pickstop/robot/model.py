@@ -70,7 +70,10 @@ class RobotModel:
     robot_hash: str
     footprint: Any = None  # config.Footprint with a radius or polygon (derived if not given)
     source: str = ""  # what to pass as ``--robot`` to load it again: a preset or a config path
-    hand_cache: Any = field(default=None, repr=False)  # robot.hand.hand_shape, made once
+    # What is derived from this robot alone (its hand shape, self-collision screen, upper
+    # body), made once per loaded robot by the functions that own each entry; a loaded robot
+    # never changes, so nothing invalidates them.
+    memo: dict[str, Any] = field(default_factory=dict, repr=False)
 
     @property
     def name(self) -> str:

@@ -98,6 +98,7 @@ class _Floor:
     body: BodyPieces
     reach: float  # [m] longest docking leg
     omnidirectional: bool  # the base may dock sideways (else only along its heading)
+    key: str  # what the floor is (bounds, body reach, blocking solids, drive), by value
 
     def docking(self) -> Docking:
         return Docking(lambda a, b, yaw: sweep_blocked(self.body, self.world, a, b, yaw),
@@ -109,6 +110,13 @@ class StopPlanner:
 
     A change of sigma, rule or objective reuses the regions, the candidates, the floor paths
     and the exact checks at candidate centres; moving a tray recomputes only what it affects.
+
+    Its caches are bounded LRUs keyed by value, so nothing needs invalidating: a key changes
+    with what its entry depends on (candidates: the regions' masks; floors: the floor, the
+    body's reach and the blocking solids; paths: the floor's key and the points; checks and
+    success rates: the world's key, trays, pose and error model; selections: their inputs).
+    The robot and database are fixed per planner (one per pair in
+    :class:`pickstop.pool.PlannerPool`).
     """
 
     def __init__(self, regions: RegionPlanner, cache_size: int = 64) -> None:
@@ -187,19 +195,18 @@ class StopPlanner:
             )
         world = FloorSolids.of(scene, every)
         omni = robot.config.footprint.drive == "omnidirectional"
-        floor = _Floor(fmap, outlines, world, body_pieces(robot), DOCK_REACH * body.radius, omni)
+        floor = _Floor(fmap, outlines, world, body_pieces(robot), DOCK_REACH * body.radius, omni,
+                       _digest((full, omni)))  # fmt: skip
         return self._floors.put(full, floor)
 
     def paths(self, floor: _Floor, points: np.ndarray, yaws: np.ndarray) -> Paths:
         """Shortest paths between ``points: (Q, 2)`` [m] held at ``yaws: (Q,)`` [rad] where
         the base's bounding circle does not fit (cached)."""
-        key = (id(floor), points.tobytes(), yaws.tobytes())
+        key = (floor.key, points.tobytes(), yaws.tobytes())
         hit = self._paths.hit(key)
-        if hit is not None and hit[0] is floor:
-            return hit[1]
-        p = shortest_paths(floor.fmap, points, yaws, floor.docking())
-        self._paths.put(key, (floor, p))
-        return p
+        if hit is not None:
+            return hit
+        return self._paths.put(key, shortest_paths(floor.fmap, points, yaws, floor.docking()))
 
     def check(
         self, scene: Scene, world_key: str, region: TrayRegion, xy: tuple[float, float]

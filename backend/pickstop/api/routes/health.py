@@ -21,8 +21,8 @@ async def health(service: ServiceDep) -> Health:
         status="ok",
         version=__version__,
         process=os.getpid(),
-        loaded=[LoadedPlanner(**x) for x in service.loaded],
-        interrupted_jobs_at_start=service.interrupted,
+        loaded=[LoadedPlanner(**x) for x in service.planning.loaded],
+        interrupted_jobs_at_start=service.jobs.interrupted,
         limits=service.limits,
     )
 

@@ -26,8 +26,8 @@ def _missing(job_id: str) -> Problem:
     openapi_extra=json_request("BatchRequest", "scenes to plan; each is checked before queueing"),
 )
 def batch(service: ServiceDep, doc: JsonBody, response: Response) -> Job:
-    service.check_batch_size(doc)  # before validating 10,000 items
-    service.precheck(doc)
+    service.scenes.check_batch_size(doc)  # before validating 10,000 items
+    service.scenes.precheck(doc)
     job = service.submit_batch(validate(BatchRequest, doc))
     response.headers["Location"] = f"{API_PREFIX}/jobs/{job['id']}"
     return Job.of(job)
@@ -53,7 +53,7 @@ def job(service: ServiceDep, job_id: str) -> Job:
 @router.post("/jobs/{job_id}/cancel", dependencies=[WriteKey])
 def cancel(service: ServiceDep, job_id: str) -> Job:
     """Cancel a job: a queued one never runs, a running one is stopped where it is."""
-    row = service.cancel(job_id)
+    row = service.jobs.cancel(job_id)
     if row is None:
         raise _missing(job_id)
     return Job.of(row)

@@ -34,7 +34,7 @@ IMMUTABLE = {"Cache-Control": "public, max-age=31536000, immutable"}
 async def create_plan(
     request: Request, service: ServiceDep, doc: JsonBody, response: Response
 ) -> Any:
-    await run_in_threadpool(service.precheck, doc)
+    await run_in_threadpool(service.scenes.precheck, doc)
     body = await run_in_threadpool(validate, PlanRequest, doc)
     if body.mode == "job":
         job = await run_in_threadpool(service.submit_plan_job, body)
@@ -44,9 +44,9 @@ async def create_plan(
     if body.mode == "preview" and body.store:
         raise Problem(422, "Invalid request", "a preview is never stored: send store: false "
                       "with mode: preview", field="store")  # fmt: skip
-    scene_doc, revision, scene = await run_in_threadpool(service.prepare, body)
-    work = service.preview if body.mode == "preview" else service.plan
-    plan = await compute(service.pool, work, scene, body.options, body.database,
+    scene_doc, revision, scene = await run_in_threadpool(service.scenes.prepare, body)
+    work = service.planning.preview if body.mode == "preview" else service.planning.plan
+    plan = await compute(service.threads, work, scene, body.options, body.database,
                          deadline=service.settings.request_deadline, request=request)  # fmt: skip
     options = body.options.model_dump()
     if not body.store:
@@ -77,7 +77,7 @@ def plans(
     responses={200: {"content": {"application/json": {}}}},
 )
 def get_plan(service: ServiceDep, plan_id: str, include_scene: bool = False) -> Response:
-    body = service.plan_body(plan_id, with_scene=include_scene)
+    body = service.bodies.body(plan_id, with_scene=include_scene)
     if body is None:
         raise Problem(404, "Not found", f"no plan {plan_id!r}", field="plan_id")
     return Response(body, media_type="application/json", headers=IMMUTABLE)

@@ -19,7 +19,7 @@ router = APIRouter(tags=["robots"])
 
 @router.get("/robots", dependencies=[ReadKey])
 def robots(service: ServiceDep) -> list[RobotInfo]:
-    return [RobotInfo(**r) for r in service.robots()]
+    return [RobotInfo(**r) for r in service.robots.listing()]
 
 
 @router.post(
@@ -33,7 +33,7 @@ def robots(service: ServiceDep) -> list[RobotInfo]:
     ),
 )
 def register_robot(service: ServiceDep, config: ConfigBody) -> RegisteredRobot:
-    robot = service.register_robot(config)
+    robot = service.robots.register(config)
     return RegisteredRobot(name=robot.name, dof=robot.dof, robot_hash=robot.robot_hash)
 
 
@@ -43,9 +43,9 @@ async def robot_check(service: ServiceDep, request: Request, name: str) -> dict[
     footprint, self-collision pairs and their source, the screen's false rejection, and each
     step's time. Made once per config."""
     return await compute(
-        service.pool,
+        service.threads,
         robot_views.check_of,
-        service,
+        service.robots,
         name,
         deadline=service.settings.request_deadline,
         request=request,
@@ -57,9 +57,9 @@ async def robot_model(service: ServiceDep, request: Request, name: str) -> dict[
     """The robot's URDF (mesh references ``files/<id>``), its arm joints and the values of
     every other joint (locked, or the hand's pre-grasp), for drawing it."""
     return await compute(
-        service.pool,
+        service.threads,
         robot_views.model_of,
-        service,
+        service.robots,
         name,
         deadline=service.settings.request_deadline,
         request=request,
@@ -69,7 +69,7 @@ async def robot_model(service: ServiceDep, request: Request, name: str) -> dict[
 @router.get("/robots/{name}/files/{file_id}", dependencies=[ReadKey])
 def robot_file(service: ServiceDep, name: str, file_id: str) -> FileResponse:
     """One mesh of the robot's model (only files its own URDF references)."""
-    path = robot_views.file_of(service, name, file_id)
+    path = robot_views.file_of(service.robots, name, file_id)
     if path is None:
         raise Problem(404, "Not found", f"robot {name!r} has no file {file_id!r}")
     return FileResponse(path, media_type="application/octet-stream")

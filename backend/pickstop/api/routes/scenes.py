@@ -73,7 +73,7 @@ def scenes(service: ServiceDep, limit: Limit = 100, offset: Offset = 0) -> list[
     openapi_extra=json_request("Scene", "a scene document (docs/scene.schema.json)"),
 )
 def create_scene(service: ServiceDep, doc: JsonBody, response: Response) -> SceneRecord:
-    scene = service.parse(doc)
+    scene = service.scenes.parse(doc)
     row = service.store.create_scene(doc, scene.name)
     response.headers["ETag"] = f'"{row["etag"]}"'
     response.headers["Location"] = f"{API_PREFIX}/scenes/{row['id']}"
@@ -99,7 +99,7 @@ def put_scene(
     if_match: IfMatch = None,
 ) -> SceneRecord:
     tags = match_set(_require(if_match, "change"))
-    scene = service.parse(doc)
+    scene = service.scenes.parse(doc)
     try:
         new = service.store.update_scene(row["id"], doc, scene.name, tags)
     except Conflict as c:
@@ -136,9 +136,9 @@ async def scene_regions(
 ) -> Regions:
     """Base regions and intersections (GeoJSON), each intersection judged as a plan with the
     same sigma, rule and target would judge it; computed under the request deadline."""
-    scene = await run_in_threadpool(service.stored_scene, scene_id)
+    scene = await run_in_threadpool(service.scenes.stored_scene, scene_id)
     regions: dict[str, Any] = await compute(
-        service.pool, service.regions, scene, sigma, database, rule, target,
+        service.threads, service.planning.regions, scene, sigma, database, rule, target,
         deadline=service.settings.request_deadline, request=request,
     )  # fmt: skip
     return Regions.model_validate(regions)

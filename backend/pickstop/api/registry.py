@@ -1,0 +1,130 @@
+"""The robots a service knows: the presets and the configs registered with it, each file of
+which is confined to the allowed folders at every open.
+
+Registered configs live in the service's records; their files (URDF, SRDF, meshes) must lie in
+the data folder's ``robots/`` or in the example-robot-data share, symlinks resolved.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from pickstop.api.body import type_errors
+from pickstop.errors import InputError, RobotConfigError
+from pickstop.pool import PlannerPool
+from pickstop.robot.config import (
+    RobotConfig,
+    example_robot_data_share,
+    parse_config,
+    preset_names,
+    resolve_robot,
+)
+from pickstop.robot.model import RobotModel, _mesh_refs, resolve_path
+from pickstop.store.records import ServiceStore
+
+
+class RobotRegistry:
+    """Presets and registered robots by name; their models come from the planner pool.
+
+    ``assets`` and ``checks`` keep, per (name, config JSON), a robot's drawing assets and its
+    check report; a config is never changed once registered and the key holds all of it, so
+    an entry stays valid while the service runs.
+    """
+
+    def __init__(self, store: ServiceStore, data_dir: Path, planners: PlannerPool) -> None:
+        self.store = store
+        self.data_dir = Path(data_dir)
+        self.planners = planners
+        self.robot_dir = self.data_dir / "robots"
+        self.robot_dir.mkdir(parents=True, exist_ok=True)
+        self.assets: dict[tuple[str, str], Any] = {}
+        self.checks: dict[tuple[str, str], dict[str, Any]] = {}
+
+    def allowed_roots(self) -> list[Path]:
+        return [self.robot_dir.resolve(), example_robot_data_share().resolve()]
+
+    def config(self, name: str) -> tuple[RobotConfig, Path]:
+        """A preset or a registered robot's config, by name, and the folder its paths start
+        from."""
+        if name in preset_names():
+            return resolve_robot(name)
+        row = self.store.robot(name)
+        if row is None:
+            known = preset_names() + [r["name"] for r in self.store.robots()]
+            raise InputError(
+                f"unknown robot {name!r}; known: {', '.join(known)}", field="robot.preset"
+            )
+        config = parse_config(json.loads(row["config"]), f"robot {name}")
+        self.confine(config)  # at every open: a file swapped for a symlink since is refused
+        return config, self.robot_dir
+
+    def model(self, name: str) -> RobotModel:
+        """The loaded robot ``name`` (from the planner pool: loaded once per config)."""
+        return self.planners.robot(*self.config(name))
+
+    def register(self, data: dict[str, Any]) -> RobotModel:
+        """Validate a robot config whose files lie in the allowed folders, and keep it."""
+        strict = type_errors(RobotConfig, data) if isinstance(data, dict) else []
+        if strict:
+            raise RobotConfigError("; ".join(f"{f}: {m}" for f, m in strict), field=strict[0][0])
+        config = parse_config(data, "robot")
+        if config.name in preset_names() or self.store.robot(config.name) is not None:
+            raise InputError(f"robot {config.name!r} already exists", field="name")
+        self.confine(config)
+        robot = self.planners.robot(config, self.robot_dir)
+        self.store.add_robot(config.name, config.model_dump(mode="json"))
+        return robot
+
+    def confine(self, config: RobotConfig) -> None:
+        """Refuse any file of the config (URDF, SRDF, meshes, package dirs) outside the allowed
+        folders: relative paths start at the data folder's robots/, package:// resolves only to
+        allowed roots. Real paths are compared (symlinks resolved), and a file that is missing
+        gets the same answer as one outside, so the answer tells nothing about the server."""
+        roots = self.allowed_roots()
+
+        def inside(p: Path) -> bool:
+            rp = p.resolve()
+            return any(rp.is_relative_to(r) for r in roots)
+
+        def refuse(what: str, ref: str, field: str) -> RobotConfigError:
+            return RobotConfigError(
+                f"{what} {ref!r} lies outside the allowed folders or is not a file there",
+                field=field,
+            )
+
+        pkg = []
+        for i, d in enumerate(config.package_dirs):
+            p = (self.robot_dir / d).resolve()
+            if not inside(p):
+                raise refuse(f"package_dirs[{i}]", d, f"package_dirs.{i}")
+            pkg.append(str(p))
+        pkg.append(str(example_robot_data_share()))
+        for what, ref in (("urdf", config.urdf), ("srdf", config.srdf)):
+            if ref is None:
+                continue
+            if not ref.startswith("package://") and not inside(self.robot_dir / ref):
+                raise refuse(what, ref, what)
+            try:
+                path = resolve_path(ref, self.robot_dir, pkg, what)
+            except RobotConfigError:
+                raise refuse(what, ref, what) from None
+            if not inside(path):
+                raise refuse(what, ref, what)
+            if what == "urdf":
+                for mesh in _mesh_refs(path, pkg)[1]:
+                    if not inside(mesh):
+                        raise RobotConfigError(
+                            f"mesh {mesh.name!r} of the URDF lies outside the allowed folders",
+                            field="urdf",
+                        )
+
+    def listing(self) -> list[dict[str, Any]]:
+        """Every robot by name: the presets, then the registered ones."""
+        out = [{"name": n, "kind": "preset"} for n in preset_names()]
+        out += [
+            {"name": r["name"], "kind": "registered", "created": r["created"]}
+            for r in self.store.robots()
+        ]
+        return out

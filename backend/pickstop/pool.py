@@ -1,0 +1,188 @@
+"""The planner pool: one home for the chain robot -> database -> region planner -> stop planner.
+
+A process holds one :class:`PlannerPool` per data folder; the REST service, the command line
+and every Dask worker take their planners from it, so the same robot config and database give
+the same planner (and its caches) wherever the request came from.
+
+What the pool keeps, and what invalidates it:
+
+- robots, by the content of their config and the folder its paths start from (a hash, never an
+  object's identity); a loaded robot never changes, so it is kept while the pool lives;
+- reachability databases, by (robot hash, database id); :meth:`PlannerPool.drop_database`
+  forgets a deleted database (and every planner over it);
+- a :class:`PlannerSlot` per (robot hash, database id): the region planner, the stop planner
+  over it (made on first use: it loads the route solver) and the lock that serialises their
+  caches, which are not thread-safe;
+- which database a robot's plans use when none is named: the newest complete one when first
+  asked (or :meth:`PlannerPool.preload`), kept until that database is dropped.
+
+Forked API workers share one copy of the default database: the parent preloads a pool and the
+children inherit it with the process (copy-on-write; nothing writes the arrays).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from pickstop.robot.config import RobotConfig, load_config, resolve_robot
+from pickstop.robot.model import RobotModel, load_robot
+from pickstop.scene.model import Scene
+from pickstop.settings import cache_dir
+
+if TYPE_CHECKING:  # the database (SQLite catalog), the planners and their solvers load on use
+    from pickstop.reach.database import ReachDatabase
+    from pickstop.regions.planner import RegionPlanner
+    from pickstop.sequence.plan import StopPlanner
+
+DEFAULT_ROBOT = "tiago"  # the robot a service preloads
+
+
+def scene_robot(scene: Scene, scene_root: Path | None) -> tuple[RobotConfig, Path]:
+    """The robot config a scene names (a preset, or a config file relative to
+    ``scene_root``) and the folder its paths start from."""
+    ref = scene.robot
+    if ref.config is None:
+        return resolve_robot(ref.ref)
+    path = Path(ref.config)
+    if not path.is_absolute() and scene_root is not None:
+        path = scene_root / path
+    return load_config(path)
+
+
+def config_key(config: RobotConfig, root: Path) -> str:
+    """The identity of a robot config by value: its content and the folder its paths start
+    from (the same text elsewhere names other files)."""
+    blob = f"{config.model_dump_json()}\0{Path(root).resolve()}"
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+@dataclass
+class PlannerSlot:
+    """The planners of one robot and database, and the lock their caches need."""
+
+    regions: RegionPlanner
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    _stops: StopPlanner | None = field(default=None, repr=False)
+
+    @property
+    def planner(self) -> StopPlanner:
+        """The stop planner over :attr:`regions`, made on first use."""
+        if self._stops is None:
+            from pickstop.sequence.plan import StopPlanner
+
+            self._stops = StopPlanner(self.regions)
+        return self._stops
+
+    def close(self) -> None:
+        self.regions.close()
+
+
+class PlannerPool:
+    """Robots, databases and planners of one data folder, each loaded once per process."""
+
+    def __init__(self, data_dir: Path) -> None:
+        self.data_dir = Path(data_dir)
+        self._robots: dict[str, RobotModel] = {}  # config_key -> robot
+        self._databases: dict[tuple[str, str], ReachDatabase] = {}  # (robot hash, db id)
+        self._defaults: dict[str, str] = {}  # robot hash -> the database used when none named
+        self._slots: dict[tuple[str, str], PlannerSlot] = {}  # (robot hash, db id)
+        self._lock = threading.RLock()
+
+    # -- the chain ---------------------------------------------------------------------------
+    def robot(self, config: RobotConfig, root: Path) -> RobotModel:
+        """The robot model of ``config`` (paths from ``root``), built once: parsing the URDF and
+        meshes takes about 50 ms, too much for every request."""
+        key = config_key(config, root)
+        with self._lock:
+            robot = self._robots.get(key)
+            if robot is None:
+                robot = self._robots[key] = load_robot(config, root)
+            return robot
+
+    def database(self, robot: RobotModel, db_id: str | None = None) -> ReachDatabase:
+        """The reachability database ``db_id`` of ``robot`` (default: the newest complete one)."""
+        with self._lock:
+            if db_id is None:
+                db_id = self._defaults.get(robot.robot_hash)
+            db = None if db_id is None else self._databases.get((robot.robot_hash, db_id))
+            if db is None:
+                from pickstop.store.reach_catalog import open_database
+
+                db = open_database(self.data_dir, robot, db_id)
+                self._databases[(robot.robot_hash, db.id)] = db
+            if db_id is None:
+                self._defaults[robot.robot_hash] = db.id
+            return db
+
+    def slot(self, robot: RobotModel, db_id: str | None = None) -> PlannerSlot:
+        """The planners of ``robot`` over its database ``db_id`` (default: the newest)."""
+        from pickstop.regions.planner import RegionPlanner
+
+        with self._lock:
+            db = self.database(robot, db_id)
+            key = (robot.robot_hash, db.id)
+            slot = self._slots.get(key)
+            if slot is None:
+                rp = RegionPlanner(robot, db, cache_dir=cache_dir(self.data_dir))
+                slot = self._slots[key] = PlannerSlot(rp)
+            return slot
+
+    def scene_slot(
+        self, scene: Scene, scene_root: Path | None, db_id: str | None = None
+    ) -> PlannerSlot:
+        """The planners of the robot a scene file names (see :func:`scene_robot`)."""
+        return self.slot(self.robot(*scene_robot(scene, scene_root)), db_id)
+
+    def region_planner(
+        self, scene: Scene, scene_root: Path | None, db_id: str | None = None
+    ) -> RegionPlanner:
+        return self.scene_slot(scene, scene_root, db_id).regions
+
+    def stop_planner(
+        self, scene: Scene, scene_root: Path | None, db_id: str | None = None
+    ) -> StopPlanner:
+        return self.scene_slot(scene, scene_root, db_id).planner
+
+    # -- start-up, invalidation, closing -----------------------------------------------------
+    def has_database(self, robot: RobotModel) -> bool:
+        """Whether the data folder holds a complete database of ``robot``."""
+        from pickstop.store.reach_catalog import list_databases
+
+        return any(
+            r["robot_hash"] == robot.robot_hash and r["state"] == "complete"
+            for r in list_databases(self.data_dir)
+        )
+
+    def preload(self, robot_name: str = DEFAULT_ROBOT) -> PlannerSlot | None:
+        """Load a preset robot's planners if it has a database (at start-up, and in a parent
+        before it forks workers that inherit them); None if it has none."""
+        robot = self.robot(*resolve_robot(robot_name))
+        if not self.has_database(robot):
+            return None
+        return self.slot(robot)
+
+    def drop_database(self, db_id: str) -> None:
+        """Forget the database ``db_id`` and close the planners over it (it was deleted)."""
+        with self._lock:
+            for key in [k for k in self._databases if k[1] == db_id]:
+                del self._databases[key]
+            for robot_hash in [h for h, d in self._defaults.items() if d == db_id]:
+                del self._defaults[robot_hash]
+            for key in [k for k in self._slots if k[1] == db_id]:
+                self._slots.pop(key).close()
+
+    @property
+    def slots(self) -> list[PlannerSlot]:
+        """The planners loaded so far."""
+        with self._lock:
+            return list(self._slots.values())
+
+    def close(self) -> None:
+        """Stop the planners' worker processes; the pool may be used again after."""
+        with self._lock:
+            for slot in self._slots.values():
+                slot.close()
