@@ -140,7 +140,8 @@ def service(region_db, pool):
     from pickstop.settings import Settings
 
     folder, _ = region_db
-    svc = Service(Settings(data_dir=folder), job_runner=False, planners=pool)
+    # Planning on this process's threads (as the planner process itself does), on the given pool.
+    svc = Service(Settings(data_dir=folder, planner_processes=0), job_runner=False, planners=pool)
     yield svc
     svc.close()
 
