@@ -135,8 +135,8 @@ async def run(url: str, seconds: float, clients: int, planners: int, build: int)
           f"{state['progress']:.0%} when the load ended")  # fmt: skip
     if wrk_out is not None:
         rps = re.search(r"Requests/sec:\s+([\d.]+)", wrk_out)
-        p50 = re.search(r"50%\s+(\S+)", wrk_out)
-        p99 = re.search(r"99%\s+(\S+)", wrk_out)
+        p50 = re.search(r"^\s*50%\s+(\S+)", wrk_out, re.MULTILINE)  # the latency table
+        p99 = re.search(r"^\s*99%\s+(\S+)", wrk_out, re.MULTILINE)
         bad = re.search(r"Non-2xx or 3xx responses:\s+(\d+)", wrk_out)
         errs = re.search(r"Socket errors:.*", wrk_out)
         print(

@@ -46,6 +46,10 @@ POLL = 0.05  # seconds between checks for a Cancelled while waiting on the child
 ACK_WAIT = 30.0  # seconds a stopped computation may take to unwind before the child restarts
 KINDS = ("plan", "preview", "regions")
 SETTINGS_ENV = "PICKSTOP_CHILD_SETTINGS"
+#: The child's lower priority: when the API process needs a core to answer a read, the
+#: planner yields it (a nice-3 process weighs half of a nice-0 one); alone, it plans at
+#: full speed.
+NICE = 3
 
 
 class PlannerProcessError(UnavailableError):
@@ -251,6 +255,7 @@ def serve(fd: int, planning: Any, close: Any) -> None:
     :class:`~pickstop.api.planning.Planning`: its ``plan``, ``preview``, ``regions``,
     ``preload`` and ``loaded``) until the parent says stop or goes away; then ``close()``."""
     die_with_parent()
+    os.nice(NICE)
     conn = Connection(fd)
     try:
         planning.preload()
