@@ -66,7 +66,8 @@ class PlannerProcess:
         self.entry = entry
         self._lock = threading.Lock()  # guards the child handle, the pending calls and sends
         self._ids = itertools.count(1)
-        self._pending: dict[int, Future[Any]] = {}
+        # each waiting call's future, with the connection of the child computing it
+        self._pending: dict[int, tuple[Connection, Future[Any]]] = {}
         self._proc: Any = None
         self._conn: Connection | None = None
         self._closed = False
@@ -113,23 +114,23 @@ class PlannerProcess:
                 self.loaded = payload
                 continue
             with self._lock:
-                fut = self._pending.pop(rid, None)
-            if fut is None:
+                entry = self._pending.pop(rid, None)
+            if entry is None:
                 continue
+            fut = entry[1]
             if status == "ok":
                 fut.set_result(payload)
             elif status == "cancelled":
                 fut.set_exception(Cancelled())
             else:
                 fut.set_exception(_error(payload))
-        with self._lock:
+        with self._lock:  # this child's calls fail; a newer child's are its own
             if self._conn is conn:
                 self._proc, self._conn = None, None
-            orphans = list(self._pending.items()) if self._proc is None else []
-            for rid, _ in orphans:
-                self._pending.pop(rid, None)
+            orphans = [rid for rid, (c, _) in self._pending.items() if c is conn]
+            futures = [self._pending.pop(rid)[1] for rid in orphans]
         code = proc.poll()
-        for _, fut in orphans:
+        for fut in futures:
             if not fut.done():
                 fut.set_exception(PlannerProcessError(
                     f"the planner process stopped (exit code {code}) during the computation; "
@@ -138,14 +139,14 @@ class PlannerProcess:
             log.warning("planner process %s stopped (exit code %s)", proc.pid, code)
 
     def call(self, kind: str, *args: Any) -> Any:
-        """``Service.<kind>(*args)`` computed in the child; blocks this thread until done."""
+        """``Planning.<kind>(*args)`` computed in the child; blocks this thread until done."""
         if kind not in KINDS:
             raise ValueError(f"unknown planner call {kind!r}")
         fut: Future[Any] = Future()
         with self._lock:
             conn = self._ensure()
             rid = next(self._ids)
-            self._pending[rid] = fut
+            self._pending[rid] = (conn, fut)
             conn.send(("run", rid, kind, args))
         try:
             while True:
