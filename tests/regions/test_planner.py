@@ -1,4 +1,5 @@
-"""Base regions: verified witnesses, explained emptiness, precise cache invalidation."""
+"""Base regions (regions/planner.py and what it composes): verified witnesses, explained
+emptiness, precise cache invalidation, off-grid checks, the worker pool."""
 
 from __future__ import annotations
 
