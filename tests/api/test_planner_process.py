@@ -57,3 +57,43 @@ def test_a_planner_process_that_dies_is_reported_and_replaced(api_settings):
         r = c.post(PLANS, json=quick, headers=AUTH)
         assert r.status_code == 200, r.text
         assert service.planning.pid not in (None, first)
+
+
+def test_the_planner_process_ends_with_the_service(api_settings):
+    """Killed (kill -9), the service leaves no planner process behind: the child reads the end
+    of its socket and exits."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys\n"
+        "from pickstop.api.service import Service\n"
+        "from pickstop.settings import Settings\n"
+        f"s = Service(Settings.model_validate_json({api_settings.model_dump_json()!r}))\n"
+        "s.planning.preload()\n"
+        "print(s.planning.pid, flush=True)\n"
+        "sys.stdin.read()\n"
+    )
+    parent = subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        child = int(parent.stdout.readline())
+        os.kill(child, 0)  # alive
+        parent.kill()
+        parent.wait(timeout=10)
+        deadline = time.time() + 30
+        while time.time() < deadline:
+            try:
+                os.kill(child, 0)
+            except ProcessLookupError:
+                return
+            try:  # a zombie has exited (init reaps it)
+                with open(f"/proc/{child}/stat") as f:
+                    if f.read().split()[2] == "Z":
+                        return
+            except FileNotFoundError:
+                return
+            time.sleep(0.1)
+        raise AssertionError(f"planner process {child} outlived the service")
+    finally:
+        parent.kill()

@@ -237,15 +237,6 @@ def _dump_error(e: BaseException) -> bytes:
 
 
 # -- the child side --------------------------------------------------------------------------
-def die_with_parent() -> None:
-    """Linux: the kernel sends this process SIGTERM if the parent dies (even by kill -9)."""
-    import ctypes
-    import signal
-
-    with contextlib.suppress(OSError):
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-
-
 def child_settings() -> Settings:
     """In the child: the parent's settings, as it passed them."""
     return Settings.model_validate_json(os.environ.pop(SETTINGS_ENV))
@@ -255,14 +246,18 @@ def serve(fd: int, planning: Any, close: Any) -> None:
     """In the child: answer the parent's calls on the socket ``fd`` with ``planning`` (a
     :class:`~pickstop.api.planning.Planning`: its ``plan``, ``preview``, ``regions``,
     ``preload`` and ``loaded``) until the parent says stop or goes away; then ``close()``."""
-    die_with_parent()
+    # No parent-death signal: Linux sends it when the thread that started the child ends, not
+    # the process. The child ends with the parent all the same: its socket's end reads EOF.
     os.nice(NICE)
     conn = Connection(fd)
+    code = 1
     try:
         planning.preload()
         _serve(conn, planning)
+        code = 0
     finally:
         close()
+        os._exit(code)  # without waiting for a background centre check to finish
 
 
 def _serve(conn: Connection, service: Any) -> None:

@@ -20,7 +20,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pickstop.api.planner_process import die_with_parent
 from pickstop.settings import Settings
 
 # The event loop and HTTP parser the API is served with: uvloop and httptools (both C) answer
@@ -132,6 +131,15 @@ def wait_healthy(url: str, pool: WorkerPool, timeout: float = 300.0) -> None:
         time.sleep(0.3)
     pool.should_exit = True
     raise PickStopError(f"the API workers did not answer at {url} within {timeout:g} s")
+
+
+def die_with_parent() -> None:
+    """Linux: the kernel sends this process SIGTERM if the parent dies (even by kill -9)."""
+    import ctypes
+    from contextlib import suppress
+
+    with suppress(OSError):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
 
 
 def serve(
