@@ -19,6 +19,8 @@ from pickstop.robot.kinematics import Chain, fk, fk_soa
 from pickstop.scene.load import parse_scene
 from pickstop.scene.world import BoxArrays, scene_solids
 
+from .conftest import add_high_shelf_tray
+
 
 def test_every_feasible_cell_has_exactly_verified_witnesses(planner, paper_doc, tiago):
     from pickstop.robot.artifacts import self_collision
@@ -71,23 +73,8 @@ def test_region_polygon_matches_cells_and_geojson_round_trip(planner, paper_doc)
 
 def test_tray_out_of_reach_has_empty_region_with_reason(planner, paper_doc):
     # A tray on a high shelf: the base can stand in front, the arm cannot reach it.
-    paper_doc["obstacles"].append(
-        {
-            "id": "shelf",
-            "geometry": {"shape": "box", "size": [0.6, 0.4, 2.0]},
-            "pose": {"x": 3.6, "y": 2.6, "z": 0.0, "yaw": 0.0},
-        }
-    )
-    paper_doc["trays"].append(
-        {
-            "id": "high",
-            "pose": {"x": 3.6, "y": 2.6, "z": 2.005, "yaw": 0.0},
-            "inner_size": [0.3, 0.2],
-            "parts": [{"id": "hp", "geometry": {"shape": "box", "size": [0.04, 0.04, 0.03]}}],
-        }
-    )
-    scene = parse_scene(paper_doc)
-    region = planner.tray_region(scene, "high")
+    tray_id = add_high_shelf_tray(paper_doc)
+    region = planner.tray_region(parse_scene(paper_doc), tray_id)
     assert len(region.cells) == 0 and region.polygon.is_empty
     assert "part 'hp'" in region.reason and "tray 'high'" in region.reason
 

@@ -21,6 +21,8 @@ from pickstop.robot.kinematics import fk, reference_fk
 from pickstop.scene.load import parse_scene
 from tests.utils import random_thetas
 
+from .conftest import add_high_shelf_tray
+
 PAPER = Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.json"
 SEEDS = (4, 16, 64)  # enough for a few dozen cells; the benchmark escalates to 256
 
@@ -114,23 +116,7 @@ def _far_tray(doc):
 
 
 def _high_tray(doc):
-    # Cells in front of a 2 m shelf are free, but the arm cannot reach its top.
-    doc["obstacles"].append(
-        {
-            "id": "shelf",
-            "geometry": {"shape": "box", "size": [0.6, 0.4, 2.0]},
-            "pose": {"x": 3.6, "y": 2.6, "z": 0.0, "yaw": 0.0},
-        }
-    )
-    doc["trays"].append(
-        {
-            "id": "high",
-            "pose": {"x": 3.6, "y": 2.6, "z": 2.005, "yaw": 0.0},
-            "inner_size": [0.3, 0.2],
-            "parts": [{"id": "hp", "geometry": {"shape": "box", "size": [0.04, 0.04, 0.03]}}],
-        }
-    )
-    return "high", "part 'hp'"
+    return add_high_shelf_tray(doc), "part 'hp'"
 
 
 @pytest.mark.parametrize("place", [_far_tray, _high_tray])
