@@ -143,7 +143,7 @@ def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiag
     the owners of exactly the solids those spheres touch."""
     from types import SimpleNamespace
 
-    from pickstop.regions.arm import _to_world, owner_codes
+    from pickstop.regions.arm import owner_codes, points_to_world
     from pickstop.scene.load import load_scene
     from pickstop.scene.world import spheres_hit
     from tests.regions.conftest import EXAMPLES
@@ -162,7 +162,9 @@ def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiag
     flagged = screen_arm(planner.arm, boxes, frames, xy, yaw, env, targets)
 
     arm = planner.arm
-    leaves = _to_world(frames, arm.link_joint[arm.leaf_link], arm.leaf_c, xy, yaw)  # (n, S, 3)
+    leaves = points_to_world(
+        frames, arm.link_joint[arm.leaf_link], arm.leaf_c, xy, yaw
+    )  # (n, S, 3)
     code = owner_codes(boxes, targets, n)
     skip = np.where(arm.is_hand[arm.leaf_link][None, :], code[:, None], -1)  # (n, S)
     touched: set[int] = set()

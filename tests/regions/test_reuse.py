@@ -98,3 +98,74 @@ def test_a_preview_carries_only_the_same_tray(planner, paper_doc):
     finer = copy.deepcopy(paper_doc)
     finer["floor_clearance"] = 0.02
     assert planner.known_regions(parse_scene(finer), [("tray_1", yaw)]) == {}
+
+
+def _box(owner, lo, hi):
+    from pickstop.frames import T_yaw
+    from pickstop.scene.world import Solid
+
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    c = (lo + hi) / 2
+    return Solid.box(T_yaw(c[0], c[1], c[2], 0.0), hi - lo, owner)
+
+
+def _around(solids, x=0.0, y=0.0):
+    from pickstop.regions.reuse import Surroundings
+    from pickstop.scene.model import Pose, Tray
+
+    return Surroundings.of(solids, Tray(id="t", pose=Pose(x=x, y=y), inner_size=(0.2, 0.2)))
+
+
+def test_a_table_the_tray_slides_along_is_the_same_away_from_its_ends():
+    """Seen from a tray moved 0.1 m along x, a long table is unchanged inside a box clear of
+    the table's ends, and changed in a box that holds one of its ends; a neighbour left
+    where it was has moved (relative to the tray) and changes only what is near it."""
+    from pickstop.regions.reuse import stale
+
+    table = [-2.0, -0.5, 0.0], [2.0, 0.5, 0.72]
+    old = _around([_box("table", *table), _box("nb", [0.5, -0.1, 0.72], [0.7, 0.1, 0.8])])
+    new = _around([_box("table", *table), _box("nb", [0.5, -0.1, 0.72], [0.7, 0.1, 0.8])], x=0.1)
+    lo = np.array([[-0.3, -0.3, 0.6], [-2.1, -0.3, 0.6], [0.35, -0.1, 0.7], [-0.3, 0.7, 0.0]])
+    hi = np.array([[0.3, 0.3, 0.9], [-1.5, 0.3, 0.9], [0.45, 0.1, 0.75], [0.3, 0.9, 1.0]])
+    # inside the table's top, far from its ends, the neighbour's old and new place, the table's
+    # end, the neighbour's new place (0.4-0.6 relative), nothing at all
+    assert stale(old, new, lo, hi).tolist() == [False, True, True, False]
+    assert not stale(old, old, lo, hi).any()
+
+
+def test_what_moved_without_a_partner_or_turned_is_a_change_wherever_it_was_or_is():
+    """A solid that appears, disappears or turns (no longer axis-aligned) changes every box
+    its bounds meet, before or after; a box away from all of them stays as it was."""
+    from pickstop.frames import T_yaw
+    from pickstop.regions.reuse import stale
+    from pickstop.scene.world import Solid
+
+    a = _box("a", [0.0, 0.0, 0.0], [0.2, 0.2, 0.2])
+    turned = Solid.box(T_yaw(0.1, 0.1, 0.1, 0.4), [0.2, 0.2, 0.2], "a")
+    b = _box("b", [1.0, 1.0, 0.0], [1.2, 1.2, 0.2])
+    near_a = (np.array([[0.15, 0.15, 0.1]]), np.array([[0.18, 0.18, 0.12]]))
+    far = (np.array([[3.0, 3.0, 0.0]]), np.array([[3.1, 3.1, 0.1]]))
+    near_b = (np.array([[1.1, 1.1, 0.1]]), np.array([[1.15, 1.15, 0.15]]))
+    assert stale(_around([a]), _around([turned]), *near_a).all()
+    assert not stale(_around([a]), _around([turned]), *far).any()
+    assert stale(_around([a]), _around([a, b]), *near_b).all()  # appeared
+    assert stale(_around([a, b]), _around([a]), *near_b).all()  # gone
+    assert not stale(_around([a, b]), _around([a]), *near_a).any()
+
+
+def test_cell_answers_are_taken_where_nothing_near_changed(planner, paper_doc):
+    """tray_4 alone on its table, moved by whole cells: most cells' answers are taken from
+    the memo, and the region is the one a computation from scratch gives, cell for cell."""
+    scene0 = parse_scene(paper_doc)
+    res = scene0.base_grid.resolution
+    yaw = scene0.base_yaw.yaws[0]
+    compute_tray_region(planner, scene0, scene0.tray("tray_4"), yaw)
+    scene = _moved(paper_doc, "tray_4", 2 * res, -res)
+    assert scene is not None
+    before = sum(m.recalled for m in planner.reuse.values())
+    reused = compute_tray_region(planner, scene, scene.tray("tray_4"), yaw)
+    recalled = sum(m.recalled for m in planner.reuse.values()) - before
+    assert recalled > 0.5 * reused.counts["served"]
+    scratch = _from_scratch(planner, scene, "tray_4")
+    assert (scratch.mask == reused.mask).all()
+    assert np.allclose(scratch.thetas, reused.thetas)

@@ -102,7 +102,7 @@ class ArmSpheres:
         )
 
 
-def _to_world(
+def points_to_world(
     frames: list[tuple[np.ndarray, np.ndarray]],
     joint: np.ndarray,
     local: np.ndarray,
@@ -147,7 +147,7 @@ def screen_arm(
     flagged = np.zeros(B, bool) if floor is None else below_floor(spheres.floor, frames, floor)
     if len(boxes.centres) == 0:
         return flagged
-    bw = _to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
+    bw = points_to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
     L = len(spheres.bound_r)
     code = owner_codes(boxes, targets, B)  # (B,)
     skip = np.where(spheres.is_hand[None, :], code[:, None], -1)  # (B, L)
@@ -159,25 +159,16 @@ def screen_arm(
         return flagged
     # Every leaf of every flagged (configuration, link) pair, screened in one batch: the
     # hand's links ride on the same joint, so they no longer cost one call each.
-    start, count = spheres.leaf_start, spheres.leaf_count
-    per = count[lnk]
-    pair = np.repeat(np.arange(len(cfg)), per)
-    leaf = start[lnk][pair] + (np.arange(len(pair)) - np.repeat(np.cumsum(per) - per, per))
+    leaf, pair = leaf_rows(spheres, lnk)
     rows = cfg[pair]
     joint = spheres.link_joint[spheres.leaf_link[leaf]] - 1
     hit_boxes: set[int] = set()
     hit = np.zeros(len(leaf), bool)
     leaf_skip = np.where(spheres.is_hand[spheres.leaf_link[leaf]], code[rows], -1)
-    # joint-major copies of the frames, so that a leaf's frame is one gather
-    by_joint = (
-        np.ascontiguousarray(
-            np.stack([R for R, _ in frames]).transpose(0, 3, 1, 2)
-        ),  # (J, B, 3, 3)
-        np.ascontiguousarray(np.stack([p for _, p in frames]).transpose(0, 2, 1)),  # (J, B, 3)
-    )
+    by_joint = joint_major(frames)
     for a in range(0, len(leaf), LEAF_BATCH):
         sl = slice(a, a + LEAF_BATCH)
-        lw = _leaves_to_world(by_joint, joint[sl], rows[sl], spheres.leaf_c[leaf[sl]], base_xy, yaw)
+        lw = leaves_to_world(by_joint, joint[sl], rows[sl], spheres.leaf_c[leaf[sl]], base_xy, yaw)
         hit[sl] = spheres_hit(boxes, lw, spheres.leaf_r[leaf[sl]], hit_boxes, skip=leaf_skip[sl])
     if envelope is not None:
         envelope.hit_owners.update(boxes.owners[k] for k in hit_boxes)
@@ -185,7 +176,27 @@ def screen_arm(
     return flagged
 
 
-def _leaves_to_world(
+def joint_major(frames: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fk_soa` frames as joint-major copies ``R: (J, B, 3, 3)``, ``p: (J, B, 3)``, so
+    that a leaf's frame is one gather."""
+    return (
+        np.ascontiguousarray(np.stack([R for R, _ in frames]).transpose(0, 3, 1, 2)),
+        np.ascontiguousarray(np.stack([p for _, p in frames]).transpose(0, 2, 1)),
+    )
+
+
+def leaf_rows(spheres: ArmSpheres, links: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every covering sphere of the links ``links: (K,)`` (indices): the leaves ``(N,)`` and
+    which of the K each belongs to ``(N,)``."""
+    per = spheres.leaf_count[links]
+    pair = np.repeat(np.arange(len(links)), per)
+    leaf = spheres.leaf_start[links][pair] + (
+        np.arange(len(pair)) - np.repeat(np.cumsum(per) - per, per)
+    )
+    return leaf, pair
+
+
+def leaves_to_world(
     frames: tuple[np.ndarray, np.ndarray],
     joint: np.ndarray,
     rows: np.ndarray,

@@ -24,7 +24,7 @@ from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import footprint_check
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import TrayAnchor, grasps_digest
+from pickstop.regions.reuse import Surroundings, TrayAnchor, grasps_digest
 from pickstop.regions.solve import ArmWorld, Targets
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Scene, Tray
@@ -125,9 +125,12 @@ def compute_tray_region(
     why = ungraspable(planner, scene, tray, grasp_sets)
     if why is not None:
         return empty(why)
-    world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance)
     anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
     memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
+    around = memo.around(Surroundings.of(solids, tray))
+    world = ArmWorld(
+        boxes, solids, yaw, env, scene.floor_clearance, (tray.pose.x, tray.pose.y), around
+    )
     keys = anchor.cell_keys(IX, IY)
     targets = [Targets.of(gs, cen, R_base_world, keys, memo) for gs in grasp_sets]
     # Cells the database cannot serve for some part are left to the growth below.
@@ -186,6 +189,7 @@ def reuse_key(
         "phase": anchor.phase,
         "yaw": yaw,
         "res": scene.base_grid.resolution,
+        "floor_clearance": scene.floor_clearance,
         "hand": planner.hand.key,
         "robot": planner.robot.robot_hash,
         "db": planner.db.id,

@@ -9,6 +9,14 @@ its position, the base yaw), keyed by the cell's offset from the tray, the grasp
 the region pipeline then runs exactly as from scratch, every environment check included, with
 the refinements taken from the memo. A remembered configuration is used only after forward
 kinematics confirms, within the IK tolerances, that it reaches the target of the new position.
+
+A cell's whole answer from the database (which candidate verifies, or none) is remembered too
+(:meth:`RefineMemo.recall`), with the box that holds every configuration its computation
+checked against the scene (the links' bounding spheres) and the tray's surroundings then
+(:class:`Surroundings`, relative to the tray). Solved per cell, the answer depends on the scene
+only through what lies inside that box; where the surroundings, seen from the tray, are the
+same inside it (:func:`stale`), the answer is the same and is taken as it was. A table the
+tray slides along is the same inside the box unless the box reaches one of its ends.
 """
 
 from __future__ import annotations
@@ -18,7 +26,7 @@ import math
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -27,9 +35,14 @@ from pickstop.reach.ik import POS_TOL, ROT_TOL
 from pickstop.robot.kinematics import fk_soa
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Tray
+from pickstop.scene.world import Solid
 
 MAX_ENTRIES = 150_000  # refinements kept per memo (about 25 MB for an 8-joint arm)
 MAX_MEMOS = 48  # trays x yaws x grid phases kept
+MAX_ANSWERS = 20_000  # cell answers kept per memo (about 700 bytes each)
+MAX_ALL_ANSWERS = 120_000  # cell answers kept by all memos together
+MAX_SURROUNDINGS = 8  # surroundings a memo's cell answers may refer to
+SAME = 1e-9  # [m] bounds this close are the same
 _OFFSET = 1 << 20  # cell offsets are packed as (dx + _OFFSET) << 21 | (dy + _OFFSET)
 
 #: One refinement: where it came from and which grasp of which part, from which cell offset.
@@ -70,14 +83,273 @@ def grasps_digest(tray: Tray, grasp_sets: list[GraspSet]) -> str:
     return h.hexdigest()
 
 
+def _axis_aligned(R: np.ndarray) -> bool:
+    """Is the rotation ``R: (3, 3)`` a permutation of the axes with signs (a box's bounds are
+    then the box itself)?"""
+    return bool(np.all(np.isclose(np.abs(R), np.round(np.abs(R)), atol=1e-12)))
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """The solids around a tray, seen from the tray: bounds relative to its position (x, y)."""
+
+    solids: tuple[Solid, ...]  # kept alive: a mesh's geometry is compared by identity
+    lo: np.ndarray  # (S, 3) relative bounds [m]
+    hi: np.ndarray  # (S, 3)
+    shape: tuple[tuple[Any, ...], ...]  # (S,) owner, kind, size, rotation, geometry: all but where
+    boxes: np.ndarray  # (S,) bool: a box whose bounds are the box (an axis-aligned box)
+
+    @classmethod
+    def of(cls, solids: list[Solid], tray: Tray) -> Surroundings:
+        at = np.array([tray.pose.x, tray.pose.y, 0.0])
+        bounds = [s.aabb() for s in solids]
+        lo = np.array([b[0] - at for b in bounds]).reshape(-1, 3)
+        hi = np.array([b[1] - at for b in bounds]).reshape(-1, 3)
+        shape = tuple(
+            (
+                s.owner,
+                s.kind,
+                tuple(np.round(s.half, 12)),
+                s.radius,
+                np.round(s.T_world_solid[:3, :3], 12).tobytes(),
+                id(s.geometry) if s.kind == "mesh" else None,
+            )
+            for s in solids
+        )
+        boxes = np.array(
+            [s.kind == "box" and _axis_aligned(s.T_world_solid[:3, :3]) for s in solids], bool
+        )
+        return cls(tuple(solids), lo, hi, shape, boxes)
+
+    def owners_within(self, lo: np.ndarray, hi: np.ndarray) -> set[str]:
+        """Owners of the solids whose bounds meet any of the boxes ``lo, hi: (K, 3)``."""
+        if not len(lo) or not len(self.lo):
+            return set()
+        meet = _meets(lo[:, None], hi[:, None], self.lo[None], self.hi[None]).any(0)
+        return {self.solids[k].owner for k in np.flatnonzero(meet)}
+
+
+def _meets(alo: np.ndarray, ahi: np.ndarray, blo: np.ndarray, bhi: np.ndarray) -> np.ndarray:
+    """Do boxes ``a`` and ``b`` (broadcast, bounds on the last axis) touch or overlap?"""
+    return np.all((alo <= bhi + SAME) & (blo <= ahi + SAME), axis=-1)
+
+
+@dataclass(frozen=True)
+class Change:
+    """One way two surroundings differ: a box a solid filled before or fills now (``new_lo``
+    None), or an axis-aligned box that moved (``lo, hi`` to ``new_lo, new_hi``)."""
+
+    lo: np.ndarray  # (3,) [m]
+    hi: np.ndarray
+    new_lo: np.ndarray | None = None
+    new_hi: np.ndarray | None = None
+
+    def hits(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """``(K,)`` True where the boxes ``lo, hi: (K, 3)`` may see the change; False: inside
+        the box the solid is as it was (or was and is nowhere)."""
+        if self.new_lo is None or self.new_hi is None:
+            return _meets(lo, hi, self.lo, self.hi)
+        out = _meets(lo, hi, self.lo, self.hi) | _meets(lo, hi, self.new_lo, self.new_hi)
+        k = np.flatnonzero(out)
+        if not len(k):
+            return out
+        # Both clip the box to the same bounds, or both miss it: the same inside it.
+        q_lo, q_hi = lo[k], hi[k]
+        a_lo, a_hi = np.maximum(q_lo, self.lo), np.minimum(q_hi, self.hi)
+        b_lo, b_hi = np.maximum(q_lo, self.new_lo), np.minimum(q_hi, self.new_hi)
+        a_empty = np.any(a_lo > a_hi + SAME, axis=1)
+        b_empty = np.any(b_lo > b_hi + SAME, axis=1)
+        same = np.all(np.abs(a_lo - b_lo) <= SAME, axis=1) & np.all(
+            np.abs(a_hi - b_hi) <= SAME, axis=1
+        )
+        out[k] = ~((a_empty & b_empty) | (~a_empty & ~b_empty & same))
+        return out
+
+
+def changes(old: Surroundings, new: Surroundings) -> list[Change]:
+    """How ``new`` differs from ``old``, seen from the tray.
+
+    Solids of the same shape and owner are paired in order. A pair where it was is no change;
+    a pair of axis-aligned boxes that moved is one :class:`Change` that tells where they look
+    alike (a table the tray slides along); any other pair that moved, and any solid without a
+    partner, changes the box it was or is in (those of one owner merged into one box).
+    """
+    partners: dict[tuple[Any, ...], list[int]] = {}
+    for k, key in enumerate(new.shape):
+        partners.setdefault(key, []).append(k)
+    seen: dict[tuple[Any, ...], int] = {}
+    used = np.zeros(len(new.shape), bool)
+    out: list[Change] = []
+    # per side (before, now) and owner: the union of the boxes
+    filled: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+
+    def fill(owner: tuple[str, str], lo: np.ndarray, hi: np.ndarray) -> None:
+        was = filled.get(owner)
+        filled[owner] = (
+            (lo, hi) if was is None else (np.minimum(was[0], lo), np.maximum(was[1], hi))
+        )
+
+    for j, key in enumerate(old.shape):
+        n = seen.get(key, 0)
+        seen[key] = n + 1
+        mine = partners.get(key, [])
+        if n >= len(mine):
+            fill(("old", key[0]), old.lo[j], old.hi[j])
+            continue
+        k = mine[n]
+        used[k] = True
+        if np.all(np.abs(old.lo[j] - new.lo[k]) <= SAME) and np.all(
+            np.abs(old.hi[j] - new.hi[k]) <= SAME
+        ):
+            continue  # the same solid where it was
+        if old.boxes[j] and new.boxes[k]:
+            out.append(Change(old.lo[j], old.hi[j], new.lo[k], new.hi[k]))
+        else:
+            fill(("old", key[0]), old.lo[j], old.hi[j])
+            fill(("new", key[0]), new.lo[k], new.hi[k])
+    for u in np.flatnonzero(~used).tolist():
+        fill(("new", new.shape[u][0]), new.lo[u], new.hi[u])
+    return out + [Change(lo, hi) for lo, hi in filled.values()]
+
+
+def stale(old: Surroundings, new: Surroundings, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``(K,)`` True where the surroundings, seen from the tray, may differ between ``old``
+    and ``new`` inside the boxes ``lo, hi: (K, 3)`` (relative bounds [m]); False: inside the
+    box every solid is exactly as it was, so every check of a geometry within it answers as
+    it did (:func:`changes`)."""
+    out = np.zeros(len(lo), bool)
+    for c in changes(old, new):
+        out |= c.hits(lo, hi)
+    return out
+
+
+class Checked(Protocol):
+    """Boxes (relative [m]) around what was checked for some cells' answers: per link
+    ``lo, hi: (K, 3)`` and the answer id each belongs to, ``owner: (K,)``; finer boxes
+    within links on demand."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    owner: np.ndarray
+
+    def leaves(self, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Boxes within the links ``sel`` and which of ``sel`` each belongs to."""
+        ...
+
+
+#: What was checked for a list of cell answers, given one id per answer.
+CheckedOf = Callable[[list["CellAnswer"], list[int]], Checked]
+
+
+@dataclass(frozen=True)
+class CellAnswer:
+    """What the database gave one cell for one part: the verified witness (or none), its
+    grasp, the relative box ``lo, hi`` [m] that holds every configuration it checked, and
+    those configurations: database rows and refined joint values."""
+
+    found: bool
+    theta: np.ndarray  # (dof,)
+    grasp: int
+    lo: np.ndarray  # (3,)
+    hi: np.ndarray  # (3,)
+    around: int  # which of the memo's surroundings it was computed in
+    rows: np.ndarray  # (r,) int32: database candidates screened
+    refined: np.ndarray  # (k, dof) float32: refinements verified
+    xy: np.ndarray  # (2,) the cell's centre relative to the tray [m]
+
+
 @dataclass
 class RefineMemo:
     """Refinements of one tray's grasps from cells anchored to it (see the module)."""
 
     results: dict[MemoKey, np.ndarray | None] = field(default_factory=dict)
     served_cells: dict[int, bool] = field(default_factory=dict)
+    answers: dict[tuple[str, str, int], CellAnswer] = field(default_factory=dict)
+    surroundings: OrderedDict[int, Surroundings] = field(default_factory=OrderedDict)
     hits: int = 0
     misses: int = 0
+    recalled: int = 0  # cell answers taken as they were
+    _next: int = 0
+
+    def around(self, now: Surroundings) -> int:
+        """The id of the surroundings ``now`` among the memo's (added if new)."""
+        for k, s in self.surroundings.items():
+            if (
+                s.shape == now.shape
+                and np.array_equal(s.lo, now.lo)
+                and np.array_equal(s.hi, now.hi)
+            ):
+                self.surroundings.move_to_end(k)
+                return k
+        k, self._next = self._next, self._next + 1
+        self.surroundings[k] = now
+        while len(self.surroundings) > MAX_SURROUNDINGS:
+            self.surroundings.popitem(last=False)
+        return k
+
+    def recall(
+        self, tag: str, part: str, cell_keys: np.ndarray, now: int, checked: CheckedOf
+    ) -> tuple[np.ndarray, list[CellAnswer | None]]:
+        """The remembered answers of cells ``cell_keys: (M,)`` still true in the surroundings
+        ``now`` (an id from :meth:`around`): ``(M,)`` whether each is, and the answers.
+
+        An answer holds where no change of the surroundings since it was computed reaches its
+        box; where one does, the boxes of its checked configurations' links (``checked``) are
+        tested against that change, and the covering spheres of the links it reaches.
+        """
+        keys = cell_keys.tolist()
+        got = [self.answers.get((tag, part, k)) for k in keys]
+        ok = np.zeros(len(keys), bool)
+        new = self.surroundings[now]
+        by_around: dict[int, list[int]] = {}
+        for i, a in enumerate(got):
+            if a is not None and a.around in self.surroundings:
+                by_around.setdefault(a.around, []).append(i)
+        for k, idx in by_around.items():
+            ix = np.array(idx)
+            if k == now:
+                ok[ix] = True
+                continue
+            mine = [got[i] for i in idx]
+            lo = np.array([a.lo for a in mine if a is not None])
+            hi = np.array([a.hi for a in mine if a is not None])
+            held = np.ones(len(idx), bool)
+            fine: list[tuple[Change, np.ndarray]] = []
+            for c in changes(self.surroundings[k], new):
+                hit = np.flatnonzero(c.hits(lo, hi))
+                if len(hit):
+                    fine.append((c, hit))
+            if fine:
+                near = np.unique(np.concatenate([h for _, h in fine]))
+                picked = [mine[i] for i in near.tolist()]
+                links = checked([a for a in picked if a is not None], near.tolist())
+                sels = []  # per change, the links it reaches
+                for c, hit in fine:
+                    sel = np.flatnonzero(np.isin(links.owner, hit))
+                    sels.append(sel[c.hits(links.lo[sel], links.hi[sel])])
+                reached = np.unique(np.concatenate(sels))
+                if len(reached):
+                    l_lo, l_hi, of = links.leaves(reached)  # once for all changes
+                    for (c, _), sel in zip(fine, sels, strict=True):
+                        m = np.flatnonzero(np.isin(of, np.searchsorted(reached, sel)))
+                        bad = reached[of[m[c.hits(l_lo[m], l_hi[m])]]]
+                        held[links.owner[bad]] = False
+            ok[ix] = held
+        self.recalled += int(ok.sum())
+        return ok, got
+
+    def remember(
+        self,
+        tag: str,
+        part: str,
+        cell_keys: np.ndarray,
+        answers: list[CellAnswer],
+    ) -> None:
+        """Keep the ``answers`` of cells ``cell_keys: (M,)``."""
+        if len(self.answers) + len(cell_keys) > MAX_ANSWERS:
+            self.answers.clear()
+        for k, a in zip(cell_keys.tolist(), answers, strict=True):
+            self.answers[(tag, part, k)] = a
 
     def served(
         self, cell_keys: np.ndarray, compute: Callable[[np.ndarray], np.ndarray]
@@ -173,7 +445,10 @@ class ReuseCache(OrderedDict[str, RefineMemo]):
         hit = self.get(key)
         if hit is None:
             hit = self[key] = RefineMemo()
-            while len(self) > MAX_MEMOS:
-                self.popitem(last=False)
         self.move_to_end(key)
+        # the least recently used go while too many are kept, or too many cell answers
+        while len(self) > 1 and (
+            len(self) > MAX_MEMOS or sum(len(m.answers) for m in self.values()) > MAX_ALL_ANSWERS
+        ):
+            self.popitem(last=False)
         return hit

@@ -22,13 +22,21 @@ from typing import Any
 
 import numpy as np
 
+from pickstop.frames import R_z
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import screen_arm
+from pickstop.regions.arm import (
+    ArmSpheres,
+    joint_major,
+    leaf_rows,
+    leaves_to_world,
+    points_to_world,
+    screen_arm,
+)
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import RefineMemo
+from pickstop.regions.reuse import CellAnswer, RefineMemo
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
@@ -46,6 +54,9 @@ REFINE_GIVE_UP = ((3, 0.01),)  # after 3 iterations, candidates still 1 cm off s
 GROW_GIVE_UP = ((5, 0.02), (10, 0.003))
 GROW_WAVES = 12  # rings of cells grown at most
 VERIFY_CHUNK = 16_384  # configurations screened at once (bounds the joint frames' memory)
+# [m] a remembered cell's box is padded by this, more than the touch tolerance, so that an
+# exact check's penetration depth cannot tell solids apart that agree inside the box
+BOX_MARGIN = 0.002
 
 
 @dataclass(frozen=True)
@@ -122,6 +133,10 @@ class ArmWorld:
     yaw: float  # [rad]
     env: Envelope | None  # where the screen's rejections are recorded (None: nowhere)
     floor: float = FLOOR_CLEARANCE
+    # The tray's position (x, y) [m] and the id of its surroundings in the targets' memo
+    # (:meth:`~pickstop.regions.reuse.RefineMemo.around`; None: cell answers are not reused).
+    tray_xy: tuple[float, float] = (0.0, 0.0)
+    around: int | None = None
 
 
 def served(db: ReachDatabase, targets: list[Targets]) -> np.ndarray:
@@ -156,24 +171,172 @@ def solve_part(
     solved ones, the target's vicinity (the 27 surrounding position voxels), as the paper
     queries it: an empty own voxel at the edge of the sampled set is the usual miss.
     """
-    db = planner.db
-    found, th_out, g_out = _rounds(planner, world, tg, cen, *_gather(db, tg, False), MAX_ROUNDS)
+    found, th_out, g_out = _solve_cells(planner, world, tg, cen, False, MAX_ROUNDS)
     open_ = np.flatnonzero(~found)
     if found.any() and len(open_):
         sub = open_[_near_found(cen, found, VICINITY_DISTANCE)[open_]]
         if len(sub):
-            f2, th2, g2 = _rounds(
-                planner,
-                world,
-                tg.take(sub),
-                cen[sub],
-                *_gather(db, tg.take(sub), True),
-                VICINITY_ROUNDS,
+            f2, th2, g2 = _solve_cells(
+                planner, world, tg.take(sub), cen[sub], True, VICINITY_ROUNDS
             )
             found[sub[f2]] = True
             th_out[sub[f2]] = th2[f2]
             g_out[sub[f2]] = g2[f2]
     return found, th_out, g_out
+
+
+def _solve_cells(
+    planner: RegionKit, world: ArmWorld, tg: Targets, cen: np.ndarray, vicinity: bool, rounds: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_rounds` over the database's candidates (the own voxels, or the vicinity) of M
+    cells, each solved on its own. Where the targets carry a memo, a cell's remembered answer
+    is taken while the surroundings, seen from the tray, are as they were wherever the
+    configurations it checked reach (:meth:`~pickstop.regions.reuse.RefineMemo.recall`);
+    the other cells are solved and their answers remembered."""
+    M, dof = len(cen), planner.solver.chain.dof
+    memo, keys = tg.memo, tg.cell_keys
+    if memo is None or keys is None or world.around is None:
+        return _rounds(planner, world, tg, cen, *_gather(planner.db, tg, vicinity), rounds)[:3]
+    tag, part = ("vicinity" if vicinity else "db"), tg.grasps.part_id
+
+    def checked(answers: list[CellAnswer], ids: list[int]) -> CheckedLinks:
+        th = [np.concatenate([planner.db.thetas(a.rows), a.refined]) for a in answers]
+        n = [len(t) for t in th]
+        xy = np.repeat([a.xy for a in answers], n, axis=0)
+        return CheckedLinks.of(
+            planner, np.concatenate(th).reshape(-1, dof), xy, world.yaw, np.repeat(ids, n)
+        )
+
+    ok, got = memo.recall(tag, part, keys, world.around, checked)
+    found, th_out, g_out = np.zeros(M, bool), np.zeros((M, dof)), np.zeros(M, int)
+    reused = [a for a, k in zip(got, ok.tolist(), strict=True) if k and a is not None]
+    idx = np.flatnonzero(ok)
+    if len(idx):
+        found[idx] = [a.found for a in reused]
+        th_out[idx] = [a.theta for a in reused]
+        g_out[idx] = [a.grasp for a in reused]
+        if world.env is not None:
+            # What the screens of these cells flagged lies among what meets their boxes.
+            world.env.hit_owners |= memo.surroundings[world.around].owners_within(
+                np.array([a.lo for a in reused]), np.array([a.hi for a in reused])
+            )
+    todo = np.flatnonzero(~ok)
+    if len(todo):
+        sub = tg.take(todo)
+        f, th, g, screened, refined = _rounds(
+            planner, world, sub, cen[todo], *_gather(planner.db, sub, vicinity), rounds
+        )
+        found[todo], th_out[todo], g_out[todo] = f, th, g
+        memo.remember(
+            tag, part, keys[todo], _answers(planner, world, cen[todo], f, th, g, screened, refined)
+        )
+    return found, th_out, g_out
+
+
+def _answers(
+    planner: RegionKit,
+    world: ArmWorld,
+    cen: np.ndarray,
+    found: np.ndarray,
+    thetas: np.ndarray,
+    grasps: np.ndarray,
+    screened: tuple[np.ndarray, np.ndarray],
+    refined: tuple[np.ndarray, np.ndarray],
+) -> list[CellAnswer]:
+    """Each of M cells' answer from :func:`_rounds` as the memo keeps it: the database rows
+    ``screened`` and the joint values ``refined`` checked for it (``(cells, rows)`` and
+    ``(cells, thetas)``) and the relative box that holds all their links."""
+    assert world.around is not None
+    M, dof = len(cen), planner.solver.chain.dof
+    xy = cen - np.asarray(world.tray_xy)
+    s_cell, s_rows = screened
+    r_cell, r_th = refined
+    th = np.concatenate([planner.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
+    cell = np.concatenate([s_cell, r_cell]).astype(np.int64)
+    lo = np.full((M, 3), np.inf)
+    hi = np.full((M, 3), -np.inf)
+    if len(th):
+        links = CheckedLinks.of(planner, th, xy[cell], world.yaw, cell)
+        np.minimum.at(lo, links.owner, links.lo)
+        np.maximum.at(hi, links.owner, links.hi)
+    rows_of = np.split(
+        s_rows[np.argsort(s_cell, kind="stable")], np.cumsum(np.bincount(s_cell, minlength=M))[:-1]
+    )
+    order = np.argsort(r_cell, kind="stable")
+    ref_of = np.split(
+        r_th[order].astype(np.float32), np.cumsum(np.bincount(r_cell, minlength=M))[:-1]
+    )
+    return [
+        CellAnswer(
+            bool(found[i]),
+            thetas[i].copy(),
+            int(grasps[i]),
+            lo[i],
+            hi[i],
+            world.around,
+            rows_of[i].astype(np.int32),
+            ref_of[i].reshape(-1, dof),
+            xy[i],
+        )
+        for i in range(M)
+    ]
+
+
+@dataclass(frozen=True)
+class CheckedLinks:
+    """The links of C configurations on their bases, as the sphere screen sees them: boxes
+    around each link's bounding sphere and, on demand, around its covering spheres (padded
+    by :data:`BOX_MARGIN`). Whatever a screen or an exact check of the arm against the scene
+    looks at lies in the covering spheres."""
+
+    lo: np.ndarray  # (C * L, 3) [m]
+    hi: np.ndarray  # (C * L, 3)
+    owner: np.ndarray  # (C * L,) the id of the cell answer each link belongs to
+    config: np.ndarray  # (C * L,)
+    link: np.ndarray  # (C * L,)
+    frames: tuple[np.ndarray, np.ndarray]  # joint-major (arm.joint_major)
+    xy: np.ndarray  # (C, 2) the bases [m]
+    yaw: float
+    arm: ArmSpheres
+
+    @classmethod
+    def of(
+        cls, planner: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray
+    ) -> CheckedLinks:
+        """``thetas: (C, dof)`` on bases at ``xy: (C, 2)``; ``owner: (C,)`` per configuration."""
+        arm = planner.arm
+        _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
+        # Each link's covering spheres bounded by a box in the link's joint frame, turned
+        # into a world box: tighter than the link's bounding sphere for a long link.
+        start = arm.leaf_start
+        lo_l = np.minimum.reduceat(arm.leaf_c - arm.leaf_r[:, None], start)
+        hi_l = np.maximum.reduceat(arm.leaf_c + arm.leaf_r[:, None], start)
+        c = points_to_world(frames, arm.link_joint, (lo_l + hi_l) / 2, xy, yaw)  # (C, L, 3)
+        R = np.stack([frames[j - 1][0] for j in arm.link_joint])  # (L, 3, 3, C)
+        Rw = np.einsum("ij,ljkc->clik", R_z(yaw), R)  # (C, L, 3, 3) world axes
+        half = np.einsum("clik,lk->cli", np.abs(Rw), (hi_l - lo_l) / 2) + BOX_MARGIN
+        C, L = len(thetas), len(arm.bound_r)
+        return cls(
+            (c - half).reshape(-1, 3),
+            (c + half).reshape(-1, 3),
+            np.repeat(owner, L),
+            np.repeat(np.arange(C), L),
+            np.tile(np.arange(L), C),
+            joint_major(frames),
+            xy,
+            yaw,
+            arm,
+        )
+
+    def leaves(self, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Boxes ``lo, hi: (N, 3)`` around the covering spheres of links ``sel`` (indices)
+        and which of ``sel`` each belongs to ``(N,)``."""
+        leaf, pair = leaf_rows(self.arm, self.link[sel])
+        rows = self.config[sel][pair]
+        joint = self.arm.link_joint[self.arm.leaf_link[leaf]] - 1
+        c = leaves_to_world(self.frames, joint, rows, self.arm.leaf_c[leaf], self.xy, self.yaw)
+        r = (self.arm.leaf_r[leaf] + BOX_MARGIN)[:, None]
+        return c - r, c + r, pair
 
 
 def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
@@ -231,10 +394,21 @@ def _rounds(
     rank: np.ndarray,
     ps: np.ndarray,
     rounds: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Screen, refine and verify candidates per cell in widening rounds."""
+) -> tuple[
+    np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]
+]:
+    """Screen, refine and verify candidates per cell in widening rounds; each cell's answer
+    depends on its own candidates alone.
+
+    Returns found ``(M,)``, witnesses ``(M, dof)``, grasps ``(M,)`` and what was checked
+    against the scene: the database rows screened ``(cells, rows)`` and the refined joint
+    values verified ``(cells, thetas)``."""
     db, solver = planner.db, planner.solver
     M = len(cen)
+    s_cells: list[np.ndarray] = []
+    s_rows: list[np.ndarray] = []
+    r_cells: list[np.ndarray] = []
+    r_ths: list[np.ndarray] = []
     state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done, 3 flagged
     screened = np.zeros(M, np.int64)
     per_cell = np.bincount(cell, minlength=M)
@@ -255,6 +429,8 @@ def _rounds(
             if len(sel):
                 th = db.thetas(rows[sel])
                 _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
+                s_cells.append(cell[sel])
+                s_rows.append(rows[sel])
                 hit = screen_arm(
                     planner.arm,
                     world.boxes,
@@ -296,6 +472,8 @@ def _rounds(
         ok = np.flatnonzero(success)
         if len(ok) == 0:
             continue
+        r_cells.append(cell[e[ok]])
+        r_ths.append(thetas[ok])
         good = verify(planner, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id)
         acc, ths = e[ok[good]], thetas[ok[good]]
         # Several may succeed for a cell: keep its best-ranked (first) one.
@@ -304,7 +482,16 @@ def _rounds(
         found[cell[acc]] = True
         th_out[cell[acc]] = ths
         g_out[cell[acc]] = g[acc]
-    return found, th_out, g_out
+    dof = solver.chain.dof
+    checked_rows = (
+        np.concatenate([np.zeros(0, int), *s_cells]),
+        np.concatenate([np.zeros(0, int), *s_rows]),
+    )
+    checked_refined = (
+        np.concatenate([np.zeros(0, int), *r_cells]),
+        np.concatenate([np.zeros((0, dof)), *r_ths]),
+    )
+    return found, th_out, g_out, checked_rows, checked_refined
 
 
 def verify(
