@@ -9,6 +9,7 @@ depends on, so none needs invalidating. Region caches live in :mod:`pickstop.reg
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,9 +26,10 @@ from pickstop.robot.model import RobotModel
 from pickstop.robot.screen import SphereModel
 from pickstop.scene.grasps import GraspSet, grasps_for_part, hand_space
 from pickstop.scene.model import Part, Scene, Tray
-from pickstop.scene.world import part_solid, pose_matrix, shape_solid, tray_body_solids
+from pickstop.scene.world import Solid, part_solid, pose_matrix, shape_solid, tray_body_solids
 
-Bounds = list[tuple[np.ndarray, np.ndarray]]  # axis-aligned (lo, hi) boxes [m]
+# axis-aligned (lo, hi) bounds [m] of solids, each with whether the solid is that box
+Bounds = list[tuple[np.ndarray, np.ndarray, bool]]
 MEMO_SIZE = 4096  # open-hand spaces and object bounds kept, each
 
 
@@ -71,48 +73,110 @@ class RegionKit:
 
     def grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
         """The grasps of every part of ``tray``, reused while nothing that reaches into the
-        space of its open hands changes (other trays elsewhere may move freely)."""
+        space of its open hands changes (other trays elsewhere may move freely). They are
+        fixed in the tray's frame: where nothing else reaches into that space, a tray moved
+        along the floor keeps them, carried with it."""
         others = self._bounds_of(scene, tray.id)
-        tray_json = tray.model_dump_json()
+        at = _floor_position(tray)
+        tray_json = _placed(tray)
         gripper_json = f"{scene.gripper.model_dump_json()}{self.hand.key}|{scene.floor_clearance}"
         out = []
         for part in tray.parts:
             key = f"{tray_json}|{part.id}|{gripper_json}"
             space = self.hand_space(scene, tray, part)
-            near = [d for d, bounds in others if any(_overlap(b, space) for b in bounds)]
+            near = _reaching_in(others, space, at)
             full = hashlib.sha256("|".join([key, *sorted(near)]).encode()).hexdigest()
             if full not in self.grasp_cache:
-                self.grasp_cache[full] = grasps_for_part(scene, tray, part, self.hand)
-            out.append(self.grasp_cache[full])
+                if len(self.grasp_cache) >= MEMO_SIZE:
+                    self.grasp_cache.clear()
+                self.grasp_cache[full] = _moved_by(
+                    grasps_for_part(scene, tray, part, self.hand), -at
+                )
+            out.append(_moved_by(self.grasp_cache[full], at))
         return out
 
     def hand_space(self, scene: Scene, tray: Tray, part: Part) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`pickstop.scene.grasps.hand_space`, computed once per tray, part and hand."""
-        key = f"hand|{tray.model_dump_json()}|{part.id}|{scene.gripper.model_dump_json()}"
+        """:func:`pickstop.scene.grasps.hand_space`, computed once per tray (wherever it
+        stands on the floor), part and hand."""
+        key = f"hand|{_placed(tray)}|{part.id}|{scene.gripper.model_dump_json()}"
+        at = _floor_position(tray)
         if key not in self._hand_spaces:
             if len(self._hand_spaces) >= MEMO_SIZE:
                 self._hand_spaces.clear()
-            self._hand_spaces[key] = hand_space(scene, tray, part, self.hand)
-        return self._hand_spaces[key]
+            lo, hi = hand_space(scene, tray, part, self.hand)
+            self._hand_spaces[key] = (lo - at, hi - at)
+        lo, hi = self._hand_spaces[key]
+        return lo + at, hi + at
 
     def _bounds_of(self, scene: Scene, exclude: str) -> list[tuple[str, Bounds]]:
-        """Every object but the tray ``exclude``: its definition and its solids' bounds."""
+        """Every object but the tray ``exclude``: its definition and its solids' bounds, each
+        with whether the solid is an axis-aligned box (its bounds are the box)."""
         if len(self._bounds) > MEMO_SIZE:
             self._bounds.clear()
         out = []
         for o in scene.obstacles:
             d = o.model_dump_json()
             if d not in self._bounds:
-                self._bounds[d] = [shape_solid(o.geometry, pose_matrix(o.pose), o.id).aabb()]
+                self._bounds[d] = [_bounds(shape_solid(o.geometry, pose_matrix(o.pose), o.id))]
             out.append((d, self._bounds[d]))
         for t in scene.trays:
             if t.id != exclude:
                 d = t.model_dump_json()
                 if d not in self._bounds:
                     solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
-                    self._bounds[d] = [s.aabb() for s in solids]
+                    self._bounds[d] = [_bounds(s) for s in solids]
                 out.append((d, self._bounds[d]))
         return out
+
+
+GRASP_MARGIN = 0.002  # [m] the open hands' space, padded, where a box must look alike
+
+
+def _bounds(s: Solid) -> tuple[np.ndarray, np.ndarray, bool]:
+    lo, hi = s.aabb()
+    R = s.T_world_solid[:3, :3]
+    aligned = s.kind == "box" and bool(np.allclose(np.abs(R), np.round(np.abs(R)), atol=1e-12))
+    return lo, hi, aligned
+
+
+def _reaching_in(
+    others: list[tuple[str, Bounds]], space: tuple[np.ndarray, np.ndarray], at: np.ndarray
+) -> list[str]:
+    """What of ``others`` reaches into the open hands' ``space`` (world bounds [m]), as the
+    grasps see it from a tray standing at ``at: (3,)``: an axis-aligned box by the part of
+    it inside the space (padded by :data:`GRASP_MARGIN`), relative to the tray (a table the
+    tray slides along looks the same); any other solid by its object's definition and the
+    tray's place."""
+    lo, hi = space[0] - GRASP_MARGIN, space[1] + GRASP_MARGIN
+    out = []
+    for d, bounds in others:
+        if not any(_overlap((b_lo, b_hi), (lo, hi)) for b_lo, b_hi, _ in bounds):
+            continue
+        if all(aligned for *_, aligned in bounds):
+            for b_lo, b_hi, _ in bounds:
+                c_lo, c_hi = np.maximum(b_lo, lo) - at, np.minimum(b_hi, hi) - at
+                if np.all(c_lo <= c_hi):
+                    out.append(f"box {np.round(c_lo, 9).tolist()} {np.round(c_hi, 9).tolist()}")
+        else:
+            out.append(f"{d} seen from {at[0]!r}, {at[1]!r}")
+    return out
+
+
+def _floor_position(tray: Tray) -> np.ndarray:
+    """``(3,)`` [m] where the tray stands on the floor: its x, y (z 0)."""
+    return np.array([tray.pose.x, tray.pose.y, 0.0])
+
+
+def _placed(tray: Tray) -> str:
+    """The tray's definition but for where it stands on the floor (its x and y)."""
+    return tray.model_dump_json(exclude={"pose": {"x", "y"}})
+
+
+def _moved_by(gs: GraspSet, d: np.ndarray) -> GraspSet:
+    """The grasps ``gs`` of a tray moved by ``d: (3,)`` [m] (the grasp points stay)."""
+    T = gs.Ts_world_tool.copy()
+    T[:, :3, 3] += d
+    return dataclasses.replace(gs, Ts_world_tool=T)
 
 
 def _overlap(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:

@@ -228,9 +228,14 @@ class Checked(Protocol):
     ``lo, hi: (K, 3)`` and the answer id each belongs to, ``owner: (K,)``; finer boxes
     within links on demand."""
 
-    lo: np.ndarray
-    hi: np.ndarray
-    owner: np.ndarray
+    @property
+    def lo(self) -> np.ndarray: ...
+
+    @property
+    def hi(self) -> np.ndarray: ...
+
+    @property
+    def owner(self) -> np.ndarray: ...
 
     def leaves(self, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Boxes within the links ``sel`` and which of ``sel`` each belongs to."""
