@@ -351,26 +351,49 @@ def test_witnesses_clear_sees_an_object_on_a_witness_arm(planner, paper_doc):
     assert not witnesses_clear(planner, region, [Solid.box(T, (0.03, 0.03, 0.03), "elbow")])
 
 
-def test_grasps_are_reused_while_nothing_reaches_into_the_hands(planner, paper_doc):
+def test_grasps_are_reused_while_nothing_reaches_into_the_hands(planner, paper_doc, monkeypatch):
+    from pickstop.regions import kit as kit_module
+
+    calls = []
+    real = kit_module.grasps_for_part
+    monkeypatch.setattr(kit_module, "grasps_for_part", lambda *a: calls.append(a[2].id) or real(*a))
+
+    def same(a, b):
+        return all(
+            np.array_equal(x.Ts_world_tool, y.Ts_world_tool) and x.kinds == y.kinds
+            for x, y in zip(a, b, strict=True)
+        )
+
     scene = parse_scene(paper_doc)
-    before = planner.grasps(scene, scene.tray("tray_2"))
+    before = planner.grasps(scene, scene.tray("tray_4"))
+    n = len(calls)
     far = copy.deepcopy(paper_doc)
-    next(t for t in far["trays"] if t["id"] == "tray_4")["pose"]["x"] += 0.2
+    next(t for t in far["trays"] if t["id"] == "tray_2")["pose"]["x"] += 0.05
     moved = parse_scene(far)
-    again = planner.grasps(moved, moved.tray("tray_2"))
-    assert all(a is b for a, b in zip(again, before, strict=True))
-    # A board just above tray_2, where the open hands of top-down grasps would be.
+    assert same(planner.grasps(moved, moved.tray("tray_4")), before) and len(calls) == n
+    # tray_4 slid 5 cm along its table: the same grasps in the tray's frame, not computed anew
+    slid = copy.deepcopy(paper_doc)
+    next(t for t in slid["trays"] if t["id"] == "tray_4")["pose"]["x"] += 0.05
+    slid_scene = parse_scene(slid)
+    again = planner.grasps(slid_scene, slid_scene.tray("tray_4"))
+    assert len(calls) == n
+    fresh = [
+        real(slid_scene, slid_scene.tray("tray_4"), p, planner.hand)
+        for p in slid_scene.tray("tray_4").parts
+    ]
+    assert same(again, fresh)
+    # A board just above tray_4, where the open hands of top-down grasps would be.
     near = copy.deepcopy(paper_doc)
     near["obstacles"].append(
         {
             "id": "board",
-            "pose": {"x": 1.35, "y": 1.5, "z": 0.84, "yaw": 0.0},
+            "pose": {"x": 3.6, "y": 1.5, "z": 0.84, "yaw": 0.0},
             "geometry": {"shape": "box", "size": [0.3, 0.2, 0.02]},
         }
     )
     covered = parse_scene(near)
-    after = planner.grasps(covered, covered.tray("tray_2"))
-    assert all(a is not b for a, b in zip(after, before, strict=True))
+    after = planner.grasps(covered, covered.tray("tray_4"))
+    assert len(calls) > n
     assert sum(len(g.Ts_world_tool) for g in after) < sum(len(g.Ts_world_tool) for g in before)
 
 

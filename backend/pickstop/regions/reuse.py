@@ -40,6 +40,7 @@ from pickstop.scene.world import Solid
 MAX_ENTRIES = 150_000  # refinements kept per memo (about 25 MB for an 8-joint arm)
 MAX_MEMOS = 48  # trays x yaws x grid phases kept
 MAX_ANSWERS = 20_000  # cell answers kept per memo (about 700 bytes each)
+MAX_CHECKS = 20_000  # exact checks kept per memo
 MAX_ALL_ANSWERS = 120_000  # cell answers kept by all memos together
 MAX_SURROUNDINGS = 8  # surroundings a memo's cell answers may refer to
 SAME = 1e-9  # [m] bounds this close are the same
@@ -224,9 +225,9 @@ def stale(old: Surroundings, new: Surroundings, lo: np.ndarray, hi: np.ndarray) 
 
 
 class Checked(Protocol):
-    """Boxes (relative [m]) around what was checked for some cells' answers: per link
+    """Boxes (relative [m]) around what was checked for some cells' answers: coarse ones
     ``lo, hi: (K, 3)`` and the answer id each belongs to, ``owner: (K,)``; finer boxes
-    within links on demand."""
+    within them on demand."""
 
     @property
     def lo(self) -> np.ndarray: ...
@@ -237,8 +238,10 @@ class Checked(Protocol):
     @property
     def owner(self) -> np.ndarray: ...
 
-    def leaves(self, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Boxes within the links ``sel`` and which of ``sel`` each belongs to."""
+    def touched(
+        self, sel: np.ndarray, hits: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """``(len(sel),)`` whether ``hits`` holds for a finer box within the boxes ``sel``."""
         ...
 
 
@@ -263,6 +266,18 @@ class CellAnswer:
     xy: np.ndarray  # (2,) the cell's centre relative to the tray [m]
 
 
+@dataclass(frozen=True)
+class ExactCheck:
+    """One exact check of the arm against the scene, remembered: whether it collided, in
+    which of the memo's surroundings, and the relative box [m] of its links and its base."""
+
+    colliding: bool
+    around: int
+    lo: np.ndarray  # (3,)
+    hi: np.ndarray  # (3,)
+    xy: np.ndarray  # (2,)
+
+
 @dataclass
 class RefineMemo:
     """Refinements of one tray's grasps from cells anchored to it (see the module)."""
@@ -274,7 +289,12 @@ class RefineMemo:
     hits: int = 0
     misses: int = 0
     recalled: int = 0  # cell answers taken as they were
+    # exact checks of the arm against the scene: (cell key, part, joint values) -> whether it
+    # collided, the surroundings then, the box of its links and its base (relative [m])
+    checks: dict[tuple[int, str, bytes], ExactCheck] = field(default_factory=dict)
+    checks_reused: int = 0
     _next: int = 0
+    _change_memo: dict[tuple[int, int], list[Change]] = field(default_factory=dict)
 
     def around(self, now: Surroundings) -> int:
         """The id of the surroundings ``now`` among the memo's (added if new)."""
@@ -292,54 +312,109 @@ class RefineMemo:
             self.surroundings.popitem(last=False)
         return k
 
-    def recall(
-        self, tag: str, part: str, cell_keys: np.ndarray, now: int, checked: CheckedOf
-    ) -> tuple[np.ndarray, list[CellAnswer | None]]:
-        """The remembered answers of cells ``cell_keys: (M,)`` still true in the surroundings
-        ``now`` (an id from :meth:`around`): ``(M,)`` whether each is, and the answers.
-
-        An answer holds where no change of the surroundings since it was computed reaches its
-        box; where one does, the boxes of its checked configurations' links (``checked``) are
-        tested against that change, and the covering spheres of the links it reaches.
-        """
-        keys = cell_keys.tolist()
-        got = [self.answers.get((tag, part, k)) for k in keys]
-        ok = np.zeros(len(keys), bool)
-        new = self.surroundings[now]
+    def held(
+        self,
+        arounds: list[int],
+        lo: np.ndarray,
+        hi: np.ndarray,
+        now: int,
+        checked: Callable[[np.ndarray], Checked],
+    ) -> np.ndarray:
+        """``(n,)`` whether each of n things remembered still holds in the surroundings
+        ``now``: one computed in surroundings ``arounds[i]`` whose checks all lay in the box
+        ``lo[i], hi[i]`` (relative [m]) holds where no change since reaches the box, or where
+        the finer boxes of what it checked (``checked(indices)``, tested coarse to fine) stay
+        clear of every change that does."""
+        out = np.zeros(len(arounds), bool)
         by_around: dict[int, list[int]] = {}
-        for i, a in enumerate(got):
-            if a is not None and a.around in self.surroundings:
-                by_around.setdefault(a.around, []).append(i)
+        for i, k in enumerate(arounds):
+            if k in self.surroundings:
+                by_around.setdefault(k, []).append(i)
         for k, idx in by_around.items():
             ix = np.array(idx)
             if k == now:
-                ok[ix] = True
+                out[ix] = True
                 continue
-            mine = [got[i] for i in idx]
-            lo = np.array([a.lo for a in mine if a is not None])
-            hi = np.array([a.hi for a in mine if a is not None])
-            held = np.ones(len(idx), bool)
+            held = np.ones(len(ix), bool)
             fine: list[tuple[Change, np.ndarray]] = []
-            for c in changes(self.surroundings[k], new):
-                hit = np.flatnonzero(c.hits(lo, hi))
+            for c in self._changes(k, now):
+                hit = np.flatnonzero(c.hits(lo[ix], hi[ix]))
                 if len(hit):
                     fine.append((c, hit))
             if fine:
                 near = np.unique(np.concatenate([h for _, h in fine]))
-                picked = [mine[i] for i in near.tolist()]
-                links = checked([a for a in picked if a is not None], near.tolist())
-                sels = []  # per change, the links it reaches
+                links = checked(ix[near])
                 for c, hit in fine:
-                    sel = np.flatnonzero(np.isin(links.owner, hit))
-                    sels.append(sel[c.hits(links.lo[sel], links.hi[sel])])
-                reached = np.unique(np.concatenate(sels))
-                if len(reached):
-                    l_lo, l_hi, of = links.leaves(reached)  # once for all changes
-                    for (c, _), sel in zip(fine, sels, strict=True):
-                        m = np.flatnonzero(np.isin(of, np.searchsorted(reached, sel)))
-                        bad = reached[of[m[c.hits(l_lo[m], l_hi[m])]]]
-                        held[links.owner[bad]] = False
-            ok[ix] = held
+                    sel = np.flatnonzero(np.isin(links.owner, ix[hit]))
+                    sel = sel[c.hits(links.lo[sel], links.hi[sel])]
+                    sel = sel[held[np.searchsorted(ix, links.owner[sel])]]  # not yet stale
+                    if len(sel):
+                        bad = links.owner[sel[links.touched(sel, c.hits)]]
+                        held[np.searchsorted(ix, bad)] = False
+            out[ix] = held
+        return out
+
+    def remembered_checks(
+        self,
+        keys: list[tuple[int, str, bytes]],
+        now: int,
+        checked: Callable[[np.ndarray, np.ndarray], Checked],
+    ) -> list[bool | None]:
+        """The remembered outcome of each exact check ``keys`` that still holds in the
+        surroundings ``now`` (:meth:`held`), else None. ``checked(rows, ids)``: the links of
+        the checks ``rows`` (indices into ``keys``), owned by ``ids``."""
+        got = [self.checks.get(k) for k in keys]
+        idx = [i for i, g in enumerate(got) if g is not None]
+        out: list[bool | None] = [None] * len(keys)
+        if not idx:
+            return out
+        mine = [g for g in got if g is not None]
+        ok = self.held(
+            [g.around for g in mine],
+            np.array([g.lo for g in mine]),
+            np.array([g.hi for g in mine]),
+            now,
+            lambda sel: checked(np.array(idx)[sel], sel),
+        )
+        for i, g, o in zip(idx, mine, ok.tolist(), strict=True):
+            if o:
+                out[i] = g.colliding
+        self.checks_reused += int(ok.sum())
+        return out
+
+    def remember_check(self, key: tuple[int, str, bytes], check: ExactCheck) -> None:
+        if len(self.checks) >= MAX_CHECKS:
+            self.checks.clear()
+        self.checks[key] = check
+
+    def _changes(self, old: int, now: int) -> list[Change]:
+        key = (old, now)
+        hit = self._change_memo.get(key)
+        if hit is None:
+            if len(self._change_memo) > 4 * MAX_SURROUNDINGS:
+                self._change_memo.clear()
+            hit = self._change_memo[key] = changes(self.surroundings[old], self.surroundings[now])
+        return hit
+
+    def recall(
+        self, tag: str, part: str, cell_keys: np.ndarray, now: int, checked: CheckedOf
+    ) -> tuple[np.ndarray, list[CellAnswer | None]]:
+        """The remembered answers of cells ``cell_keys: (M,)`` still true in the surroundings
+        ``now`` (an id from :meth:`around`): ``(M,)`` whether each is, and the answers
+        (:meth:`held`; ``checked``: the links of an answer's checked configurations)."""
+        keys = cell_keys.tolist()
+        got = [self.answers.get((tag, part, k)) for k in keys]
+        idx = [i for i, a in enumerate(got) if a is not None]
+        ok = np.zeros(len(keys), bool)
+        if idx:
+            mine = [a for a in got if a is not None]
+            ok[idx] = self.held(
+                [a.around for a in mine],
+                np.array([a.lo for a in mine]),
+                np.array([a.hi for a in mine]),
+                now,
+                lambda sel: checked([mine[i] for i in sel.tolist()], sel.tolist()),
+            )
         self.recalled += int(ok.sum())
         return ok, got
 

@@ -17,6 +17,7 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,14 +30,13 @@ from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import (
     ArmSpheres,
     joint_major,
-    leaf_rows,
     leaves_to_world,
     points_to_world,
     screen_arm,
 )
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import CellAnswer, RefineMemo
+from pickstop.regions.reuse import CellAnswer, ExactCheck, RefineMemo
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
@@ -284,20 +284,21 @@ def _answers(
 
 @dataclass(frozen=True)
 class CheckedLinks:
-    """The links of C configurations on their bases, as the sphere screen sees them: boxes
-    around each link's bounding sphere and, on demand, around its covering spheres (padded
-    by :data:`BOX_MARGIN`). Whatever a screen or an exact check of the arm against the scene
-    looks at lies in the covering spheres."""
+    """C configurations on their bases as the sphere screen sees them: per joint, a box
+    around the covering spheres of every link it carries (the hand's included), and, on
+    demand, a box around each of those spheres, padded by :data:`BOX_MARGIN`. Whatever a
+    screen or an exact check of the arm against the scene looks at lies in the spheres."""
 
-    lo: np.ndarray  # (C * L, 3) [m]
-    hi: np.ndarray  # (C * L, 3)
-    owner: np.ndarray  # (C * L,) the id of the cell answer each link belongs to
-    config: np.ndarray  # (C * L,)
-    link: np.ndarray  # (C * L,)
+    lo: np.ndarray  # (C * J, 3) [m]
+    hi: np.ndarray  # (C * J, 3)
+    owner: np.ndarray  # (C * J,) the id of the cell answer each box belongs to
+    config: np.ndarray  # (C * J,)
+    group: np.ndarray  # (C * J,) which joint's group of spheres
     frames: tuple[np.ndarray, np.ndarray]  # joint-major (arm.joint_major)
     xy: np.ndarray  # (C, 2) the bases [m]
     yaw: float
     arm: ArmSpheres
+    leaves_of: list[np.ndarray]  # (J,) the covering spheres of each group
 
     @classmethod
     def of(
@@ -306,37 +307,68 @@ class CheckedLinks:
         """``thetas: (C, dof)`` on bases at ``xy: (C, 2)``; ``owner: (C,)`` per configuration."""
         arm = planner.arm
         _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
-        # Each link's covering spheres bounded by a box in the link's joint frame, turned
-        # into a world box: tighter than the link's bounding sphere for a long link.
-        start = arm.leaf_start
-        lo_l = np.minimum.reduceat(arm.leaf_c - arm.leaf_r[:, None], start)
-        hi_l = np.maximum.reduceat(arm.leaf_c + arm.leaf_r[:, None], start)
-        c = points_to_world(frames, arm.link_joint, (lo_l + hi_l) / 2, xy, yaw)  # (C, L, 3)
-        R = np.stack([frames[j - 1][0] for j in arm.link_joint])  # (L, 3, 3, C)
-        Rw = np.einsum("ij,ljkc->clik", R_z(yaw), R)  # (C, L, 3, 3) world axes
+        leaf_joint = arm.link_joint[arm.leaf_link]
+        joints = np.unique(leaf_joint)
+        leaves_of = [np.flatnonzero(leaf_joint == j) for j in joints]
+        lo_l = np.array([(arm.leaf_c[k] - arm.leaf_r[k, None]).min(0) for k in leaves_of])
+        hi_l = np.array([(arm.leaf_c[k] + arm.leaf_r[k, None]).max(0) for k in leaves_of])
+        # each group's box in its joint's frame, turned into a world box
+        c = points_to_world(frames, joints, (lo_l + hi_l) / 2, xy, yaw)  # (C, J, 3)
+        R = np.stack([frames[j - 1][0] for j in joints])  # (J, 3, 3, C)
+        Rw = np.einsum("ij,ljkc->clik", R_z(yaw), R)  # (C, J, 3, 3) world axes
         half = np.einsum("clik,lk->cli", np.abs(Rw), (hi_l - lo_l) / 2) + BOX_MARGIN
-        C, L = len(thetas), len(arm.bound_r)
+        C, J = len(thetas), len(joints)
         return cls(
             (c - half).reshape(-1, 3),
             (c + half).reshape(-1, 3),
-            np.repeat(owner, L),
-            np.repeat(np.arange(C), L),
-            np.tile(np.arange(L), C),
+            np.repeat(owner, J),
+            np.repeat(np.arange(C), J),
+            np.tile(np.arange(J), C),
             joint_major(frames),
             xy,
             yaw,
             arm,
+            leaves_of,
         )
 
-    def leaves(self, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Boxes ``lo, hi: (N, 3)`` around the covering spheres of links ``sel`` (indices)
-        and which of ``sel`` each belongs to ``(N,)``."""
-        leaf, pair = leaf_rows(self.arm, self.link[sel])
+    def touched(
+        self, sel: np.ndarray, hits: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """``(len(sel),)`` True where ``hits`` (boxes ``lo, hi: (N, 3)`` -> ``(N,)`` bool)
+        holds for a covering sphere within the boxes ``sel`` (indices): the links of each
+        box's group are tested first, then the spheres of the links hit."""
+        arm = self.arm
+        out = np.zeros(len(sel), bool)
+        # the links of each selected group
+        links_of = [np.unique(arm.leaf_link[k]) for k in self.leaves_of]
+        per = np.array([len(k) for k in links_of])[self.group[sel]]
+        pair = np.repeat(np.arange(len(sel)), per)
+        if not len(pair):
+            return out
+        link = np.concatenate([links_of[g] for g in self.group[sel]])
         rows = self.config[sel][pair]
-        joint = self.arm.link_joint[self.arm.leaf_link[leaf]] - 1
-        c = leaves_to_world(self.frames, joint, rows, self.arm.leaf_c[leaf], self.xy, self.yaw)
-        r = (self.arm.leaf_r[leaf] + BOX_MARGIN)[:, None]
-        return c - r, c + r, pair
+        start = arm.leaf_start
+        lo_l = np.minimum.reduceat(arm.leaf_c - arm.leaf_r[:, None], start)[link]
+        hi_l = np.maximum.reduceat(arm.leaf_c + arm.leaf_r[:, None], start)[link]
+        joint = arm.link_joint[link] - 1
+        c = leaves_to_world(self.frames, joint, rows, (lo_l + hi_l) / 2, self.xy, self.yaw)
+        Rw = np.einsum("ij,njk->nik", R_z(self.yaw), self.frames[0][joint, rows])
+        half = np.einsum("nik,nk->ni", np.abs(Rw), (hi_l - lo_l) / 2) + BOX_MARGIN
+        hit = np.flatnonzero(hits(c - half, c + half))
+        if not len(hit):
+            return out
+        # the covering spheres of the links hit
+        n = arm.leaf_count[link[hit]]
+        sub = np.repeat(hit, n)
+        leaf = arm.leaf_start[link[hit]].repeat(n) + (
+            np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+        )
+        cl = leaves_to_world(
+            self.frames, joint[sub], rows[sub], arm.leaf_c[leaf], self.xy, self.yaw
+        )
+        r = (arm.leaf_r[leaf] + BOX_MARGIN)[:, None]
+        out[pair[sub[hits(cl - r, cl + r)]]] = True
+        return out
 
 
 def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
@@ -474,7 +506,15 @@ def _rounds(
             continue
         r_cells.append(cell[e[ok]])
         r_ths.append(thetas[ok])
-        good = verify(planner, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id)
+        memo = (
+            None
+            if tg.memo is None or tg.cell_keys is None
+            else (tg.memo, tg.cell_keys[cell[e[ok]]])
+        )
+        good = verify(
+            planner, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id,
+            cell_keys=memo,
+        )  # fmt: skip
         acc, ths = e[ok[good]], thetas[ok[good]]
         # Several may succeed for a cell: keep its best-ranked (first) one.
         _, keep = np.unique(cell[acc], return_index=True)
@@ -502,6 +542,7 @@ def verify(
     owner: np.ndarray | None = None,
     targets: np.ndarray | str | None = None,
     counts: dict[str, int] | None = None,
+    cell_keys: tuple[RefineMemo, np.ndarray] | None = None,
 ) -> np.ndarray:
     """``(B,)`` True where ``thetas: (B, dof)`` on a base at ``base_xy: (B, 2)`` is free of the
     scene, of the floor and of itself, the robot's whole collision geometry (hand included)
@@ -511,6 +552,9 @@ def verify(
     coal checks of its other flagged rows are skipped (they count as not verified).
     targets: the part each row grasps (one for all, or per row): no obstacle for the hand.
     counts: if given, its ``"exact_checks"`` counts the rows checked by coal.
+    cell_keys: a memo of exact checks and each row's cell key (:mod:`pickstop.regions.reuse`):
+    a check remembered there is taken where the surroundings near its links are as they
+    were, and new ones are kept.
     """
     p = planner
     B = len(thetas)
@@ -528,22 +572,91 @@ def verify(
     flagged = env_hit | self_hit
     good = ~flagged
     done = set() if owner is None else set(owner[good].tolist())
-    for j in np.flatnonzero(flagged):
+    rows = np.flatnonzero(flagged)
+
+    def target_of(j: int) -> str | None:
+        return targets if targets is None or isinstance(targets, str) else str(targets[j])
+
+    checks = _ExactChecks.of(p, world, thetas, base_xy, rows[env_hit[rows]], target_of, cell_keys)
+    for j in rows.tolist():
         o = None if owner is None else int(owner[j])
         if o in done:
             continue
         x, y = base_xy[j]
-        target = targets if targets is None or isinstance(targets, str) else str(targets[j])
         if counts is not None:
             counts["exact_checks"] = counts.get("exact_checks", 0) + 1
-        bad = (self_hit[j] and p.exact_self.colliding(thetas[j][None])[0]) or (
-            env_hit[j]
-            and p.exact_arm.colliding(thetas[j], x, y, world.yaw, world.solids, target, world.floor)
-        )
+        bad = bool(self_hit[j] and p.exact_self.colliding(thetas[j][None])[0])
+        if not bad and env_hit[j]:
+            bad = checks.known.get(j)  # type: ignore[assignment]
+            if bad is None:
+                bad = p.exact_arm.colliding(
+                    thetas[j], x, y, world.yaw, world.solids, target_of(j), world.floor
+                )
+                checks.remember(j, bad)
         good[j] = not bad
         if not bad and o is not None:
             done.add(o)
     return good
+
+
+@dataclass
+class _ExactChecks:
+    """The exact arm checks of one :func:`verify` call that the targets' memo remembers
+    (``known``: row -> collided), and the keeping of new ones."""
+
+    planner: RegionKit
+    world: ArmWorld
+    thetas: np.ndarray
+    base_xy: np.ndarray
+    keys: dict[int, tuple[int, str, bytes]]
+    known: dict[int, bool]
+    memo: RefineMemo | None = None
+
+    @classmethod
+    def of(
+        cls,
+        planner: RegionKit,
+        world: ArmWorld,
+        thetas: np.ndarray,
+        base_xy: np.ndarray,
+        rows: np.ndarray,
+        target_of: Callable[[int], str | None],
+        cell_keys: tuple[RefineMemo, np.ndarray] | None,
+    ) -> _ExactChecks:
+        """Rows ``rows`` (the screen flagged them against the scene) of ``thetas``;
+        ``cell_keys``: the memo and each row's cell key (None: nothing is remembered)."""
+        out = cls(planner, world, thetas, base_xy, {}, {})
+        if cell_keys is None or world.around is None or not len(rows):
+            return out
+        memo, ck = cell_keys
+        out.memo = memo
+        out.keys = {j: (int(ck[j]), str(target_of(j)), thetas[j].tobytes()) for j in rows.tolist()}
+        order = list(out.keys)
+        xy = base_xy[order] - np.asarray(world.tray_xy)
+        dof = thetas.shape[1]
+        got = memo.remembered_checks(
+            [out.keys[j] for j in order],
+            world.around,
+            lambda rows, ids: CheckedLinks.of(
+                planner, thetas[np.array(order)[rows]].reshape(-1, dof), xy[rows], world.yaw, ids
+            ),
+        )
+        out.known = {j: g for j, g in zip(order, got, strict=True) if g is not None}
+        return out
+
+    def remember(self, j: int, colliding: bool) -> None:
+        key = self.keys.get(j)
+        memo = self.memo
+        if key is None or memo is None or self.world.around is None:
+            return
+        xy = self.base_xy[j] - np.asarray(self.world.tray_xy)
+        links = CheckedLinks.of(
+            self.planner, self.thetas[j][None], xy[None], self.world.yaw, np.zeros(1, int)
+        )
+        memo.remember_check(
+            key,
+            ExactCheck(colliding, self.world.around, links.lo.min(0), links.hi.max(0), xy),
+        )
 
 
 def seeded(
@@ -583,7 +696,8 @@ def seeded(
     ok = np.flatnonzero(success)
     if len(ok):
         sub = targets if targets is None or isinstance(targets, str) else targets[ok]
-        good = ok[verify(planner, world, thetas[ok], base_xy[ok], problem[ok], sub)]
+        ck = None if memo is None else (memo[0], np.array([k[2] for k in memo[1]])[ok])
+        good = ok[verify(planner, world, thetas[ok], base_xy[ok], problem[ok], sub, cell_keys=ck)]
         _, first = np.unique(problem[good], return_index=True)
         win[problem[good[first]]] = good[first]
     return win, thetas
