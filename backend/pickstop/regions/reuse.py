@@ -155,14 +155,21 @@ class Change:
         if not len(k):
             return out
         # Both clip the box to the same bounds, or both miss it: the same inside it.
+        return self._clipped_alike(lo, hi, out, k)
+
+    def _clipped_alike(
+        self, lo: np.ndarray, hi: np.ndarray, out: np.ndarray, k: np.ndarray
+    ) -> np.ndarray:
+        assert self.new_lo is not None and self.new_hi is not None
         q_lo, q_hi = lo[k], hi[k]
         a_lo, a_hi = np.maximum(q_lo, self.lo), np.minimum(q_hi, self.hi)
         b_lo, b_hi = np.maximum(q_lo, self.new_lo), np.minimum(q_hi, self.new_hi)
         a_empty = np.any(a_lo > a_hi + SAME, axis=1)
         b_empty = np.any(b_lo > b_hi + SAME, axis=1)
-        same = np.all(np.abs(a_lo - b_lo) <= SAME, axis=1) & np.all(
-            np.abs(a_hi - b_hi) <= SAME, axis=1
-        )
+        with np.errstate(invalid="ignore"):  # an empty box (inf bounds) clips to nothing
+            same = np.all(np.abs(a_lo - b_lo) <= SAME, axis=1) & np.all(
+                np.abs(a_hi - b_hi) <= SAME, axis=1
+            )
         out[k] = ~((a_empty & b_empty) | (~a_empty & ~b_empty & same))
         return out
 
@@ -264,6 +271,8 @@ class CellAnswer:
     rows: np.ndarray  # (r,) int32: database candidates screened
     refined: np.ndarray  # (k, dof) float32: refinements verified
     xy: np.ndarray  # (2,) the cell's centre relative to the tray [m]
+    groups_lo: np.ndarray  # (J, 3) per joint, the box of its links over the configurations
+    groups_hi: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -276,6 +285,8 @@ class ExactCheck:
     lo: np.ndarray  # (3,)
     hi: np.ndarray  # (3,)
     xy: np.ndarray  # (2,)
+    groups_lo: np.ndarray  # (J, 3) per joint, the box of its links
+    groups_hi: np.ndarray
 
 
 @dataclass
@@ -319,12 +330,14 @@ class RefineMemo:
         hi: np.ndarray,
         now: int,
         checked: Callable[[np.ndarray], Checked],
+        groups: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> np.ndarray:
         """``(n,)`` whether each of n things remembered still holds in the surroundings
         ``now``: one computed in surroundings ``arounds[i]`` whose checks all lay in the box
         ``lo[i], hi[i]`` (relative [m]) holds where no change since reaches the box, or where
         the finer boxes of what it checked (``checked(indices)``, tested coarse to fine) stay
-        clear of every change that does."""
+        clear of every change that does. ``groups``: finer boxes ``(n, J, 3)`` each, tested
+        before the configurations are."""
         out = np.zeros(len(arounds), bool)
         by_around: dict[int, list[int]] = {}
         for i, k in enumerate(arounds):
@@ -339,6 +352,12 @@ class RefineMemo:
             fine: list[tuple[Change, np.ndarray]] = []
             for c in self._changes(k, now):
                 hit = np.flatnonzero(c.hits(lo[ix], hi[ix]))
+                if len(hit) and groups is not None:
+                    g_lo, g_hi = groups[0][ix[hit]], groups[1][ix[hit]]
+                    J = g_lo.shape[1]
+                    hit = hit[
+                        c.hits(g_lo.reshape(-1, 3), g_hi.reshape(-1, 3)).reshape(-1, J).any(1)
+                    ]
                 if len(hit):
                     fine.append((c, hit))
             if fine:
@@ -375,6 +394,7 @@ class RefineMemo:
             np.array([g.hi for g in mine]),
             now,
             lambda sel: checked(np.array(idx)[sel], sel),
+            (np.array([g.groups_lo for g in mine]), np.array([g.groups_hi for g in mine])),
         )
         for i, g, o in zip(idx, mine, ok.tolist(), strict=True):
             if o:
@@ -414,6 +434,7 @@ class RefineMemo:
                 np.array([a.hi for a in mine]),
                 now,
                 lambda sel: checked([mine[i] for i in sel.tolist()], sel.tolist()),
+                (np.array([a.groups_lo for a in mine]), np.array([a.groups_hi for a in mine])),
             )
         self.recalled += int(ok.sum())
         return ok, got

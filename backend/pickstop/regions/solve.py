@@ -253,12 +253,14 @@ def _answers(
     r_cell, r_th = refined
     th = np.concatenate([planner.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
     cell = np.concatenate([s_cell, r_cell]).astype(np.int64)
-    lo = np.full((M, 3), np.inf)
-    hi = np.full((M, 3), -np.inf)
+    J = len(np.unique(planner.arm.link_joint))
+    g_lo = np.full((M, J, 3), np.inf)
+    g_hi = np.full((M, J, 3), -np.inf)
     if len(th):
         links = CheckedLinks.of(planner, th, xy[cell], world.yaw, cell)
-        np.minimum.at(lo, links.owner, links.lo)
-        np.maximum.at(hi, links.owner, links.hi)
+        np.minimum.at(g_lo, (links.owner, links.group), links.lo)
+        np.maximum.at(g_hi, (links.owner, links.group), links.hi)
+    lo, hi = g_lo.min(axis=1), g_hi.max(axis=1)
     rows_of = np.split(
         s_rows[np.argsort(s_cell, kind="stable")], np.cumsum(np.bincount(s_cell, minlength=M))[:-1]
     )
@@ -277,6 +279,8 @@ def _answers(
             rows_of[i].astype(np.int32),
             ref_of[i].reshape(-1, dof),
             xy[i],
+            g_lo[i],
+            g_hi[i],
         )
         for i in range(M)
     ]
@@ -655,7 +659,15 @@ class _ExactChecks:
         )
         memo.remember_check(
             key,
-            ExactCheck(colliding, self.world.around, links.lo.min(0), links.hi.max(0), xy),
+            ExactCheck(
+                colliding,
+                self.world.around,
+                links.lo.min(0),
+                links.hi.max(0),
+                xy,
+                links.lo,
+                links.hi,
+            ),
         )
 
 
