@@ -123,9 +123,11 @@ class StopPlanner:
         self.regions = regions
         self._candidates = _Lru(cache_size)
         self._floors = _Lru(cache_size)
+        self._world_floors = _Lru(cache_size)  # world key -> floor: the same world, no rebuild
         self._fmaps = _Lru(cache_size)
         self._paths = _Lru(cache_size)
         self._checks = _Lru(4096)
+        self._witnesses = _Lru(4096)
         self._rates = _Lru(4096)
         self._selections = _Lru(256)
 
@@ -154,8 +156,18 @@ class StopPlanner:
                     out.append(c)
         return list(self._candidates.put(key, tuple(out)))
 
-    def floor(self, scene: Scene) -> _Floor:
-        """Where the base may drive: the floor minus obstacles inflated by the footprint."""
+    def floor(self, scene: Scene, world: str | None = None) -> _Floor:
+        """Where the base may drive: the floor minus obstacles inflated by the footprint.
+
+        world: the scene's :func:`world_key`, if known; the floor is a function of it (the
+        floor, the solids and the robot), so a scene of the same world takes it as it was."""
+        world = world_key(scene) if world is None else world
+        hit = self._world_floors.hit(world)
+        if hit is not None:
+            return hit
+        return self._world_floors.put(world, self._floor(scene))
+
+    def _floor(self, scene: Scene) -> _Floor:
         # Driving, the base turns: whatever reaches below the top of the base body (footprint
         # and base-fixed links) blocks it, grown by the body's farthest horizontal reach.
         body = upper_body(self.regions.robot)
@@ -218,6 +230,34 @@ class StopPlanner:
             ok, th, g = feasible_near(self.regions, scene, region, np.array([xy]), region.yaw)
             hit = self._checks.put(key, (bool(ok[0]), th[0], g[0]))
         return hit
+
+    def witnesses(
+        self, scene: Scene, world_key: str, region: TrayRegion, xy: tuple[float, float]
+    ) -> list[pm.Witness] | None:
+        """The arm configurations that pick every part of the region's tray from ``xy`` (one
+        witness per part, from :meth:`check`), or None if the exact check fails there
+        (cached with the check)."""
+        key = (world_key, region.tray_id, xy, region.yaw)
+        if key in self._witnesses:
+            return self._witnesses.hit(key)  # type: ignore[no-any-return]
+        ok, th, g = self.check(scene, world_key, region, xy)
+        ws = None
+        if ok:
+            tray = scene.tray(region.tray_id)
+            grasps = self.regions.grasps(scene, tray)
+            hand = self.regions.hand.joints
+            ws = [
+                pm.Witness(
+                    tray_id=tray.id,
+                    part_id=p.id,
+                    grasp_index=int(g[k]),
+                    theta=th[k].tolist(),
+                    hand=hand,
+                    T_part_tcp=grasps[k].Ts_part_tcp[int(g[k])].round(9).tolist(),
+                )
+                for k, p in enumerate(tray.parts)
+            ]
+        return self._witnesses.put(key, ws)  # type: ignore[no-any-return]
 
     def success(
         self,
@@ -342,11 +382,6 @@ def scene_hash(scene: Scene) -> str:
     return hashlib.sha256(scene.model_dump_json().encode()).hexdigest()
 
 
-def _ring(poly: Polygon) -> list[list[tuple[float, float]]]:
-    rings = [poly.exterior, *poly.interiors]
-    return [[(round(x, 4), round(y, 4)) for x, y in r.coords] for r in rings]
-
-
 def _time(tb: TimeBreakdown) -> pm.TimeTotals:
     return pm.TimeTotals(travel=tb.travel, stops=tb.stops, picks=tb.picks, total=tb.total)
 
@@ -384,7 +419,7 @@ class _Planning:
         cands = sp.candidates(regions)
         t0 = self._clock("intersections", t0)
 
-        floor = sp.floor(scene)
+        floor = sp.floor(scene, self.world)
         paths = sp.paths(floor, route_points(scene, cands), route_yaws(scene, cands))
         self._check_endpoints(floor, paths)
         if not np.isfinite(paths.dist[0, 1]):
@@ -502,28 +537,15 @@ class _Planning:
                 trays = tuple(t for t in self.required if t in serves[c])
                 ws = []
                 for t in trays:
-                    ok, th, g = sp.check(scene, self.world, regions[t, cand.yaw], cand.centre)
-                    if not ok:
+                    mine = sp.witnesses(scene, self.world, regions[t, cand.yaw], cand.centre)
+                    if mine is None:
                         self.rejected[c] = (
                             f"the exact check at its centre failed for tray {t} (the region's "
                             "grid cells around it are feasible, the centre itself is not)"
                         )
                         failed = True
                         break
-                    tray = scene.tray(t)
-                    grasps = self.sp.regions.grasps(scene, tray)
-                    hand = self.sp.regions.hand.joints
-                    ws += [
-                        pm.Witness(
-                            tray_id=t,
-                            part_id=p.id,
-                            grasp_index=int(g[k]),
-                            theta=th[k].tolist(),
-                            hand=hand,
-                            T_part_tcp=grasps[k].Ts_part_tcp[int(g[k])].round(9).tolist(),
-                        )
-                        for k, p in enumerate(tray.parts)
-                    ]
+                    ws += mine
                 witnesses[c] = ws
             t0 = self._clock("verification", t0)
             if failed:
@@ -771,7 +793,7 @@ class _Planning:
                     else ("rejected" if i in self.rejected else "kept"),
                     reason=self.rejected.get(i),
                     predicted_success=self.predicted.get(i),
-                    polygon=_ring(c.polygon),
+                    polygon=c.rings,
                 )
                 for i, c in enumerate(cands)
             ],
