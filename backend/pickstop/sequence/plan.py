@@ -17,11 +17,15 @@ Anything impossible raises :class:`InfeasiblePlanError` naming the trays and num
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import itertools
 import math
 import time
 from collections import OrderedDict
+from collections.abc import Callable
+from concurrent.futures import Future
+from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -52,6 +56,7 @@ from pickstop.sequence.timing import TimeBreakdown, leg_time, pieces_time, plan_
 
 MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
 DUPLICATE = 1e-3  # [m] candidates of the same trays this close are one
+PREFETCH_BANDS = 24  # sigma bands planned ahead in the background after a plan
 
 
 def hand_notes(robot: Any) -> list[str]:
@@ -130,6 +135,8 @@ class StopPlanner:
         self._witnesses = _Lru(4096)
         self._rates = _Lru(4096)
         self._selections = _Lru(256)
+        self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
+        self._planned = _Lru(1024)  # (layout, options) planned ahead by prefetch_selections
 
     # -- pieces ------------------------------------------------------------------------------
     def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Intersection]:
@@ -239,7 +246,7 @@ class StopPlanner:
         (cached with the check)."""
         key = (world_key, region.tray_id, xy, region.yaw)
         if key in self._witnesses:
-            return self._witnesses.hit(key)  # type: ignore[no-any-return]
+            return self._witnesses.hit(key)
         ok, th, g = self.check(scene, world_key, region, xy)
         ws = None
         if ok:
@@ -257,7 +264,7 @@ class StopPlanner:
                 )
                 for k, p in enumerate(tray.parts)
             ]
-        return self._witnesses.put(key, ws)  # type: ignore[no-any-return]
+        return self._witnesses.put(key, ws)
 
     def success(
         self,
@@ -320,9 +327,11 @@ class StopPlanner:
         objective: Literal["stops", "time"],
         stop_cost: float,
         time_limit: float,
+        unlock: Any = None,
     ) -> Selection:
         """:func:`~pickstop.sequence.cover.select_stops`, remembered: while sigma or the rule
-        moves, the kept candidates often stay the same set."""
+        moves, the kept candidates often stay the same set. ``unlock``: the planner's lock,
+        held by the caller, released while the solver runs (background plans)."""
         key = (
             tuple(tuple(sorted(t)) for t in trays_of),
             tuple(required),
@@ -333,17 +342,84 @@ class StopPlanner:
             time_limit,
         )
         hit = self._selections.hit(key)
-        if hit is None:
-            hit = select_stops(
-                trays_of,
-                required,
-                cost,
-                objective=objective,
-                stop_cost=stop_cost,
-                time_limit=time_limit,
-            )
-            self._selections.put(key, hit)
-        return hit
+        if hit is not None:
+            return hit
+        running = self._solving.get(key)
+        while running is not None:  # the same inputs being solved in the background: its answer
+            with contextlib.suppress(FutureTimeout):  # (in polls: a Cancelled gets through)
+                return running.result(timeout=0.05)
+
+        def solve() -> Selection:
+            return select_stops(trays_of, required, cost, objective=objective,
+                                stop_cost=stop_cost, time_limit=time_limit)  # fmt: skip
+
+        if unlock is None:
+            return self._selections.put(key, solve())
+        # A background selection lets go of the planner's lock while the solver runs (it
+        # releases the GIL too), so a request is not kept waiting behind it.
+        fut: Future[Selection] = Future()
+        self._solving[key] = fut
+        unlock.release()
+        try:
+            sel = solve()
+            fut.set_result(sel)
+        except BaseException as e:
+            fut.set_exception(e)
+            raise
+        finally:
+            unlock.acquire()
+            self._solving.pop(key, None)
+        return self._selections.put(key, sel)
+
+    def prefetch_selections(
+        self,
+        scene: Scene,
+        options: pm.PlanOptions,
+        lock: Any,
+        limit: int = PREFETCH_BANDS,
+        stale: Callable[[], bool] = lambda: False,
+    ) -> int:
+        """Plan ahead, in the background, what the 3D planner's sigma slider and objective
+        switch will ask for next: for the sigma rule, one plan per band of sigma between two
+        candidates' inscribed radii (a band keeps the same candidates, so its stop selection
+        is the same), nearest the current sigma first, at most ``limit``; then the other
+        objective at the current sigma. No Monte Carlo (a band's selection does not depend
+        on it). Each runs the plan exactly as a request would, under ``lock`` except while
+        the solver runs; what it leaves behind are memo entries keyed by their inputs. Stops
+        early once ``stale()`` (a newer request has its own plans ahead). Returns how many
+        plans it ran."""
+        sigma = scene.sigma if options.sigma is None else options.sigma
+        with lock:
+            cands = self.candidates(self.regions.regions(scene))
+        radii = sorted({c.radius for c in cands})
+        todo: list[pm.PlanOptions] = []
+        if options.rule == "sigma":
+            own = next((r for r in radii if r >= sigma), None)  # the band sigma lies in
+            up = [r for r in radii if r > sigma and r != own]
+            down = [r for r in reversed(radii) if r < sigma]
+            bands = [r for pair in itertools.zip_longest(up, down) for r in pair if r is not None]
+            todo += [options.model_copy(update={"sigma": r, "samples": 0})
+                     for r in bands[:limit]]  # fmt: skip
+        other = "time" if options.objective == "stops" else "stops"
+        todo.append(options.model_copy(update={"objective": other, "sigma": sigma, "samples": 0}))
+        layout = _digest(scene.model_dump_json(exclude={"name", "description", "sigma"}))
+        ceiling = math.inf  # sigma above which no plan exists (fewer candidates kept)
+        done = 0
+        for opts in todo:
+            if stale():
+                break
+            key = (layout, opts.model_dump_json())
+            if (opts.sigma is not None and opts.sigma >= ceiling) or self._planned.hit(key):
+                continue
+            self._planned.put(key, True)
+            with lock:
+                try:
+                    _Planning(self, scene, opts, unlock=lock).run()
+                except InfeasiblePlanError:
+                    if opts.rule == "sigma" and opts.sigma is not None and opts.sigma > sigma:
+                        ceiling = min(ceiling, opts.sigma)
+            done += 1
+        return done
 
     # -- the plan ------------------------------------------------------------------------------
     def plan(self, scene: Scene, options: pm.PlanOptions | None = None) -> pm.Plan:
@@ -390,10 +466,18 @@ class _Planning:
     """One planning request; holds its intermediate results."""
 
     def __init__(
-        self, sp: StopPlanner, scene: Scene, opts: pm.PlanOptions, preview: bool = False
+        self,
+        sp: StopPlanner,
+        scene: Scene,
+        opts: pm.PlanOptions,
+        preview: bool = False,
+        unlock: Any = None,
     ) -> None:
+        """unlock: the planner's lock, held by the caller, to release while a stop selection
+        is solved (:meth:`StopPlanner.prefetch_selections`)."""
         self.sp, self.scene, self.opts = sp, scene, opts
         self.preview = preview
+        self.unlock = unlock
         self.sigma = scene.sigma if opts.sigma is None else opts.sigma
         self.kind = scene.error_model.kind
         self.required = scene.task_trays
@@ -595,6 +679,7 @@ class _Planning:
             self.opts.objective,
             motion.stop_time,
             self.opts.time_limit,
+            self.unlock,
         )
         return Selection(
             tuple(idx[c] for c in sel.order),
