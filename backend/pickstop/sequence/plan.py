@@ -114,12 +114,15 @@ class StopPlanner:
     """Plans stops and routes for scenes of one robot and database, caching what it can.
 
     A change of sigma, rule or objective reuses the regions, the candidates, the floor paths
-    and the exact checks at candidate centres; moving a tray recomputes only what it affects.
+    and the exact checks at candidate centres (with their witnesses); moving a tray recomputes
+    only what it affects. :meth:`prefetch_selections` makes the stop selections of the
+    neighbouring sigma bands ahead of the slider, :meth:`prefetch_checks` every centre check.
 
     Its caches are bounded LRUs keyed by value, so nothing needs invalidating: a key changes
     with what its entry depends on (candidates: the regions' masks; floors: the floor, the
     body's reach and the blocking solids; paths: the floor's key and the points; checks and
-    success rates: the world's key, trays, pose and error model; selections: their inputs).
+    success rates: the world's key, trays, pose and error model; selections: their inputs;
+    floors per world: the world's key).
     The robot and database are fixed per planner (one per pair in
     :class:`pickstop.pool.PlannerPool`).
     """
