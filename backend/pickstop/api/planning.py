@@ -31,6 +31,8 @@ from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
 
 log = logging.getLogger("pickstop.api")
 
+QUIET = 0.1  # [s] without a new plan before the last one's are planned ahead
+
 
 class _Yielding:
     """A slot's lock as background work takes it: only while no request waits for it, so a
@@ -128,15 +130,23 @@ class Planning:
         self, slot: PlannerSlot, scene: Scene, options: PlanOptions, generation: int
     ) -> None:
         """The plans of the neighbouring sigma bands and the other objective (what the 3D
-        planner's slider and switch ask next), until a newer plan has its own; then every
-        candidate's centre check."""
+        planner's slider and switch ask next), then every candidate's centre check; begun
+        once no plan has been asked for in :data:`QUIET` seconds (a slider gesture's steps
+        are not slowed by work for the steps it has already left), given up for a newer
+        plan's."""
+
+        def stale() -> bool:
+            return self._generation != generation
+
+        end = time.monotonic() + QUIET
+        while not stale() and time.monotonic() < end:
+            time.sleep(0.01)
+        if stale():
+            return
         lock = _Yielding(slot.lock, lambda: self._waiting > 0)
         try:
-            slot.planner.prefetch_selections(
-                scene, options, lock, stale=lambda: self._generation != generation
-            )
-            if self._generation == generation:
-                slot.planner.prefetch_checks(scene, lock)
+            slot.planner.prefetch_selections(scene, options, lock, stale=stale)
+            slot.planner.prefetch_checks(scene, lock, stale=stale)
         except Exception:  # a background nicety: never let it disturb a request
             log.exception("planning ahead failed")
 

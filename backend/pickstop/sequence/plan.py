@@ -301,10 +301,12 @@ class StopPlanner:
         rate = monte_carlo(evaluate, xy, yaw, em.kind, sigma, em.yaw_sigma, samples, rng)
         return self._rates.put(key, rate)
 
-    def prefetch_checks(self, scene: Scene, lock: Any = None) -> int:
+    def prefetch_checks(
+        self, scene: Scene, lock: Any = None, stale: Callable[[], bool] = lambda: False
+    ) -> int:
         """Check every candidate's centre for each of its trays ahead of time (one at a time,
         under ``lock`` if given), so that a later change of sigma or rule finds its stops
-        verified. Returns how many checks were computed."""
+        verified; stops early once ``stale()``. Returns how many checks were computed."""
         import contextlib
 
         guard = lock if lock is not None else contextlib.nullcontext()
@@ -315,6 +317,8 @@ class StopPlanner:
         done = 0
         for c in sorted(cands, key=lambda c: -c.radius):
             for t in sorted(c.trays):
+                if stale():
+                    return done
                 with guard:
                     key = (world, t, c.centre, c.yaw)
                     if self._checks.hit(key) is None:
@@ -414,13 +418,13 @@ class StopPlanner:
             key = (layout, opts.model_dump_json())
             if (opts.sigma is not None and opts.sigma >= ceiling) or self._planned.hit(key):
                 continue
-            self._planned.put(key, True)
             with lock:
                 try:
                     _Planning(self, scene, opts, unlock=lock).run()
                 except InfeasiblePlanError:
                     if opts.rule == "sigma" and opts.sigma is not None and opts.sigma > sigma:
                         ceiling = min(ceiling, opts.sigma)
+                self._planned.put(key, True)
             done += 1
         return done
 
