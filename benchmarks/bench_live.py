@@ -1,7 +1,8 @@
 """Live layout editing, API side: previews and exact re-plans of moved trays, sigma steps.
 
     PICKSTOP_DATA_DIR=<data with a TIAGo database> python benchmarks/bench_live.py
-        [--scenes paper_experiment five_trays factory_cell] [--trays N] [--repeat K]
+        [--scenes paper_experiment five_trays factory_cell] [--trays N]
+        [--only moves|options]
 
 Starts ``pickstop serve`` on 127.0.0.1 over the data folder, then per example scene: plans the
 scene as it is (warm), and for each of its first ``--trays`` trays and each move (0.05, 0.1,
@@ -12,6 +13,9 @@ then); a move that makes
 the scene invalid (a tray into its neighbour, off its table) is skipped. Then sigma steps
 (0.05 to 0.15 m), rule, target and objective changes on the scene as it is. Prints the time
 each request took at the client (HTTP and JSON included), median and p90, per kind and scene.
+``--only options`` runs only the sigma, rule, target and objective part (a minute instead of
+several per scene), ``--only moves`` only the tray moves; ``--sweeps K`` repeats the sigma
+sweep K times (more samples, a steadier median).
 """
 
 from __future__ import annotations
@@ -54,6 +58,7 @@ def _stats(xs: list[float]) -> str:
 
 
 SERVER: list[float] = []  # the plans' own total times [s] (timings.total), request by request
+LAST_SIZE = [0]  # bytes of the last response body
 
 
 def _plan(c: httpx.Client, doc: dict, options: dict, mode: str = "sync") -> tuple[float, int]:
@@ -65,6 +70,7 @@ def _plan(c: httpx.Client, doc: dict, options: dict, mode: str = "sync") -> tupl
     t0 = time.perf_counter()
     r = c.post("/api/v1/plans", json=body, headers=AUTH)
     dt = time.perf_counter() - t0
+    LAST_SIZE[0] = len(r.content)
     if r.status_code == 422 and r.json().get("field") == "mode":
         return dt, -1
     SERVER.append(r.json()["plan"]["timings"]["total"] if r.status_code == 200 else float("nan"))
@@ -80,10 +86,19 @@ def _moved(doc: dict, tray_id: str, dx: float, dy: float, dyaw: float) -> dict:
     return out
 
 
-def bench_scene(c: httpx.Client, name: str, n_trays: int) -> None:
+def bench_scene(
+    c: httpx.Client, name: str, n_trays: int, only: str | None = None, sweeps: int = 1
+) -> None:
     doc = json.loads((SCENES / f"{name}.json").read_text())
     t, code = _plan(c, doc, {})
     print(f"\n{name}: first plan {t * 1e3:.0f} ms ({code})")
+    if only != "options":
+        bench_moves(c, doc, n_trays)
+    if only != "moves":
+        bench_options(c, doc, sweeps)
+
+
+def bench_moves(c: httpx.Client, doc: dict, n_trays: int) -> None:
     preview: dict[str, list[float]] = {"move": [], "turn": []}
     exact: dict[str, list[float]] = {"move": [], "turn": []}
     own: dict[str, list[float]] = {"preview": [], "exact": []}
@@ -117,20 +132,31 @@ def bench_scene(c: httpx.Client, name: str, n_trays: int) -> None:
     for what, xs in own.items():
         print(f"  {what} of translations, the plan's own time (timings.total): {_stats(xs)}")
     print(f"  ({skipped} moves skipped: the moved layout is invalid or has no plan)")
-    sig = []
+
+
+def bench_options(c: httpx.Client, doc: dict, sweeps: int = 1) -> None:
+    sig: list[float] = []
+    other: list[float] = []
+    sizes: list[int] = []
+    own: list[float] = []
     time.sleep(PAUSE)
-    for k in range(11):
-        t, code = _plan(c, doc, {"sigma": 0.05 + 0.01 * k})
-        if code == 200:
-            sig.append(t)
-    other = []
-    for opts in ({"rule": "success", "target": 0.9}, {"rule": "success", "target": 0.95},
-                 {"objective": "time"}, {"objective": "stops"}, {"rule": "sigma"}):  # fmt: skip
-        t, code = _plan(c, doc, opts)
-        if code == 200:
-            other.append(t)
+    for _ in range(sweeps):
+        for k in range(11):
+            t, code = _plan(c, doc, {"sigma": 0.05 + 0.01 * k})
+            if code == 200:
+                sig.append(t)
+                own.append(SERVER[-1])
+                sizes.append(LAST_SIZE[0])
+        for opts in ({"rule": "success", "target": 0.9}, {"rule": "success", "target": 0.95},
+                     {"objective": "time"}, {"objective": "stops"}, {"rule": "sigma"}):  # fmt: skip
+            t, code = _plan(c, doc, opts)
+            if code == 200:
+                other.append(t)
     print(f"  sigma steps 0.05-0.15 m          {_stats(sig)}")
     print(f"  rule, target, objective changes  {_stats(other)}")
+    print(f"  sigma steps, the plan's own time {_stats(own)}")
+    if sizes:
+        print(f"  response body of a sigma step    {statistics.median(sizes) / 1e3:.0f} kB")
 
 
 def main() -> None:
@@ -139,6 +165,12 @@ def main() -> None:
         "--scenes", nargs="+", default=["paper_experiment", "five_trays", "factory_cell"]
     )
     ap.add_argument("--trays", type=int, default=3, help="trays moved per scene")
+    ap.add_argument(
+        "--only",
+        choices=["moves", "options"],
+        help="only the tray moves, or only the sigma/rule/target/objective changes",
+    )
+    ap.add_argument("--sweeps", type=int, default=1, help="sigma sweeps per scene")
     args = ap.parse_args()
     port = _port()
     env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]'}
@@ -150,7 +182,7 @@ def main() -> None:
             db = c.get("/api/v1/databases").json()
             print("database:", ", ".join(f"{d['id']} ({d['samples']:,} samples)" for d in db))
             for name in args.scenes:
-                bench_scene(c, name, args.trays)
+                bench_scene(c, name, args.trays, args.only, args.sweeps)
     finally:
         proc.terminate()
         proc.wait(timeout=30)

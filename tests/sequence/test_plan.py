@@ -216,3 +216,80 @@ def test_prefetched_checks_make_a_sigma_change_need_no_verification(stop_planner
         except InfeasiblePlanError:
             continue
         assert plan.timings.verification < 0.02
+
+
+def test_sigma_and_objective_changes_after_planning_ahead_match_a_fresh_planner(
+    planner, paper_doc, monkeypatch
+):
+    """Planned ahead (every sigma band, the other objective, every centre checked), a change
+    of sigma, or of objective at the scene's sigma, solves nothing anew; whatever changes, the
+    plan, its witnesses and every candidate's verdict are exactly what a planner that has seen
+    nothing gives."""
+    import threading
+
+    import pickstop.sequence.plan as plan_module
+
+    scene = parse_scene(paper_doc)
+    warm = StopPlanner(planner)
+    first = warm.plan(scene, PlanOptions(samples=0))
+    lock = threading.Lock()
+    assert warm.prefetch_selections(scene, PlanOptions(samples=0), lock) >= 2
+    warm.prefetch_checks(scene, lock)
+    assert not lock.locked()
+    radii = sorted({c.inscribed_radius for c in first.candidates})
+    sigmas = [0.0, *radii, *(r - 1e-4 for r in radii), radii[-1] + 0.01, 0.06, scene.sigma]
+    solved: list[int] = []
+    real = plan_module.select_stops
+
+    def counted(*a, **k):
+        solved.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(plan_module, "select_stops", counted)
+    compared = 0
+    for sigma in sigmas:
+        for objective in ("stops", "time"):
+            opts = PlanOptions(sigma=sigma, samples=0, objective=objective)
+            ahead = objective == "stops" or sigma == scene.sigma  # what was planned ahead
+            solved.clear()
+            try:
+                a = warm.plan(scene, opts)
+            except InfeasiblePlanError as e:
+                with pytest.raises(InfeasiblePlanError) as fresh:
+                    StopPlanner(planner).plan(scene, opts)
+                assert fresh.value.message == e.message
+                continue
+            if ahead:
+                assert solved == [], (sigma, objective)
+            solved.clear()
+            b = StopPlanner(planner).plan(scene, opts)
+            assert solved  # the fresh planner did solve
+            assert a.model_dump(exclude={"timings"}) == b.model_dump(exclude={"timings"})
+            assert [c.status for c in a.candidates] == [c.status for c in b.candidates]
+            compared += 1
+    assert compared >= 6
+
+
+def test_a_background_selection_lets_go_of_the_lock_while_solving(stop_planner, monkeypatch):
+    import threading
+
+    import numpy as np
+
+    import pickstop.sequence.plan as plan_module
+
+    lock = threading.Lock()
+    seen = []
+    real = plan_module.select_stops
+
+    def solve(*a, **k):
+        seen.append(lock.locked())
+        return real(*a, **k)
+
+    monkeypatch.setattr(plan_module, "select_stops", solve)
+    cost = np.array([[0, 5, 1, 2], [5, 0, 1, 2], [1, 1, 0, 1], [2, 2, 1, 0]], float)
+    with lock:
+        sel = StopPlanner(stop_planner.regions).selection(
+            [frozenset("a"), frozenset("ab")], ["a", "b"], cost, "stops", 0.0, 5.0, unlock=lock
+        )
+        assert lock.locked()  # held again on return
+    assert seen == [False] and sel.order == (1,)

@@ -9,9 +9,20 @@ from __future__ import annotations
 import json
 from contextlib import suppress
 
+from pickstop.api.schemas import PlanRecord
 from pickstop.store.records import ServiceStore
 
 MAX_BODIES = 512  # plan bodies kept in memory
+
+
+def record_body(record: PlanRecord, plan_json: bytes) -> bytes:
+    """``record`` (without plan or scene) with the plan's JSON as it came from the planner:
+    the bytes ``record.model_copy(update={"plan": plan}).model_dump_json()`` would give,
+    without parsing the plan or serialising it again."""
+    if record.plan is not None or record.scene is not None:
+        raise ValueError("record_body takes a record without plan and scene")
+    head = record.model_dump_json(exclude={"plan", "scene"}).encode()
+    return head[:-1] + b',"plan":' + plan_json + b',"scene":null}'
 
 
 class PlanBodies:

@@ -44,7 +44,7 @@ log = logging.getLogger("pickstop.api")
 
 POLL = 0.05  # seconds between checks for a Cancelled while waiting on the child
 ACK_WAIT = 30.0  # seconds a stopped computation may take to unwind before the child restarts
-KINDS = ("plan", "preview", "regions")
+KINDS = ("plan", "preview", "plan_json", "preview_json", "regions")
 SETTINGS_ENV = "PICKSTOP_CHILD_SETTINGS"
 #: The child's lower priority: when the API process needs a core to answer a read, the
 #: planner yields it (a nice-3 process weighs half of a nice-0 one); alone, it plans at
@@ -201,6 +201,12 @@ class PlannerProcess:
     def preview(self, scene: Any, options: Any, db_id: str | None = None) -> Any:
         return self.call("preview", scene, options, db_id)
 
+    def plan_json(self, scene: Any, options: Any, db_id: str | None = None) -> bytes:
+        return self.call("plan_json", scene, options, db_id)
+
+    def preview_json(self, scene: Any, options: Any, db_id: str | None = None) -> bytes:
+        return self.call("preview_json", scene, options, db_id)
+
     def regions(
         self, scene: Any, sigma: float | None, db_id: str | None, rule: str = "sigma",
         target: float = 0.95,
@@ -244,7 +250,8 @@ def child_settings() -> Settings:
 
 def serve(fd: int, planning: Any, close: Any) -> None:
     """In the child: answer the parent's calls on the socket ``fd`` with ``planning`` (a
-    :class:`~pickstop.api.planning.Planning`: its ``plan``, ``preview``, ``regions``,
+    :class:`~pickstop.api.planning.Planning`: its ``plan``, ``preview``, their ``_json``
+    forms, ``regions``,
     ``preload`` and ``loaded``) until the parent says stop or goes away; then ``close()``."""
     # No parent-death signal: Linux sends it when the thread that started the child ends, not
     # the process. The child ends with the parent all the same: its socket's end reads EOF.

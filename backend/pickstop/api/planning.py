@@ -1,14 +1,20 @@
 """Plans, previews and regions for requests, on the planners of the service's pool.
 
 Each planner's caches are not thread-safe: every use holds its slot's lock. After a plan, the
-other candidates' centres are verified in the background, one at a time, so that the next
-change of sigma (the 3D planner's slider) finds its stops checked.
+plans of the neighbouring sigma bands and of the other objective are made in the background
+(their stop selections kept), then the other candidates' centres are verified, one at a time,
+so that the next change of sigma (the 3D planner's slider) finds its selection made and its
+stops checked.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
+import threading
+import time
+from collections.abc import Iterator
 from concurrent.futures import Executor
 from typing import Any
 
@@ -25,6 +31,35 @@ from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
 
 log = logging.getLogger("pickstop.api")
 
+QUIET = 0.1  # [s] without a new plan before the last one's are planned ahead
+
+
+class _Yielding:
+    """A slot's lock as background work takes it: only while no request waits for it, so a
+    request waits at most for the one background step under way."""
+
+    def __init__(self, lock: Any, waiting: Any) -> None:
+        self.lock, self.waiting = lock, waiting
+
+    def acquire(self) -> bool:
+        while True:
+            while self.waiting():
+                time.sleep(0.002)
+            self.lock.acquire()
+            if not self.waiting():
+                return True
+            self.lock.release()
+
+    def release(self) -> None:
+        self.lock.release()
+
+    def __enter__(self) -> _Yielding:
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
 
 class Planning:
     """The service's planning: a request's scene -> its robot's planners -> a plan."""
@@ -33,6 +68,9 @@ class Planning:
         self.pool = pool
         self.robots = robots
         self.background = background
+        self._generation = 0  # plans made: a prefetch of an older one stops early
+        self._waiting = 0  # requests waiting for a slot's lock (background work gives way)
+        self._count = threading.Lock()
 
     def slot(self, scene: Scene, db_id: str | None = None) -> PlannerSlot:
         """The planners of the scene's robot (a preset or registered) over ``db_id``."""
@@ -50,24 +88,67 @@ class Planning:
         return [{"robot": s.regions.robot.name, "database": s.regions.db.id}
                 for s in self.pool.slots]  # fmt: skip
 
+    @contextlib.contextmanager
+    def _locked(self, slot: PlannerSlot) -> Iterator[None]:
+        """Hold the slot's lock for a request, ahead of any background work waiting for it."""
+        with self._count:
+            self._waiting += 1
+        try:
+            slot.lock.acquire()
+        finally:
+            with self._count:
+                self._waiting -= 1
+        try:
+            yield
+        finally:
+            slot.lock.release()
+
     def plan(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
         slot = self.slot(scene, db_id)
-        with slot.lock:
+        with self._locked(slot):
             plan = slot.planner.plan(scene, options)
-        self.background.submit(self._prefetch, slot, scene)
+        self._generation += 1
+        self.background.submit(self._prefetch, slot, scene, options, self._generation)
         return plan
 
     def preview(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
         """An unverified plan to draw while the layout is edited (``StopPlanner.preview``)."""
         slot = self.slot(scene, db_id)
-        with slot.lock:
+        with self._locked(slot):
             return slot.planner.preview(scene, options)
 
-    def _prefetch(self, slot: PlannerSlot, scene: Scene) -> None:
+    def plan_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
+        """:meth:`plan` as the JSON the API answers with, serialised once where it is made
+        (a planner process then sends bytes, not a model to pickle and serialise again)."""
+        return self.plan(scene, options, db_id).model_dump_json().encode()
+
+    def preview_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
+        """:meth:`preview` as JSON (see :meth:`plan_json`)."""
+        return self.preview(scene, options, db_id).model_dump_json().encode()
+
+    def _prefetch(
+        self, slot: PlannerSlot, scene: Scene, options: PlanOptions, generation: int
+    ) -> None:
+        """The plans of the neighbouring sigma bands and the other objective (what the 3D
+        planner's slider and switch ask next), then every candidate's centre check; begun
+        once no plan has been asked for in :data:`QUIET` seconds (a slider gesture's steps
+        are not slowed by work for the steps it has already left), given up for a newer
+        plan's."""
+
+        def stale() -> bool:
+            return self._generation != generation
+
+        end = time.monotonic() + QUIET
+        while not stale() and time.monotonic() < end:
+            time.sleep(0.01)
+        if stale():
+            return
+        lock = _Yielding(slot.lock, lambda: self._waiting > 0)
         try:
-            slot.planner.prefetch_checks(scene, slot.lock)
+            slot.planner.prefetch_selections(scene, options, lock, stale=stale)
+            slot.planner.prefetch_checks(scene, lock, stale=stale)
         except Exception:  # a background nicety: never let it disturb a request
-            log.exception("prefetching candidate checks failed")
+            log.exception("planning ahead failed")
 
     def regions(
         self,
@@ -82,7 +163,7 @@ class Planning:
 
         slot = self.slot(scene, db_id)
         sigma = scene.sigma if sigma is None else sigma
-        with slot.lock:
+        with self._locked(slot):
             sp = slot.planner
             regions = sp.regions.regions(scene)
             cands = sp.candidates(regions)

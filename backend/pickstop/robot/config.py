@@ -7,8 +7,11 @@ See ``docs/conventions.md`` for frames and units.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import threading
+from collections import OrderedDict
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -236,12 +239,35 @@ def parse_config(data: Any, source: str = "robot config") -> RobotConfig:
         ) from None
 
 
+_PARSED: OrderedDict[tuple[str, str], tuple[RobotConfig, Path]] = OrderedDict()
+_PARSED_LOCK = threading.Lock()
+PARSED_CONFIGS = 32  # config texts kept parsed (a request names its robot every time)
+
+
 def load_config(path: str | Path) -> tuple[RobotConfig, Path]:
-    """Read a YAML or JSON robot config; returns it and the folder its relative paths start from."""
+    """Read a YAML or JSON robot config; returns it and the folder its relative paths start from.
+
+    The file is read every time; a text read before at the same path is not parsed again
+    (the config is frozen, so the one parsed before is the same)."""
     path = Path(path)
     if not path.is_file():
         raise RobotConfigError(f"{path}: robot config file not found")
     text = path.read_text(encoding="utf-8")
+    key = (str(path.resolve()), hashlib.sha256(text.encode()).hexdigest())
+    with _PARSED_LOCK:
+        hit = _PARSED.get(key)
+        if hit is not None:
+            _PARSED.move_to_end(key)
+            return hit
+    out = _parse_file(path, text)
+    with _PARSED_LOCK:
+        _PARSED[key] = out
+        while len(_PARSED) > PARSED_CONFIGS:
+            _PARSED.popitem(last=False)
+    return out
+
+
+def _parse_file(path: Path, text: str) -> tuple[RobotConfig, Path]:
     try:
         data = json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as e:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from collections import Counter
+import hashlib
+import threading
+from collections import Counter, OrderedDict
 
 import numpy as np
 import shapely
@@ -82,7 +84,33 @@ def _obstacle_z(ob: Obstacle) -> tuple[float, float] | None:
     return None if h is None else (ob.pose.z, ob.pose.z + h)
 
 
+#: The fields :func:`check_scene` reads (its memo's key): a change of sigma, the error model,
+#: the motion or the names checks nothing anew.
+CHECKED_FIELDS = {"floor", "trays", "obstacles", "task", "base_grid", "start", "goal"}
+CHECKED_SCENES = 64  # geometries whose problems are remembered
+_checked: OrderedDict[str, tuple[tuple[str, str], ...]] = OrderedDict()
+_checked_lock = threading.Lock()
+
+
 def check_scene(scene: Scene) -> list[tuple[str, str]]:
+    """The geometry's problems as (field, message): duplicate ids, trays off the floor or
+    inside obstacles and each other, parts outside their tray, start or goal off the floor.
+    A pure function of :data:`CHECKED_FIELDS`, remembered for the last geometries."""
+    key = hashlib.sha256(scene.model_dump_json(include=CHECKED_FIELDS).encode()).hexdigest()
+    with _checked_lock:
+        hit = _checked.get(key)
+        if hit is not None:
+            _checked.move_to_end(key)
+            return list(hit)
+    problems = _check_scene(scene)
+    with _checked_lock:
+        _checked[key] = tuple(problems)
+        while len(_checked) > CHECKED_SCENES:
+            _checked.popitem(last=False)
+    return problems
+
+
+def _check_scene(scene: Scene) -> list[tuple[str, str]]:
     problems: list[tuple[str, str]] = []
     floor = shapely.box(
         scene.floor.min[0], scene.floor.min[1], scene.floor.max[0], scene.floor.max[1]

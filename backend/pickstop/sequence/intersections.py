@@ -9,6 +9,7 @@ Shapely may return lines and points where regions merely touch: only polygon par
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
@@ -31,6 +32,13 @@ class Intersection:
     @property
     def order(self) -> int:
         return len(self.trays)
+
+    @cached_property
+    def rings(self) -> list[list[tuple[float, float]]]:
+        """The polygon's exterior ring, then its holes, as plans report them: coordinates [m]
+        rounded to 0.1 mm (computed once: candidates are kept while their regions are)."""
+        rings = [self.polygon.exterior, *self.polygon.interiors]
+        return [[(round(x, 4), round(y, 4)) for x, y in r.coords] for r in rings]
 
 
 def polygon_parts(geom: BaseGeometry) -> list[Polygon]:

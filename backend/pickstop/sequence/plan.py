@@ -17,11 +17,15 @@ Anything impossible raises :class:`InfeasiblePlanError` naming the trays and num
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import itertools
 import math
 import time
 from collections import OrderedDict
+from collections.abc import Callable
+from concurrent.futures import Future
+from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -52,6 +56,7 @@ from pickstop.sequence.timing import TimeBreakdown, leg_time, pieces_time, plan_
 
 MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
 DUPLICATE = 1e-3  # [m] candidates of the same trays this close are one
+PREFETCH_BANDS = 24  # sigma bands planned ahead in the background after a plan
 
 
 def hand_notes(robot: Any) -> list[str]:
@@ -109,12 +114,15 @@ class StopPlanner:
     """Plans stops and routes for scenes of one robot and database, caching what it can.
 
     A change of sigma, rule or objective reuses the regions, the candidates, the floor paths
-    and the exact checks at candidate centres; moving a tray recomputes only what it affects.
+    and the exact checks at candidate centres (with their witnesses); moving a tray recomputes
+    only what it affects. :meth:`prefetch_selections` makes the stop selections of the
+    neighbouring sigma bands ahead of the slider, :meth:`prefetch_checks` every centre check.
 
     Its caches are bounded LRUs keyed by value, so nothing needs invalidating: a key changes
     with what its entry depends on (candidates: the regions' masks; floors: the floor, the
     body's reach and the blocking solids; paths: the floor's key and the points; checks and
-    success rates: the world's key, trays, pose and error model; selections: their inputs).
+    success rates: the world's key, trays, pose and error model; selections: their inputs;
+    floors per world: the world's key).
     The robot and database are fixed per planner (one per pair in
     :class:`pickstop.pool.PlannerPool`).
     """
@@ -123,11 +131,15 @@ class StopPlanner:
         self.regions = regions
         self._candidates = _Lru(cache_size)
         self._floors = _Lru(cache_size)
+        self._world_floors = _Lru(cache_size)  # world key -> floor: the same world, no rebuild
         self._fmaps = _Lru(cache_size)
         self._paths = _Lru(cache_size)
         self._checks = _Lru(4096)
+        self._witnesses = _Lru(4096)
         self._rates = _Lru(4096)
         self._selections = _Lru(256)
+        self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
+        self._planned = _Lru(1024)  # (layout, options) planned ahead by prefetch_selections
 
     # -- pieces ------------------------------------------------------------------------------
     def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Intersection]:
@@ -154,8 +166,18 @@ class StopPlanner:
                     out.append(c)
         return list(self._candidates.put(key, tuple(out)))
 
-    def floor(self, scene: Scene) -> _Floor:
-        """Where the base may drive: the floor minus obstacles inflated by the footprint."""
+    def floor(self, scene: Scene, world: str | None = None) -> _Floor:
+        """Where the base may drive: the floor minus obstacles inflated by the footprint.
+
+        world: the scene's :func:`world_key`, if known; the floor is a function of it (the
+        floor, the solids and the robot), so a scene of the same world takes it as it was."""
+        world = world_key(scene) if world is None else world
+        hit = self._world_floors.hit(world)
+        if hit is not None:
+            return hit
+        return self._world_floors.put(world, self._floor(scene))
+
+    def _floor(self, scene: Scene) -> _Floor:
         # Driving, the base turns: whatever reaches below the top of the base body (footprint
         # and base-fixed links) blocks it, grown by the body's farthest horizontal reach.
         body = upper_body(self.regions.robot)
@@ -219,6 +241,34 @@ class StopPlanner:
             hit = self._checks.put(key, (bool(ok[0]), th[0], g[0]))
         return hit
 
+    def witnesses(
+        self, scene: Scene, world_key: str, region: TrayRegion, xy: tuple[float, float]
+    ) -> list[pm.Witness] | None:
+        """The arm configurations that pick every part of the region's tray from ``xy`` (one
+        witness per part, from :meth:`check`), or None if the exact check fails there
+        (cached with the check)."""
+        key = (world_key, region.tray_id, xy, region.yaw)
+        if key in self._witnesses:
+            return self._witnesses.hit(key)
+        ok, th, g = self.check(scene, world_key, region, xy)
+        ws = None
+        if ok:
+            tray = scene.tray(region.tray_id)
+            grasps = self.regions.grasps(scene, tray)
+            hand = self.regions.hand.joints
+            ws = [
+                pm.Witness(
+                    tray_id=tray.id,
+                    part_id=p.id,
+                    grasp_index=int(g[k]),
+                    theta=th[k].tolist(),
+                    hand=hand,
+                    T_part_tcp=grasps[k].Ts_part_tcp[int(g[k])].round(9).tolist(),
+                )
+                for k, p in enumerate(tray.parts)
+            ]
+        return self._witnesses.put(key, ws)
+
     def success(
         self,
         scene: Scene,
@@ -251,10 +301,12 @@ class StopPlanner:
         rate = monte_carlo(evaluate, xy, yaw, em.kind, sigma, em.yaw_sigma, samples, rng)
         return self._rates.put(key, rate)
 
-    def prefetch_checks(self, scene: Scene, lock: Any = None) -> int:
+    def prefetch_checks(
+        self, scene: Scene, lock: Any = None, stale: Callable[[], bool] = lambda: False
+    ) -> int:
         """Check every candidate's centre for each of its trays ahead of time (one at a time,
         under ``lock`` if given), so that a later change of sigma or rule finds its stops
-        verified. Returns how many checks were computed."""
+        verified; stops early once ``stale()``. Returns how many checks were computed."""
         import contextlib
 
         guard = lock if lock is not None else contextlib.nullcontext()
@@ -265,6 +317,8 @@ class StopPlanner:
         done = 0
         for c in sorted(cands, key=lambda c: -c.radius):
             for t in sorted(c.trays):
+                if stale():
+                    return done
                 with guard:
                     key = (world, t, c.centre, c.yaw)
                     if self._checks.hit(key) is None:
@@ -280,9 +334,11 @@ class StopPlanner:
         objective: Literal["stops", "time"],
         stop_cost: float,
         time_limit: float,
+        unlock: Any = None,
     ) -> Selection:
         """:func:`~pickstop.sequence.cover.select_stops`, remembered: while sigma or the rule
-        moves, the kept candidates often stay the same set."""
+        moves, the kept candidates often stay the same set. ``unlock``: the planner's lock,
+        held by the caller, released while the solver runs (background plans)."""
         key = (
             tuple(tuple(sorted(t)) for t in trays_of),
             tuple(required),
@@ -293,17 +349,84 @@ class StopPlanner:
             time_limit,
         )
         hit = self._selections.hit(key)
-        if hit is None:
-            hit = select_stops(
-                trays_of,
-                required,
-                cost,
-                objective=objective,
-                stop_cost=stop_cost,
-                time_limit=time_limit,
-            )
-            self._selections.put(key, hit)
-        return hit
+        if hit is not None:
+            return hit
+        running = self._solving.get(key)
+        while running is not None:  # the same inputs being solved in the background: its answer
+            with contextlib.suppress(FutureTimeout):  # (in polls: a Cancelled gets through)
+                return running.result(timeout=0.05)
+
+        def solve() -> Selection:
+            return select_stops(trays_of, required, cost, objective=objective,
+                                stop_cost=stop_cost, time_limit=time_limit)  # fmt: skip
+
+        if unlock is None:
+            return self._selections.put(key, solve())
+        # A background selection lets go of the planner's lock while the solver runs (it
+        # releases the GIL too), so a request is not kept waiting behind it.
+        fut: Future[Selection] = Future()
+        self._solving[key] = fut
+        unlock.release()
+        try:
+            sel = solve()
+            fut.set_result(sel)
+        except BaseException as e:
+            fut.set_exception(e)
+            raise
+        finally:
+            unlock.acquire()
+            self._solving.pop(key, None)
+        return self._selections.put(key, sel)
+
+    def prefetch_selections(
+        self,
+        scene: Scene,
+        options: pm.PlanOptions,
+        lock: Any,
+        limit: int = PREFETCH_BANDS,
+        stale: Callable[[], bool] = lambda: False,
+    ) -> int:
+        """Plan ahead, in the background, what the 3D planner's sigma slider and objective
+        switch will ask for next: for the sigma rule, one plan per band of sigma between two
+        candidates' inscribed radii (a band keeps the same candidates, so its stop selection
+        is the same), nearest the current sigma first, at most ``limit``; then the other
+        objective at the current sigma. No Monte Carlo (a band's selection does not depend
+        on it). Each runs the plan exactly as a request would, under ``lock`` except while
+        the solver runs; what it leaves behind are memo entries keyed by their inputs. Stops
+        early once ``stale()`` (a newer request has its own plans ahead). Returns how many
+        plans it ran."""
+        sigma = scene.sigma if options.sigma is None else options.sigma
+        with lock:
+            cands = self.candidates(self.regions.regions(scene))
+        radii = sorted({c.radius for c in cands})
+        todo: list[pm.PlanOptions] = []
+        if options.rule == "sigma":
+            own = next((r for r in radii if r >= sigma), None)  # the band sigma lies in
+            up = [r for r in radii if r > sigma and r != own]
+            down = [r for r in reversed(radii) if r < sigma]
+            bands = [r for pair in itertools.zip_longest(up, down) for r in pair if r is not None]
+            todo += [options.model_copy(update={"sigma": r, "samples": 0})
+                     for r in bands[:limit]]  # fmt: skip
+        other = "time" if options.objective == "stops" else "stops"
+        todo.append(options.model_copy(update={"objective": other, "sigma": sigma, "samples": 0}))
+        layout = _digest(scene.model_dump_json(exclude={"name", "description", "sigma"}))
+        ceiling = math.inf  # sigma above which no plan exists (fewer candidates kept)
+        done = 0
+        for opts in todo:
+            if stale():
+                break
+            key = (layout, opts.model_dump_json())
+            if (opts.sigma is not None and opts.sigma >= ceiling) or self._planned.hit(key):
+                continue
+            with lock:
+                try:
+                    _Planning(self, scene, opts, unlock=lock).run()
+                except InfeasiblePlanError:
+                    if opts.rule == "sigma" and opts.sigma is not None and opts.sigma > sigma:
+                        ceiling = min(ceiling, opts.sigma)
+                self._planned.put(key, True)
+            done += 1
+        return done
 
     # -- the plan ------------------------------------------------------------------------------
     def plan(self, scene: Scene, options: pm.PlanOptions | None = None) -> pm.Plan:
@@ -342,11 +465,6 @@ def scene_hash(scene: Scene) -> str:
     return hashlib.sha256(scene.model_dump_json().encode()).hexdigest()
 
 
-def _ring(poly: Polygon) -> list[list[tuple[float, float]]]:
-    rings = [poly.exterior, *poly.interiors]
-    return [[(round(x, 4), round(y, 4)) for x, y in r.coords] for r in rings]
-
-
 def _time(tb: TimeBreakdown) -> pm.TimeTotals:
     return pm.TimeTotals(travel=tb.travel, stops=tb.stops, picks=tb.picks, total=tb.total)
 
@@ -355,10 +473,18 @@ class _Planning:
     """One planning request; holds its intermediate results."""
 
     def __init__(
-        self, sp: StopPlanner, scene: Scene, opts: pm.PlanOptions, preview: bool = False
+        self,
+        sp: StopPlanner,
+        scene: Scene,
+        opts: pm.PlanOptions,
+        preview: bool = False,
+        unlock: Any = None,
     ) -> None:
+        """unlock: the planner's lock, held by the caller, to release while a stop selection
+        is solved (:meth:`StopPlanner.prefetch_selections`)."""
         self.sp, self.scene, self.opts = sp, scene, opts
         self.preview = preview
+        self.unlock = unlock
         self.sigma = scene.sigma if opts.sigma is None else opts.sigma
         self.kind = scene.error_model.kind
         self.required = scene.task_trays
@@ -384,7 +510,7 @@ class _Planning:
         cands = sp.candidates(regions)
         t0 = self._clock("intersections", t0)
 
-        floor = sp.floor(scene)
+        floor = sp.floor(scene, self.world)
         paths = sp.paths(floor, route_points(scene, cands), route_yaws(scene, cands))
         self._check_endpoints(floor, paths)
         if not np.isfinite(paths.dist[0, 1]):
@@ -502,28 +628,15 @@ class _Planning:
                 trays = tuple(t for t in self.required if t in serves[c])
                 ws = []
                 for t in trays:
-                    ok, th, g = sp.check(scene, self.world, regions[t, cand.yaw], cand.centre)
-                    if not ok:
+                    mine = sp.witnesses(scene, self.world, regions[t, cand.yaw], cand.centre)
+                    if mine is None:
                         self.rejected[c] = (
                             f"the exact check at its centre failed for tray {t} (the region's "
                             "grid cells around it are feasible, the centre itself is not)"
                         )
                         failed = True
                         break
-                    tray = scene.tray(t)
-                    grasps = self.sp.regions.grasps(scene, tray)
-                    hand = self.sp.regions.hand.joints
-                    ws += [
-                        pm.Witness(
-                            tray_id=t,
-                            part_id=p.id,
-                            grasp_index=int(g[k]),
-                            theta=th[k].tolist(),
-                            hand=hand,
-                            T_part_tcp=grasps[k].Ts_part_tcp[int(g[k])].round(9).tolist(),
-                        )
-                        for k, p in enumerate(tray.parts)
-                    ]
+                    ws += mine
                 witnesses[c] = ws
             t0 = self._clock("verification", t0)
             if failed:
@@ -573,6 +686,7 @@ class _Planning:
             self.opts.objective,
             motion.stop_time,
             self.opts.time_limit,
+            self.unlock,
         )
         return Selection(
             tuple(idx[c] for c in sel.order),
@@ -771,7 +885,7 @@ class _Planning:
                     else ("rejected" if i in self.rejected else "kept"),
                     reason=self.rejected.get(i),
                     predicted_success=self.predicted.get(i),
-                    polygon=_ring(c.polygon),
+                    polygon=c.rings,
                 )
                 for i, c in enumerate(cands)
             ],

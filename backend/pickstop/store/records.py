@@ -70,7 +70,7 @@ class ServiceStore:
         row = {
             "id": new_id("scn"),
             "name": name,
-            "doc": json.dumps(doc),
+            "doc": doc.decode() if isinstance(doc, bytes) else json.dumps(doc),
             "etag": _etag(),
             "revision": 1,
             "created": t,
@@ -121,15 +121,16 @@ class ServiceStore:
         revision: int | None,
         scene_doc: dict[str, Any],
         options: dict[str, Any],
-        doc: dict[str, Any],
+        doc: dict[str, Any] | bytes,
     ) -> dict[str, Any]:
+        """Store a plan; ``doc``: the plan as a JSON-ready mapping, or its JSON already."""
         row = {
             "id": new_id("pln"),
             "scene_id": scene_id,
             "scene_revision": revision,
             "scene_doc": json.dumps(scene_doc),
             "options": json.dumps(options),
-            "doc": json.dumps(doc),
+            "doc": doc.decode() if isinstance(doc, bytes) else json.dumps(doc),
             "created": now(),
         }
         self.catalog.insert("plans", row)

@@ -144,3 +144,25 @@ def test_a_preview_carries_known_regions_and_says_it_is_not_verified(client):
                         headers=AUTH)  # fmt: skip
     assert after.json()["plan"]["verified"] is True
     assert all(s["witnesses"] for s in after.json()["plan"]["stops"])
+
+
+def test_a_plan_is_answered_as_the_record_model_would_serialise_it(client, paper_doc):
+    """The plan's JSON comes from the planner as bytes; the record around it is the same
+    document PlanRecord.model_dump_json gives, stored or not."""
+    from pickstop.api.plan_bodies import record_body
+    from pickstop.api.schemas import PlanRecord
+
+    for store, status in ((False, 200), (True, 201)):
+        r = client.post(PLANS, json={"scene": paper_doc, "options": {"samples": 0, "sigma": 0.07},
+                                     "store": store}, headers=AUTH)  # fmt: skip
+        assert r.status_code == status, r.text
+        assert r.headers["content-type"] == "application/json"
+        rec = PlanRecord.model_validate_json(r.content)
+        assert r.content == rec.model_dump_json().encode()
+        assert rec.plan is not None and rec.plan.parameters.sigma == 0.07
+        assert (rec.id is not None) == store
+        if store:
+            assert r.headers["location"] == f"/api/v1/plans/{rec.id}"
+            assert client.get(r.headers["location"]).json()["plan"] == r.json()["plan"]
+        bare = rec.model_copy(update={"plan": None})
+        assert record_body(bare, rec.plan.model_dump_json().encode()) == r.content

@@ -11,6 +11,7 @@ from starlette.concurrency import run_in_threadpool
 from pickstop.api.body import validate
 from pickstop.api.deps import JsonBody, ReadKey, ServiceDep, WriteKey
 from pickstop.api.openapi import json_request
+from pickstop.api.plan_bodies import record_body
 from pickstop.api.problems import Problem
 from pickstop.api.schemas import API_PREFIX, Job, PlanRecord, PlanRequest, PlanSummary
 from pickstop.api.work import compute
@@ -34,30 +35,45 @@ IMMUTABLE = {"Cache-Control": "public, max-age=31536000, immutable"}
 async def create_plan(
     request: Request, service: ServiceDep, doc: JsonBody, response: Response
 ) -> Any:
-    await run_in_threadpool(service.scenes.precheck, doc)
-    body = await run_in_threadpool(validate, PlanRequest, doc)
-    if body.mode == "job":
+    body, prepared = await run_in_threadpool(_accept, service, doc)
+    if prepared is None:
         job = await run_in_threadpool(service.submit_plan_job, body)
         response.status_code = 202
         response.headers["Location"] = f"{API_PREFIX}/jobs/{job['id']}"
         return Job.of(job)
+    scene_doc, revision, scene = prepared
+    # The plan comes as its JSON, serialised once where it was made; the record around it is
+    # assembled off the event loop.
+    work = service.planning.preview_json if body.mode == "preview" else service.planning.plan_json
+    plan_json = await compute(service.threads, work, scene, body.options, body.database,
+                              deadline=service.settings.request_deadline,
+                              request=request)  # fmt: skip
+    options = body.options.model_dump()
+    if not body.store:
+        record = PlanRecord(id=None, scene_id=body.scene_id, scene_revision=revision,
+                            created=now(), options=options)  # fmt: skip
+        # (a few hundred bytes serialised and one copy of the plan's: no hop for that)
+        return Response(record_body(record, plan_json), status_code=200,
+                        media_type="application/json")  # fmt: skip
+    rec = await run_in_threadpool(service.store.add_plan, body.scene_id, revision, scene_doc,
+                                  options, plan_json)  # fmt: skip
+    record = PlanRecord(id=rec["id"], scene_id=body.scene_id, scene_revision=revision,
+                        created=rec["created"], options=options)  # fmt: skip
+    return Response(record_body(record, plan_json), status_code=201, media_type="application/json",
+                    headers={"Location": f"{API_PREFIX}/plans/{rec['id']}"})  # fmt: skip
+
+
+def _accept(service: Any, doc: Any) -> tuple[PlanRequest, tuple[Any, int | None, Any] | None]:
+    """The request checked in one go (one hop off the event loop): its size limits, its
+    model, then (unless it is a job, checked when submitted) its scene and options."""
+    service.scenes.precheck(doc)
+    body = validate(PlanRequest, doc)
+    if body.mode == "job":
+        return body, None
     if body.mode == "preview" and body.store:
         raise Problem(422, "Invalid request", "a preview is never stored: send store: false "
                       "with mode: preview", field="store")  # fmt: skip
-    scene_doc, revision, scene = await run_in_threadpool(service.scenes.prepare, body)
-    work = service.planning.preview if body.mode == "preview" else service.planning.plan
-    plan = await compute(service.threads, work, scene, body.options, body.database,
-                         deadline=service.settings.request_deadline, request=request)  # fmt: skip
-    options = body.options.model_dump()
-    if not body.store:
-        response.status_code = 200
-        return PlanRecord(id=None, scene_id=body.scene_id, scene_revision=revision,
-                          created=now(), options=options, plan=plan)  # fmt: skip
-    rec = await run_in_threadpool(service.store.add_plan, body.scene_id, revision, scene_doc,
-                                  options, plan.model_dump(mode="json"))  # fmt: skip
-    response.headers["Location"] = f"{API_PREFIX}/plans/{rec['id']}"
-    return PlanRecord(id=rec["id"], scene_id=body.scene_id, scene_revision=revision,
-                      created=rec["created"], options=options, plan=plan)  # fmt: skip
+    return body, service.scenes.prepare(body)
 
 
 @router.get("/plans", dependencies=[ReadKey])
