@@ -144,14 +144,17 @@ def _wait_for(cond, timeout: float = 10.0) -> None:
         time.sleep(0.05)
 
 
-def _project(cam, p) -> tuple[float, float]:
-    """World point -> pixel, from the camera the browser reported (OpenCV frame, vertical fov)."""
+def _project(cam, p, size=(1280, 800)) -> tuple[float, float]:
+    """World point -> page pixel (CSS), from the camera the browser reported (OpenCV frame,
+    vertical fov), the canvas filling the page of ``size``: the camera's own image size is in
+    drawing-buffer pixels, which the draft resolution makes smaller."""
     from viser import transforms as tf
 
     R = tf.SO3(np.asarray(cam.wxyz)).as_matrix()
     pc = R.T @ (np.asarray(p, float) - np.asarray(cam.position))
-    f = (cam.image_height / 2) / math.tan(cam.fov / 2)
-    return cam.image_width / 2 + f * pc[0] / pc[2], cam.image_height / 2 + f * pc[1] / pc[2]
+    w, h = size
+    f = (h / 2) / math.tan(cam.fov / 2)
+    return w / 2 + f * pc[0] / pc[2], h / 2 + f * pc[1] / pc[2]
 
 
 def _drag(pg, a, b, steps: int = 12) -> None:
