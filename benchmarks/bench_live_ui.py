@@ -14,12 +14,13 @@ hemisphere light instead of the environment map (``pickstop ui --flat-lighting``
 ``--draft-scale X`` sets the previews' pixel ratio (1: full resolution throughout).
 
 "Drawn" means a canvas frame shows it: every frame the WebGL renderer draws is logged (its
-animation-frame callback wrapped before the page loads); a plan counts as drawn at the end of
-the first frame that starts after its panel text appeared (the text and the scene's updates
-reach the viewer in order, so that frame renders the new scene), and previews per second
-count the distinct previews such frames show. The frames' own interval, the planner's
-Python time per preview (drawing arrays, node updates, panel), the API's answer time and the
-bytes sent per preview are printed beside them.
+animation-frame callback wrapped before the page loads); a plan counts as drawn once its
+panel text appeared and the first frame that starts after the scene's nodes last changed
+has ended (the text and the nodes' updates reach the viewer in order; a plan that changes
+no node, e.g. a sigma step that keeps every circle, is drawn with its text), and previews
+per second count the distinct previews that frames starting after their text show. The
+frames' own interval, the planner's Python time per plan (drawing arrays, node updates,
+panel), the API's answer time and the messages and bytes per plan are printed beside them.
 """
 
 from __future__ import annotations
@@ -62,23 +63,38 @@ window.requestAnimationFrame = (cb) => raf((ts) => {
 """
 COUNT_PREVIEWS = """() => {
     window.__f = [];
-    new MutationObserver(() => {
+    if (window.__fObs) window.__fObs.disconnect();
+    window.__fObs = new MutationObserver(() => {
         const m = document.body.innerText.match(/preview \\(not verified\\) · plan #(\\d+)/);
         if (m && (!window.__f.length || window.__f[window.__f.length - 1][1] !== +m[1])) {
             window.__f.push([performance.now(), +m[1]]);
         }
-    }).observe(document.body, {subtree: true, childList: true, characterData: true});
+    });
+    window.__fObs.observe(document.body, {subtree: true, childList: true, characterData: true});
 }"""
+# Armed before a gesture: its last pointer move and release, every panel text after it, and
+# every change of the scene's nodes (what the canvas must draw anew).
 TIMER = """() => {
-    window.__t = {up: null, move: null, moves: 0, changes: []};
+    window.__t = {up: null, move: null, moves: 0, changes: [], scene: []};
     addEventListener('pointerup', () => { window.__t.up = performance.now(); },
                      {capture: true, once: true});
-    addEventListener('pointermove', () => {
-        if (window.__t.up === null) { window.__t.move = performance.now(); window.__t.moves++; }
-    }, {capture: true});
-    new MutationObserver(() => {
+    if (!window.__tMove) {
+        window.__tMove = true;
+        addEventListener('pointermove', () => {
+            if (window.__t.up === null) {
+                window.__t.move = performance.now();
+                window.__t.moves++;
+            }
+        }, {capture: true});
+    }
+    if (window.__tObs) window.__tObs.disconnect();
+    window.__tObs = new MutationObserver(() => {
         window.__t.changes.push([performance.now(), document.body.innerText]);
-    }).observe(document.body, {subtree: true, childList: true, characterData: true});
+    });
+    window.__tObs.observe(document.body, {subtree: true, childList: true, characterData: true});
+    if (window.__tScene) window.__tScene();
+    window.__tScene = window.__viserSceneTree.subscribe(
+        () => window.__t.scene.push(performance.now()));
 }"""
 
 
@@ -105,7 +121,13 @@ def _since_gesture(pg, marker: str) -> tuple[float, float]:
     t = pg.evaluate("window.__t")
     start = t["move"] if t["move"] is not None else t["up"]
     text = next(c[0] for c in t["changes"] if marker in c[1] and c[0] >= start)
-    return float(text - start), _frame_after(pg, text) - start
+    # The scene's nodes last changed with this text (one batch) or before it: the first
+    # frame that starts after that change draws them; no change since the gesture began (a
+    # sigma step that keeps every circle) leaves the canvas right as it is.
+    scene = [c for c in t["scene"] if c <= text + 1.0]
+    if not scene or scene[-1] < t["changes"][0][0]:
+        return float(text - start), float(text - start)
+    return float(text - start), max(text, _frame_after(pg, scene[-1])) - start
 
 
 def _shown(frames: list, texts: list) -> list[int]:

@@ -328,13 +328,13 @@ class PlannerApp:
             self.state.error, self.state.busy = f"{problem.title}: {problem.detail}", False
         self.status.content = panel.failure_status(problem)
         self.summary.content = panel.failure_summary(problem)
-        self.draft.set(False)
         # The last valid plan stays on screen in one stale colour; its ghosts go.
         plan = self.state.plan
         if plan is not None:
             self.layer.show(plan_drawing(plan, tray_colours(req.scene), style_of(plan, True)))
         else:
             self.layer.place_ghosts(None)
+        self.draft.set(False)
 
     def success_rates_started(self, req: Request) -> None:
         self.state.mc_t0 = time.perf_counter()
