@@ -100,6 +100,8 @@ def test_build_again_is_a_no_op(cli_data, capsys):
             ["reach", "query", "--pose", "0.5", "0", "0.7", "1", "1", "0", "0"],
             "unit quaternion",
         ),
+        (["ui", "--draft-scale", "0"], "--draft-scale: must be in (0, 1], got 0"),
+        (["ui", "--draft-scale", "1.5"], "must be in (0, 1], got 1.5"),
         (["nonsense"], "invalid choice"),
     ],
 )

@@ -25,3 +25,11 @@ def finite_float(text: str) -> float:
     if not np.isfinite(v):
         raise argparse.ArgumentTypeError(f"must be finite, got {text}")
     return v
+
+
+def unit_fraction(text: str) -> float:
+    """A number in (0, 1]."""
+    v = finite_float(text)
+    if not 0.0 < v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1], got {text}")
+    return v

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from pickstop.argtypes import finite_float, positive_int
+from pickstop.argtypes import finite_float, positive_int, unit_fraction
 from pickstop.errors import CorruptShardError, InputError, PickStopError
 from pickstop.robot.floor import FLOOR_CLEARANCE
 
@@ -526,7 +526,8 @@ def cmd_ui(args: argparse.Namespace) -> int:
     if not scene_id:
         raise InputError("give --scene SCENE_ID or --scene-file FILE", field="scene")
     try:
-        app = run(args.api, scene_id, key, args.host, args.port, args.flat_lighting)
+        app = run(args.api, scene_id, key, args.host, args.port, args.flat_lighting,
+                  args.draft_scale)  # fmt: skip
     except ApiProblem as e:
         raise PickStopError(f"{args.api}: {e.title}: {e.detail}") from None
     print(f"PickStop 3D planner on http://{args.host}:{app.port}/ (scene {scene_id})",
@@ -661,6 +662,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="one hemisphere light, no environment map: about twice the frame rate in a "
         "browser without a GPU (software WebGL), flatter colours",
+    )
+    ui.add_argument(
+        "--draft-scale",
+        type=unit_fraction,
+        default=0.5,
+        help="pixel ratio, as a fraction of the device's, at which a browser without a GPU "
+        "draws the previews that follow a drag (default 0.5; 1: full resolution throughout)",
     )
     ui.set_defaults(func=cmd_ui)
 

@@ -14,6 +14,8 @@ functions of the scene (:mod:`pickstop_ui.scene_view`) and of the plan
 words from :mod:`pickstop_ui.panel`, edits from :mod:`pickstop_ui.edits`, and the plans from the
 re-plan worker (:mod:`pickstop_ui.replan`). While a tray or an obstacle is being dragged,
 previews follow it, drawn and said to be previews; the exact plan replaces them on release.
+While the engineer edits, a browser without a GPU draws at draft resolution
+(:mod:`pickstop_ui.draft`), at full resolution again once the success rates are in.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from pickstop.frames import quat_yaw, yaw_quat
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
+from pickstop_ui.draft import DraftResolution
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
@@ -76,12 +79,16 @@ class PlannerApp:
         port: int = 8080,
         draw_robot: bool = True,
         flat_lighting: bool = False,
+        draft_scale: float = 0.5,
     ) -> None:
         """``flat_lighting``: light the scene with one hemisphere light instead of the
         environment map, which costs a software renderer (a browser without a GPU) about
-        half of every frame; colours then look flatter."""
+        half of every frame; colours then look flatter. ``draft_scale``: the pixel ratio
+        (a fraction of the device's) at which such a browser draws while the engineer edits
+        (from a change until its success rates are drawn); 1: full resolution throughout."""
         self.api = client
         self.flat_lighting = flat_lighting
+        self.draft_scale = draft_scale
         stored = client.scene(scene_id)
         # The scene's own robot, from the API (URDF, meshes, locked and pre-grasp joints).
         self.robot = fetch_robot(client, scene_robot_name(stored.doc)) if draw_robot else None
@@ -179,6 +186,7 @@ class PlannerApp:
     def _build_gui(self) -> None:
         gui, st = self.server.gui, self.state
         gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
+        self.draft = DraftResolution(self.server, self.draft_scale)
         self.status = gui.add_markdown("**Status:** loading")
         self.summary = gui.add_markdown("")
         with gui.add_folder("Planning"):
@@ -288,6 +296,7 @@ class PlannerApp:
 
     def request(self, cause: str, preview: bool = False) -> None:
         """Plan the document as it is now (the newest request wins, see :mod:`replan`)."""
+        self.draft.set(True)  # before the plan's update, so its frame is a quick one
         req = self.replanner.submit(self.state.doc, self.options(0), cause, preview)
         with self._lock:  # two callbacks may submit at once: the newest number stays
             self.state.seq, self.state.busy = max(self.state.seq, req.seq), True
@@ -302,6 +311,8 @@ class PlannerApp:
         drawing = plan_drawing(plan, tray_colours(req.scene), style_of(plan),
                                self.layer.actuated_joints(), self._locked)  # fmt: skip
         self.layer.show(drawing)
+        if final:  # the engineer paused: full resolution again, after the plan's update
+            self.draft.set(False)
         st.plan, st.error, st.drawn_seq, st.busy = plan, None, req.seq, not final
         st.last_ms = (time.perf_counter() - req.t0) * 1e3
         if plan.verified and not final:
@@ -323,6 +334,7 @@ class PlannerApp:
             self.layer.show(plan_drawing(plan, tray_colours(req.scene), style_of(plan, True)))
         else:
             self.layer.place_ghosts(None)
+        self.draft.set(False)
 
     def success_rates_started(self, req: Request) -> None:
         self.state.mc_t0 = time.perf_counter()
@@ -330,6 +342,7 @@ class PlannerApp:
     def success_rates_failed(self, req: Request, problem: ApiProblem) -> None:
         self.state.busy = False
         self.status.content = panel.success_rates_failed(self.status.content, problem)
+        self.draft.set(False)
 
     # -- saving and exporting -------------------------------------------------------------------
     def _save(self) -> None:
@@ -391,6 +404,10 @@ def run(
     host: str,
     port: int,
     flat_lighting: bool = False,
+    draft_scale: float = 0.5,
 ) -> PlannerApp:
     client = PickStopClient(api_url, api_key)
-    return PlannerApp(client, scene_id, host=host, port=port, flat_lighting=flat_lighting)
+    return PlannerApp(
+        client, scene_id, host=host, port=port, flat_lighting=flat_lighting,
+        draft_scale=draft_scale,
+    )  # fmt: skip

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -10,6 +12,7 @@ import httpx
 from pickstop.sequence.plan_model import Plan
 
 API = "/api/v1"
+CANCEL_POLL = 0.01  # [s] between looks at a cancellable request's event
 
 
 class ApiProblem(Exception):
@@ -18,6 +21,10 @@ class ApiProblem(Exception):
     def __init__(self, status: int, title: str, detail: str, field: str | None = None) -> None:
         super().__init__(f"{title}: {detail}")
         self.status, self.title, self.detail, self.field = status, title, detail, field
+
+
+class RequestCancelled(Exception):
+    """A cancellable request was given up before its answer came (its connection closed)."""
 
 
 @dataclass(frozen=True)
@@ -99,15 +106,42 @@ class PickStopClient:
         options: dict[str, Any],
         store: bool = False,
         preview: bool = False,
+        cancel: threading.Event | None = None,
     ) -> PlanResult:
         """Plan an inline scene document (not stored unless ``store``; ``preview``: the quick
-        unverified plan drawn while a tray is dragged)."""
-        body = {"scene": scene, "options": options, "store": store}
+        unverified plan drawn while a tray is dragged).
+
+        cancel: when set before the answer, the request's connection is closed, which stops
+        the computation in the API (it watches its clients), and :class:`RequestCancelled`
+        is raised: a long Monte Carlo no longer holds up the next quick plan.
+        """
+        body: dict[str, Any] = {"scene": scene, "options": options, "store": store}
         if preview:
             body["mode"] = "preview"
-        r = self._check(self.http.post(f"{API}/plans", json=body))
+        if cancel is None:
+            r = self._check(self.http.post(f"{API}/plans", json=body))
+        else:
+            r = self._check(asyncio.run(self._cancellable_post(f"{API}/plans", body, cancel)))
         body = r.json()
         return PlanResult(Plan.model_validate(body["plan"]), body["id"], r.elapsed.total_seconds())
+
+    async def _cancellable_post(
+        self, url: str, body: dict[str, Any], cancel: threading.Event
+    ) -> httpx.Response:
+        """POST ``body`` on a connection of its own, closed as soon as ``cancel`` is set
+        (cancelling an asyncio request closes its connection; a blocking one cannot be
+        interrupted from another thread)."""
+        async with httpx.AsyncClient(
+            base_url=self.base_url, headers=self.http.headers, timeout=self.http.timeout
+        ) as http:
+            task = asyncio.ensure_future(http.post(url, json=body))
+            while not task.done():
+                await asyncio.wait({task}, timeout=CANCEL_POLL)
+                if cancel.is_set() and not task.done():
+                    task.cancel()
+                    await asyncio.gather(task, return_exceptions=True)
+                    raise RequestCancelled(f"POST {url} cancelled")
+            return task.result()
 
     def dispatch(self, plan_id: str, body: dict[str, Any]) -> dict[str, Any]:
         """Start a dispatch job of a stored plan (the service's MQTT broker)."""

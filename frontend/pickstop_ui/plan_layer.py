@@ -45,6 +45,7 @@ class PlanLayer:
         self._centres: Any = None
         self._labels: list[Any] = []
         self.ghosts: list[tuple[Any, Any]] = []  # (frame, ViserUrdf)
+        self._cfgs: list[np.ndarray | None] = []  # each ghost's joints as last set
         self._n_ghosts = 0
         self._joints: list[str] | None = None
 
@@ -133,8 +134,10 @@ class PlanLayer:
             g = ghosts[k]
             _set(frame, position=np.array([g.x, g.y, 0.0]), wxyz=np.array(yaw_quat(g.yaw)))
             _set(frame, visible=self.show_ghosts)
-            if g.cfg is not None:
-                urdf.update_cfg(g.cfg)
+            old = self._cfgs[k]
+            if g.cfg is not None and (old is None or not np.array_equal(old, g.cfg)):
+                urdf.update_cfg(g.cfg)  # forward kinematics of every link: only on a change
+                self._cfgs[k] = np.array(g.cfg)
         self._n_ghosts = len(ghosts)
 
     def ghosts_visible(self, visible: bool) -> None:
@@ -170,8 +173,9 @@ class PlanLayer:
             collision_mesh_color_override=(0.55, 0.6, 0.95, 0.5),
         )
         self.ghosts.append((frame, ghost))
+        self._cfgs.append(None)
 
     def forget(self) -> None:
         """The scene was reset: every node is gone."""
         self._regions, self._lines, self._centres, self._labels = {}, {}, None, []
-        self.ghosts, self._n_ghosts = [], 0
+        self.ghosts, self._cfgs, self._n_ghosts = [], [], 0

@@ -4,7 +4,9 @@ Every change of the layout or the options submits a request; a newer request rep
 that is still pending, so while a plan is computed the requests in between are skipped. A
 quick plan (no Monte Carlo) is reported first; once no newer request has come for
 ``mc_quiet`` seconds the same plan with ``mc_samples`` Monte Carlo samples follows. A preview
-(a drag under way) gets no Monte Carlo.
+(a drag under way) gets no Monte Carlo. A newer request cancels a Monte Carlo under way (its
+connection is closed and the API stops it): the API computes one request at a time, so a
+Monte Carlo at a new sigma (about a second) would otherwise hold up the next quick plan.
 
 Asking, the Monte Carlo and drawing run on three threads, so the next request is on its way
 to the API while a result is drawn or success rates are computed. Every result newer than
@@ -25,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from pickstop.sequence.plan_model import Plan
-from pickstop_ui.client import ApiProblem, PlanResult
+from pickstop_ui.client import ApiProblem, PlanResult, RequestCancelled
 
 log = logging.getLogger("pickstop.ui")
 
@@ -46,7 +48,7 @@ class Request:
 class PlanClient(Protocol):
     def plan(
         self, scene: dict[str, Any], options: dict[str, Any], store: bool = False,
-        preview: bool = False,
+        preview: bool = False, cancel: threading.Event | None = None,
     ) -> PlanResult: ...  # fmt: skip
 
 
@@ -95,6 +97,8 @@ class Replanner:
         self.drawn_seq = 0  # the newest request whose result was handed to the sink
         self._mc_req: Request | None = None  # the exact plan whose success rates come next
         self._mc_ready = threading.Event()
+        self._mc_cancel: threading.Event | None = None  # set: drop the Monte Carlo under way
+        self.cancelled = 0  # Monte Carlos cancelled by a newer request
         self._threads = [
             threading.Thread(target=self._loop, name="pickstop-replan-ask", daemon=True),
             threading.Thread(target=self._mc_loop, name="pickstop-replan-mc", daemon=True),
@@ -114,16 +118,25 @@ class Replanner:
                 self.seq, copy.deepcopy(doc), dict(options), time.perf_counter(), cause, preview
             )
             self._pending = req
+            if self._mc_cancel is not None:
+                self._mc_cancel.set()
         self._wake.set()
         return req
 
     def newer(self, req: Request) -> bool:
         """Has a request come after ``req``?"""
         with self.lock:
-            return self._pending is not None or self.seq != req.seq
+            return self.newer_locked(req)
+
+    def newer_locked(self, req: Request) -> bool:
+        """:meth:`newer`, with ``lock`` held."""
+        return self._pending is not None or self.seq != req.seq
 
     def close(self, timeout: float = 5.0) -> None:
         self._stop = True
+        with self.lock:
+            if self._mc_cancel is not None:
+                self._mc_cancel.set()
         self._wake.set()
         self._out_ready.set()
         self._mc_ready.set()
@@ -162,9 +175,18 @@ class Replanner:
                 req, self._mc_req = self._mc_req, None
             if req is None or self._stop or not self._quiet(req):
                 continue
+            cancel = threading.Event()
+            with self.lock:
+                if self.newer_locked(req):
+                    continue
+                self._mc_cancel = cancel
             self.sink.success_rates_started(req)
-            mc = self._ask(req, {**req.options, "samples": self.mc_samples}, False)
-            if not self.newer(req):
+            mc = self._ask(req, {**req.options, "samples": self.mc_samples}, False, cancel)
+            with self.lock:
+                self._mc_cancel = None
+            if mc is None:
+                self.cancelled += 1
+            elif not self.newer(req):
                 self._post("mc failed" if isinstance(mc, ApiProblem) else "final", req, mc)
 
     def _quiet(self, req: Request) -> bool:
@@ -208,10 +230,20 @@ class Replanner:
             except Exception:  # a drawing bug must not stop the planner's updates
                 log.exception("drawing plan #%d failed", req.seq)
 
-    def _ask(self, req: Request, options: dict[str, Any], preview: bool) -> Plan | ApiProblem:
-        """The API's plan, or the problem that stands for it."""
+    def _ask(
+        self,
+        req: Request,
+        options: dict[str, Any],
+        preview: bool,
+        cancel: threading.Event | None = None,
+    ) -> Plan | ApiProblem | None:
+        """The API's plan, the problem that stands for it, or None once ``cancel`` was set."""
         try:
-            return self.client.plan(req.scene, options, preview=preview).plan
+            if cancel is None:
+                return self.client.plan(req.scene, options, preview=preview).plan
+            return self.client.plan(req.scene, options, preview=preview, cancel=cancel).plan
+        except RequestCancelled:
+            return None
         except ApiProblem as e:
             problem = e
         except Exception as e:  # the API is down or answered nonsense

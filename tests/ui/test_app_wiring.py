@@ -4,6 +4,7 @@ view, plans through the worker, writes the panel and greys out on a refused plan
 from __future__ import annotations
 
 import json
+import threading
 import time
 from pathlib import Path
 
@@ -26,7 +27,7 @@ class FakeApi:
     def scene(self, scene_id: str) -> StoredScene:
         return StoredScene(scene_id, "e1", 1, self.doc)
 
-    def plan(self, scene, options, store=False, preview=False) -> PlanResult:
+    def plan(self, scene, options, store=False, preview=False, cancel=None) -> PlanResult:
         self.calls += 1
         if self.refuse is not None:
             raise self.refuse
@@ -83,3 +84,45 @@ def test_a_removed_tray_leaves_the_drawing_and_the_task(window):
     assert f"/trays/{tid}" not in app.server.scene._handle_from_node_name
     assert f"cb:{tid}" not in app._tray_ui
     _wait(lambda: app.state.seq == 2 and app.state.drawn_seq == 2)
+
+
+def test_draft_resolution_from_a_change_until_its_success_rates(window):
+    """The panel's hidden switch says draft from the change until the plan with success
+    rates is drawn; a refused plan ends it too."""
+    from pickstop_ui.draft import ATTR
+
+    app, api = window
+    _wait(lambda: "ready" in app.status.content)
+    assert not app.draft.on and f'{ATTR}="off"' in app.draft._element.content
+    gate = threading.Event()
+    plan0 = api.plan
+
+    def held(scene, options, store=False, preview=False, cancel=None):
+        gate.wait(5)
+        return plan0(scene, options, store, preview, cancel)
+
+    api.plan = held
+    app.sigma.value = 0.12
+    assert app.draft.on and f'{ATTR}="on"' in app.draft._element.content
+    gate.set()
+    _wait(lambda: "ready" in app.status.content and not app.draft.on)
+    assert f'{ATTR}="off"' in app.draft._element.content
+    api.plan = plan0
+    api.refuse = ApiProblem(422, "Infeasible plan", "no plan with sigma = 0.500 m", "sigma")
+    app.sigma.value = 0.5
+    _wait(lambda: "⚠" in app.status.content and not app.draft.on)
+
+
+def test_a_draft_scale_outside_0_to_1_is_refused():
+    import viser
+
+    from pickstop_ui.draft import DraftResolution
+
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    try:
+        for bad in (0.0, -0.5, 1.5):
+            with pytest.raises(ValueError, match="draft scale must be in"):
+                DraftResolution(server, bad)
+        assert not DraftResolution(server, 1.0).on
+    finally:
+        server.stop()

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from pickstop_ui.client import ApiProblem
+from pickstop_ui.client import ApiProblem, RequestCancelled
 from pickstop_ui.replan import Replanner, Request
 
 
@@ -23,7 +23,7 @@ class FakeApi:
         self.gate: threading.Event | None = None
 
     def plan(self, scene: dict[str, Any], options: dict[str, Any], store: bool = False,
-             preview: bool = False) -> Any:  # fmt: skip
+             preview: bool = False, cancel: threading.Event | None = None) -> Any:  # fmt: skip
         self.calls.append((scene["n"], options["samples"], preview))
         if self.gate is not None:
             self.gate.wait(5)
@@ -201,7 +201,7 @@ def test_a_request_during_the_monte_carlo_is_asked_at_once(window):
     slow_mc = threading.Event()
     plan0 = api.plan
 
-    def plan(scene, options, store=False, preview=False):
+    def plan(scene, options, store=False, preview=False, cancel=None):
         if options["samples"]:
             slow_mc.wait(2)  # a long Monte Carlo
         return plan0(scene, options, store, preview)
@@ -220,3 +220,41 @@ def test_a_request_during_the_monte_carlo_is_asked_at_once(window):
     _settle(r, 0.5)
     assert ("final", 1) not in [e[:2] for e in window.events]
     assert [e[:2] for e in window.events][-1] == ("final", 2)
+
+
+def test_a_newer_request_cancels_the_monte_carlo_under_way(window):
+    """The API computes one request at a time: the Monte Carlo under way is cancelled (its
+    connection closed) when a change comes, so the next quick plan does not wait for it."""
+    api = FakeApi()
+    plan0 = api.plan
+    cancels: list[threading.Event] = []
+
+    def plan(scene, options, store=False, preview=False, cancel=None):
+        if options["samples"]:
+            assert cancel is not None, "a Monte Carlo is always asked cancellably"
+            cancels.append(cancel)
+            if scene["n"] == 2 or not cancel.wait(5):  # the first would take 5 s
+                return plan0(scene, options, store, preview)
+            raise RequestCancelled("cancelled")
+        return plan0(scene, options, store, preview)
+
+    api.plan = plan  # type: ignore[method-assign]
+    r = Replanner(api, window, mc_samples=50, mc_quiet=0.05)
+    r.submit({"n": 1}, {"samples": 0}, "sigma")
+    _wait(lambda: len(cancels) == 1)
+    assert not cancels[0].is_set()
+    r.submit({"n": 2}, {"samples": 0}, "sigma")
+    _wait(lambda: cancels[0].is_set())
+    _wait(lambda: ("final", 2) in [e[:2] for e in window.events])
+    r.close()
+    assert r.cancelled == 1
+    kinds = [e[:2] for e in window.events]
+    assert ("final", 1) not in kinds and ("mc failed", 1) not in kinds, "no word of it"
+    assert kinds[-1] == ("final", 2) and len(cancels) == 2 and not cancels[1].is_set()
+
+
+def _wait(cond, timeout: float = 3.0) -> None:
+    end = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.01)
