@@ -179,3 +179,19 @@ def test_remembered_answers_give_the_region_from_scratch(
     assert (scratch.mask == reused.mask).all()
     assert np.allclose(scratch.thetas, reused.thetas, rtol=0, atol=1e-9)
     assert scratch.counts == reused.counts
+
+
+def test_the_memos_together_stay_within_their_budget(monkeypatch):
+    """However many trays are planned, the memos together are kept within MAX_BYTES: the
+    least recently used go first, the one in use stays."""
+    from pickstop.regions import reuse
+
+    monkeypatch.setattr(reuse, "MAX_BYTES", 10 * reuse.BYTES_PER["answers"])
+    cache = ReuseCache()
+    for k in range(5):
+        m = cache.memo(f"tray {k}")
+        for j in range(4):
+            m.answers[("db", "p", j)] = None  # type: ignore[assignment]
+    last = cache.memo("tray 4")
+    assert sum(m.approx_bytes() for m in cache.values()) <= 10 * reuse.BYTES_PER["answers"]
+    assert list(cache)[-1] == "tray 4" and cache["tray 4"] is last and "tray 0" not in cache

@@ -39,9 +39,11 @@ from pickstop.scene.world import Solid
 
 MAX_ENTRIES = 150_000  # refinements kept per memo (about 25 MB for an 8-joint arm)
 MAX_MEMOS = 48  # trays x yaws x grid phases kept
-MAX_ANSWERS = 20_000  # cell answers kept per memo (about 700 bytes each)
+MAX_ANSWERS = 20_000  # cell answers kept per memo
 MAX_CHECKS = 20_000  # exact checks kept per memo
-MAX_ALL_ANSWERS = 120_000  # cell answers kept by all memos together
+MAX_BYTES = 384 << 20  # about what all memos together may hold
+# about what one entry holds [bytes] (arrays and their Python objects, an 8-joint arm)
+BYTES_PER = {"results": 200, "served_cells": 60, "answers": 1100, "checks": 900}
 MAX_SURROUNDINGS = 8  # surroundings a memo's cell answers may refer to
 SAME = 1e-9  # [m] bounds this close are the same
 _OFFSET = 1 << 20  # cell offsets are packed as (dx + _OFFSET) << 21 | (dy + _OFFSET)
@@ -307,6 +309,10 @@ class RefineMemo:
     _next: int = 0
     _change_memo: dict[tuple[int, int], list[Change]] = field(default_factory=dict)
 
+    def approx_bytes(self) -> int:
+        """About how much memory the memo holds [bytes] (:data:`BYTES_PER` entry)."""
+        return sum(n * len(getattr(self, name)) for name, n in BYTES_PER.items())
+
     def around(self, now: Surroundings) -> int:
         """The id of the surroundings ``now`` among the memo's (added if new)."""
         for k, s in self.surroundings.items():
@@ -547,9 +553,9 @@ class ReuseCache(OrderedDict[str, RefineMemo]):
         if hit is None:
             hit = self[key] = RefineMemo()
         self.move_to_end(key)
-        # the least recently used go while too many are kept, or too many cell answers
+        # the least recently used go while too many are kept, or they hold too much
         while len(self) > 1 and (
-            len(self) > MAX_MEMOS or sum(len(m.answers) for m in self.values()) > MAX_ALL_ANSWERS
+            len(self) > MAX_MEMOS or sum(m.approx_bytes() for m in self.values()) > MAX_BYTES
         ):
             self.popitem(last=False)
         return hit

@@ -18,7 +18,7 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -600,6 +600,7 @@ def verify(
         good[j] = not bad
         if not bad and o is not None:
             done.add(o)
+    checks.flush()
     return good
 
 
@@ -615,6 +616,7 @@ class _ExactChecks:
     keys: dict[int, tuple[int, str, bytes]]
     known: dict[int, bool]
     memo: RefineMemo | None = None
+    pending: list[tuple[int, bool]] = field(default_factory=list)
 
     @classmethod
     def of(
@@ -649,26 +651,29 @@ class _ExactChecks:
         return out
 
     def remember(self, j: int, colliding: bool) -> None:
-        key = self.keys.get(j)
-        memo = self.memo
-        if key is None or memo is None or self.world.around is None:
+        """Row ``j`` was checked exactly (kept by :meth:`flush`)."""
+        if j in self.keys and self.memo is not None:
+            self.pending.append((j, colliding))
+
+    def flush(self) -> None:
+        """Keep the checks made since the last flush in the memo, their links' boxes
+        computed at once."""
+        memo, around = self.memo, self.world.around
+        if not self.pending or memo is None or around is None:
             return
-        xy = self.base_xy[j] - np.asarray(self.world.tray_xy)
-        links = CheckedLinks.of(
-            self.planner, self.thetas[j][None], xy[None], self.world.yaw, np.zeros(1, int)
-        )
-        memo.remember_check(
-            key,
-            ExactCheck(
-                colliding,
-                self.world.around,
-                links.lo.min(0),
-                links.hi.max(0),
-                xy,
-                links.lo,
-                links.hi,
-            ),
-        )
+        rows = np.array([j for j, _ in self.pending])
+        xy = self.base_xy[rows] - np.asarray(self.world.tray_xy)
+        links = CheckedLinks.of(self.planner, self.thetas[rows], xy, self.world.yaw, rows)
+        n = len(rows)
+        g_lo, g_hi = links.lo.reshape(n, -1, 3), links.hi.reshape(n, -1, 3)
+        for i, (j, colliding) in enumerate(self.pending):
+            memo.remember_check(
+                self.keys[j],
+                ExactCheck(
+                    colliding, around, g_lo[i].min(0), g_hi[i].max(0), xy[i], g_lo[i], g_hi[i]
+                ),
+            )
+        self.pending = []
 
 
 def seeded(
