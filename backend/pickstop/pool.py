@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pickstop.robot.config import RobotConfig, load_config, resolve_robot
+from pickstop.robot.config import ConfigFiles, RobotConfig
 from pickstop.robot.model import RobotModel, load_robot
 from pickstop.scene.model import Scene
 from pickstop.settings import cache_dir
@@ -41,16 +41,20 @@ if TYPE_CHECKING:  # the database (SQLite catalog), the planners and their solve
 DEFAULT_ROBOT = "tiago"  # the robot a service preloads
 
 
-def scene_robot(scene: Scene, scene_root: Path | None) -> tuple[RobotConfig, Path]:
+def scene_robot(
+    scene: Scene, scene_root: Path | None, configs: ConfigFiles | None = None
+) -> tuple[RobotConfig, Path]:
     """The robot config a scene names (a preset, or a config file relative to
-    ``scene_root``) and the folder its paths start from."""
+    ``scene_root``) and the folder its paths start from; ``configs``: where parsed config
+    files are kept (None: parsed now)."""
+    configs = configs or ConfigFiles(size=0)
     ref = scene.robot
     if ref.config is None:
-        return resolve_robot(ref.ref)
+        return configs.resolve(ref.ref)
     path = Path(ref.config)
     if not path.is_absolute() and scene_root is not None:
         path = scene_root / path
-    return load_config(path)
+    return configs.load(path)
 
 
 def config_key(config: RobotConfig, root: Path) -> str:
@@ -91,6 +95,7 @@ class PlannerPool:
         self._defaults: dict[str, str] = {}  # robot hash -> the database used when none named
         self._slots: dict[tuple[str, str], PlannerSlot] = {}  # (robot hash, db id)
         self._lock = threading.RLock()
+        self.configs = ConfigFiles()  # robot config files, parsed once per text
 
     # -- the chain ---------------------------------------------------------------------------
     def robot(self, config: RobotConfig, root: Path) -> RobotModel:
@@ -135,7 +140,7 @@ class PlannerPool:
         self, scene: Scene, scene_root: Path | None, db_id: str | None = None
     ) -> PlannerSlot:
         """The planners of the robot a scene file names (see :func:`scene_robot`)."""
-        return self.slot(self.robot(*scene_robot(scene, scene_root)), db_id)
+        return self.slot(self.robot(*scene_robot(scene, scene_root, self.configs)), db_id)
 
     def region_planner(
         self, scene: Scene, scene_root: Path | None, db_id: str | None = None
@@ -160,7 +165,7 @@ class PlannerPool:
     def preload(self, robot_name: str = DEFAULT_ROBOT) -> PlannerSlot | None:
         """Load a preset robot's planners if it has a database (at start-up, and in a parent
         before it forks workers that inherit them); None if it has none."""
-        robot = self.robot(*resolve_robot(robot_name))
+        robot = self.robot(*self.configs.resolve(robot_name))
         if not self.has_database(robot):
             return None
         return self.slot(robot)

@@ -186,12 +186,12 @@ def test_the_memos_together_stay_within_their_budget(monkeypatch):
     least recently used go first, the one in use stays."""
     from pickstop.regions import reuse
 
-    monkeypatch.setattr(reuse, "MAX_BYTES", 10 * reuse.BYTES_PER["answers"])
+    monkeypatch.setattr(reuse, "MAX_BYTES", 10 * dict(reuse.BYTES_PER)["answers"])
     cache = ReuseCache()
     for k in range(5):
         m = cache.memo(f"tray {k}")
         for j in range(4):
             m.answers[("db", "p", j)] = None  # type: ignore[assignment]
     last = cache.memo("tray 4")
-    assert sum(m.approx_bytes() for m in cache.values()) <= 10 * reuse.BYTES_PER["answers"]
+    assert sum(m.approx_bytes() for m in cache.values()) <= 10 * dict(reuse.BYTES_PER)["answers"]
     assert list(cache)[-1] == "tray 4" and cache["tray 4"] is last and "tray 0" not in cache

@@ -133,3 +133,19 @@ def test_angles_q_round_trip(robot):
 
     th = np.random.default_rng(1).uniform(robot.lower, robot.upper, (50, robot.dof))
     assert np.allclose(robot.q_to_angles(robot.angles_to_q(th)), th)
+
+
+def test_config_files_parse_a_text_once_and_a_changed_text_again(tmp_path):
+    from pickstop.robot.config import PRESET_DIR, ConfigFiles
+
+    path = tmp_path / "bot.yaml"
+    text = (PRESET_DIR / "tiago.yaml").read_text()
+    path.write_text(text)
+    configs = ConfigFiles(size=2)
+    first, _ = configs.load(path)
+    assert configs.load(path)[0] is first  # the same text: not parsed again
+    path.write_text(text.replace("name: tiago", "name: tiago_copy", 1))
+    again, _ = configs.load(path)
+    assert again is not first and again.name == "tiago_copy"
+    with pytest.raises(RobotConfigError):
+        configs.load(tmp_path / "nope.yaml")

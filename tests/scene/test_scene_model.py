@@ -209,3 +209,18 @@ def test_relative_mesh_paths_start_at_the_scene_file(tmp_path):
     assert e.value.problems == [
         ("obstacles.2.geometry.path", "mesh file 'meshes/missing.stl' not found")
     ]
+
+
+def test_checked_scenes_remember_a_geometry_and_check_a_new_one():
+    from pickstop.scene.checks import CheckedScenes
+
+    checked = CheckedScenes(size=4)
+    scene = parse_scene(PAPER, check=checked)
+    assert checked(scene.model_copy(update={"sigma": 0.2})) == []  # the same geometry
+    bad = copy.deepcopy(PAPER)
+    bad["trays"][1]["pose"]["x"] = bad["trays"][0]["pose"]["x"]  # into its neighbour
+    for _ in range(2):  # checked, then remembered: refused the same way both times
+        with pytest.raises(SceneError) as e:
+            parse_scene(bad, check=checked)
+        assert any("intersects" in m for _, m in e.value.problems)
+    assert len(checked._checked) == 2

@@ -19,7 +19,6 @@ from pickstop.robot.config import (
     example_robot_data_share,
     parse_config,
     preset_names,
-    resolve_robot,
 )
 from pickstop.robot.model import RobotModel, _mesh_refs, resolve_path
 from pickstop.store.records import ServiceStore
@@ -49,7 +48,7 @@ class RobotRegistry:
         """A preset or a registered robot's config, by name, and the folder its paths start
         from."""
         if name in preset_names():
-            return resolve_robot(name)
+            return self.planners.configs.resolve(name)
         row = self.store.robot(name)
         if row is None:
             known = preset_names() + [r["name"] for r in self.store.robots()]

@@ -16,6 +16,7 @@ from pickstop.api.body import type_errors
 from pickstop.api.problems import Problem
 from pickstop.api.registry import RobotRegistry
 from pickstop.errors import InputError, RobotConfigError
+from pickstop.scene.checks import CheckedScenes
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import Scene, SceneError, resolve_mesh_paths
 from pickstop.sequence.plan_model import PlanOptions
@@ -32,6 +33,7 @@ class SceneChecks:
         self.meshes = Path(data_dir) / "meshes"
         self.store = store
         self.robots = robots
+        self.checked = CheckedScenes()  # the geometry checks of the last layouts
 
     def parse(self, doc: Any, loc: str = "") -> Scene:
         """A scene from a request, every check passed; ``loc`` prefixes the fields named in
@@ -58,7 +60,7 @@ class SceneChecks:
                                    f"triangles up to this one, over the limit of "
                                    f"{self.limits.max_mesh_triangles}")])  # fmt: skip
         try:
-            scene = parse_scene(resolved, "scene")
+            scene = parse_scene(resolved, "scene", self.checked)
         except SceneError as e:
             raise SceneError([(loc + f, m) for f, m in e.problems]) from None
         if scene.robot.config is not None:

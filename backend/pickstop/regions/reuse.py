@@ -43,7 +43,7 @@ MAX_ANSWERS = 20_000  # cell answers kept per memo
 MAX_CHECKS = 20_000  # exact checks kept per memo
 MAX_BYTES = 384 << 20  # about what all memos together may hold
 # about what one entry holds [bytes] (arrays and their Python objects, an 8-joint arm)
-BYTES_PER = {"results": 200, "served_cells": 60, "answers": 1100, "checks": 900}
+BYTES_PER = (("results", 200), ("served_cells", 60), ("answers", 1100), ("checks", 900))
 MAX_SURROUNDINGS = 8  # surroundings a memo's cell answers may refer to
 SAME = 1e-9  # [m] bounds this close are the same
 _OFFSET = 1 << 20  # cell offsets are packed as (dx + _OFFSET) << 21 | (dy + _OFFSET)
@@ -311,7 +311,7 @@ class RefineMemo:
 
     def approx_bytes(self) -> int:
         """About how much memory the memo holds [bytes] (:data:`BYTES_PER` entry)."""
-        return sum(n * len(getattr(self, name)) for name, n in BYTES_PER.items())
+        return sum(n * len(getattr(self, name)) for name, n in BYTES_PER)
 
     def around(self, now: Surroundings) -> int:
         """The id of the surroundings ``now`` among the memo's (added if new)."""

@@ -239,35 +239,51 @@ def parse_config(data: Any, source: str = "robot config") -> RobotConfig:
         ) from None
 
 
-_PARSED: OrderedDict[tuple[str, str], tuple[RobotConfig, Path]] = OrderedDict()
-_PARSED_LOCK = threading.Lock()
-PARSED_CONFIGS = 32  # config texts kept parsed (a request names its robot every time)
-
-
 def load_config(path: str | Path) -> tuple[RobotConfig, Path]:
-    """Read a YAML or JSON robot config; returns it and the folder its relative paths start from.
-
-    The file is read every time; a text read before at the same path is not parsed again
-    (the config is frozen, so the one parsed before is the same)."""
+    """Read a YAML or JSON robot config; returns it and the folder its relative paths start from."""
     path = Path(path)
     if not path.is_file():
         raise RobotConfigError(f"{path}: robot config file not found")
-    text = path.read_text(encoding="utf-8")
-    key = (str(path.resolve()), hashlib.sha256(text.encode()).hexdigest())
-    with _PARSED_LOCK:
-        hit = _PARSED.get(key)
-        if hit is not None:
-            _PARSED.move_to_end(key)
-            return hit
-    out = _parse_file(path, text)
-    with _PARSED_LOCK:
-        _PARSED[key] = out
-        while len(_PARSED) > PARSED_CONFIGS:
-            _PARSED.popitem(last=False)
-    return out
+    return config_from_text(path, path.read_text(encoding="utf-8"))
 
 
-def _parse_file(path: Path, text: str) -> tuple[RobotConfig, Path]:
+class ConfigFiles:
+    """Robot config files, parsed once per text: a request names its robot every time, and
+    parsing a YAML config takes milliseconds. The file is read every time; a text read
+    before at the same path is not parsed again (a config is frozen, so the one parsed before
+    is the same). The last ``size`` texts are kept."""
+
+    def __init__(self, size: int = 32) -> None:
+        self.size = size
+        self._parsed: OrderedDict[tuple[str, str], tuple[RobotConfig, Path]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def load(self, path: str | Path) -> tuple[RobotConfig, Path]:
+        """:func:`load_config`, remembered."""
+        path = Path(path)
+        if not path.is_file():
+            raise RobotConfigError(f"{path}: robot config file not found")
+        text = path.read_text(encoding="utf-8")
+        key = (str(path.resolve()), hashlib.sha256(text.encode()).hexdigest())
+        with self._lock:
+            hit = self._parsed.get(key)
+            if hit is not None:
+                self._parsed.move_to_end(key)
+                return hit
+        out = config_from_text(path, text)
+        with self._lock:
+            self._parsed[key] = out
+            while len(self._parsed) > self.size:
+                self._parsed.popitem(last=False)
+        return out
+
+    def resolve(self, robot: str) -> tuple[RobotConfig, Path]:
+        """:func:`resolve_robot`, remembered."""
+        return self.load(robot_config_file(robot))
+
+
+def config_from_text(path: Path, text: str) -> tuple[RobotConfig, Path]:
+    """The config in ``text``, read from ``path`` (YAML, or JSON by its suffix)."""
     try:
         data = json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as e:
@@ -286,15 +302,20 @@ def preset_names() -> list[str]:
     return sorted(p.stem for p in PRESET_DIR.glob("*.yaml"))
 
 
-def resolve_robot(robot: str) -> tuple[RobotConfig, Path]:
-    """A preset name (``tiago``) or a path to a config file."""
+def robot_config_file(robot: str) -> Path:
+    """The config file of a preset name (``tiago``) or a path to one."""
     preset = PRESET_DIR / f"{robot}.yaml"
     if preset.is_file():
-        return load_config(preset)
+        return preset
     candidate = Path(robot)
     if candidate.suffix.lower() in {".yaml", ".yml", ".json"} or candidate.exists():
-        return load_config(candidate)
+        return candidate
     raise RobotConfigError(
         f"unknown robot {robot!r}: not a preset ({', '.join(preset_names())}) nor a config file",
         field="robot",
     )
+
+
+def resolve_robot(robot: str) -> tuple[RobotConfig, Path]:
+    """A preset name (``tiago``) or a path to a config file."""
+    return load_config(robot_config_file(robot))

@@ -84,33 +84,40 @@ def _obstacle_z(ob: Obstacle) -> tuple[float, float] | None:
     return None if h is None else (ob.pose.z, ob.pose.z + h)
 
 
-#: The fields :func:`check_scene` reads (its memo's key): a change of sigma, the error model,
-#: the motion or the names checks nothing anew.
-CHECKED_FIELDS = {"floor", "trays", "obstacles", "task", "base_grid", "start", "goal"}
-CHECKED_SCENES = 64  # geometries whose problems are remembered
-_checked: OrderedDict[str, tuple[tuple[str, str], ...]] = OrderedDict()
-_checked_lock = threading.Lock()
+#: The fields :func:`check_scene` reads: a change of sigma, the error model, the motion or
+#: the names checks nothing anew.
+CHECKED_FIELDS = frozenset(("floor", "trays", "obstacles", "task", "base_grid", "start", "goal"))
+
+
+class CheckedScenes:
+    """:func:`check_scene`, remembered for the last ``size`` geometries (a pure function of
+    :data:`CHECKED_FIELDS`): a service checks the same layout for every sigma step."""
+
+    def __init__(self, size: int = 64) -> None:
+        self.size = size
+        self._checked: OrderedDict[str, tuple[tuple[str, str], ...]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def __call__(self, scene: Scene) -> list[tuple[str, str]]:
+        key = hashlib.sha256(
+            scene.model_dump_json(include=set(CHECKED_FIELDS)).encode()
+        ).hexdigest()
+        with self._lock:
+            hit = self._checked.get(key)
+            if hit is not None:
+                self._checked.move_to_end(key)
+                return list(hit)
+        problems = check_scene(scene)
+        with self._lock:
+            self._checked[key] = tuple(problems)
+            while len(self._checked) > self.size:
+                self._checked.popitem(last=False)
+        return problems
 
 
 def check_scene(scene: Scene) -> list[tuple[str, str]]:
     """The geometry's problems as (field, message): duplicate ids, trays off the floor or
-    inside obstacles and each other, parts outside their tray, start or goal off the floor.
-    A pure function of :data:`CHECKED_FIELDS`, remembered for the last geometries."""
-    key = hashlib.sha256(scene.model_dump_json(include=CHECKED_FIELDS).encode()).hexdigest()
-    with _checked_lock:
-        hit = _checked.get(key)
-        if hit is not None:
-            _checked.move_to_end(key)
-            return list(hit)
-    problems = _check_scene(scene)
-    with _checked_lock:
-        _checked[key] = tuple(problems)
-        while len(_checked) > CHECKED_SCENES:
-            _checked.popitem(last=False)
-    return problems
-
-
-def _check_scene(scene: Scene) -> list[tuple[str, str]]:
+    inside obstacles and each other, parts outside their tray, start or goal off the floor."""
     problems: list[tuple[str, str]] = []
     floor = shapely.box(
         scene.floor.min[0], scene.floor.min[1], scene.floor.max[0], scene.floor.max[1]

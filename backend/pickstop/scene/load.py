@@ -7,6 +7,7 @@ The shape is checked by pydantic (:mod:`pickstop.scene.model`), then the geometr
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +18,13 @@ from pickstop.scene.checks import check_scene
 from pickstop.scene.model import FORMAT, VERSION, Scene, SceneError, resolve_mesh_paths
 
 
-def parse_scene(data: Any, source: str = "scene") -> Scene:
-    """Validate a decoded scene document (shape by pydantic, then the geometry checks)."""
+def parse_scene(
+    data: Any,
+    source: str = "scene",
+    check: Callable[[Scene], list[tuple[str, str]]] = check_scene,
+) -> Scene:
+    """Validate a decoded scene document (shape by pydantic, then the geometry checks;
+    ``check``: those checks, e.g. a :class:`~pickstop.scene.checks.CheckedScenes`)."""
     if isinstance(data, dict) and data.get("format", FORMAT) != FORMAT:
         raise SceneError([("format", f"expected {FORMAT!r}, got {data.get('format')!r}")], source)
     if isinstance(data, dict) and data.get("version", VERSION) != VERSION:
@@ -33,7 +39,7 @@ def parse_scene(data: Any, source: str = "scene") -> Scene:
             (".".join(str(p) for p in err["loc"]) or "(root)", err["msg"]) for err in e.errors()
         ]
         raise SceneError(problems, source) from None
-    problems = check_scene(scene)
+    problems = check(scene)
     if problems:
         raise SceneError(problems, source)
     return scene
