@@ -195,3 +195,34 @@ def test_the_memos_together_stay_within_their_budget(monkeypatch):
     last = cache.memo("tray 4")
     assert sum(m.approx_bytes() for m in cache.values()) <= 10 * dict(reuse.BYTES_PER)["answers"]
     assert list(cache)[-1] == "tray 4" and cache["tray 4"] is last and "tray 0" not in cache
+
+
+def test_where_a_sample_shows_everything_changed_the_rest_is_not_tested():
+    """Of many remembered things a change reaches, a sample is tested finely first; when
+    nearly none of it still holds, the rest count as changed without being tested, and none
+    is taken as it was."""
+    from pickstop.regions import reuse
+
+    class Everything:  # finer boxes that all meet the change
+        def __init__(self, ids):
+            self.owner = np.asarray(ids)
+            self.lo = np.zeros((len(ids), 3))
+            self.hi = np.ones((len(ids), 3))
+
+        def touched(self, sel, hits):
+            return np.ones(len(sel), bool)
+
+    memo = reuse.RefineMemo()
+    old = memo.around(_around([_box("nb", [0.0, 0.0, 0.0], [1.0, 1.0, 1.0])]))
+    now = memo.around(_around([_box("nb", [0.0, 0.0, 0.0], [1.0, 1.0, 1.0])], x=0.3))
+    n = 2 * reuse.SAMPLE_FROM
+    asked = []
+
+    def checked(ids):
+        asked.append(len(ids))
+        return Everything(ids)
+
+    box = np.tile([[0.2, 0.2, 0.2]], (n, 1)), np.tile([[0.8, 0.8, 0.8]], (n, 1))
+    held = memo.held([old] * n, *box, now, checked)
+    assert not held.any()
+    assert asked == [len(range(0, n, reuse.SAMPLE_STEP))]
