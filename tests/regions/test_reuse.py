@@ -117,12 +117,20 @@ def _around(solids, x=0.0, y=0.0):
     return Surroundings.of(solids, Tray(id="t", pose=Pose(x=x, y=y), inner_size=(0.2, 0.2)))
 
 
+def stale(old, new, lo, hi):
+    """``(K,)`` where any change between surroundings ``old`` and ``new`` reaches the boxes."""
+    from pickstop.regions.reuse import changes
+
+    out = np.zeros(len(lo), bool)
+    for c in changes(old, new):
+        out |= c.hits(lo, hi)
+    return out
+
+
 def test_a_table_the_tray_slides_along_is_the_same_away_from_its_ends():
     """Seen from a tray moved 0.1 m along x, a long table is unchanged inside a box clear of
     the table's ends, and changed in a box that holds one of its ends; a neighbour left
     where it was has moved (relative to the tray) and changes only what is near it."""
-    from pickstop.regions.reuse import stale
-
     table = [-2.0, -0.5, 0.0], [2.0, 0.5, 0.72]
     old = _around([_box("table", *table), _box("nb", [0.5, -0.1, 0.72], [0.7, 0.1, 0.8])])
     new = _around([_box("table", *table), _box("nb", [0.5, -0.1, 0.72], [0.7, 0.1, 0.8])], x=0.1)
@@ -138,7 +146,6 @@ def test_what_moved_without_a_partner_or_turned_is_a_change_wherever_it_was_or_i
     """A solid that appears, disappears or turns (no longer axis-aligned) changes every box
     its bounds meet, before or after; a box away from all of them stays as it was."""
     from pickstop.frames import T_yaw
-    from pickstop.regions.reuse import stale
     from pickstop.scene.world import Solid
 
     a = _box("a", [0.0, 0.0, 0.0], [0.2, 0.2, 0.2])

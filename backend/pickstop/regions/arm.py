@@ -9,6 +9,7 @@ for the hand, its own links or the boxes that stand in for them (:mod:`pickstop.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -48,6 +49,17 @@ def owner_codes(
 
 
 @dataclass(frozen=True)
+class JointGroups:
+    """An arm's covering spheres grouped by joint: J groups."""
+
+    joints: np.ndarray  # (J,) joint index (1..n) of each group
+    leaves: list[np.ndarray]  # (J,) the covering spheres of each group
+    links: list[np.ndarray]  # (J,) the links of each group
+    lo: np.ndarray  # (J, 3) [m] a box around each group's spheres, in its joint's frame
+    hi: np.ndarray  # (J, 3)
+
+
+@dataclass(frozen=True)
 class ArmSpheres:
     """Covering spheres of the arm links in their joint frames, grouped per link."""
 
@@ -69,6 +81,31 @@ class ArmSpheres:
     def leaf_count(self) -> np.ndarray:
         """``(L,)`` how many leaves cover each link."""
         return np.bincount(self.leaf_link, minlength=len(self.bound_r))
+
+    @functools.cached_property
+    def link_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """``lo, hi: (L, 3)`` [m] each link's covering spheres bounded by a box in its joint's
+        frame."""
+        start = self.leaf_start
+        return (
+            np.minimum.reduceat(self.leaf_c - self.leaf_r[:, None], start),
+            np.maximum.reduceat(self.leaf_c + self.leaf_r[:, None], start),
+        )
+
+    @functools.cached_property
+    def joint_groups(self) -> JointGroups:
+        """The covering spheres grouped by the joint that carries them (the hand's links all
+        ride on the last one)."""
+        leaf_joint = self.link_joint[self.leaf_link]
+        joints = np.unique(leaf_joint)
+        leaves = [np.flatnonzero(leaf_joint == j) for j in joints]
+        return JointGroups(
+            joints,
+            leaves,
+            [np.unique(self.leaf_link[k]) for k in leaves],
+            np.array([(self.leaf_c[k] - self.leaf_r[k, None]).min(0) for k in leaves]),
+            np.array([(self.leaf_c[k] + self.leaf_r[k, None]).max(0) for k in leaves]),
+        )
 
     @classmethod
     def of(cls, robot: RobotModel, excess: float = SPHERE_EXCESS) -> ArmSpheres:

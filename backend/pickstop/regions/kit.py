@@ -26,7 +26,14 @@ from pickstop.robot.model import RobotModel
 from pickstop.robot.screen import SphereModel
 from pickstop.scene.grasps import GraspSet, grasps_for_part, hand_space
 from pickstop.scene.model import Part, Scene, Tray
-from pickstop.scene.world import Solid, part_solid, pose_matrix, shape_solid, tray_body_solids
+from pickstop.scene.world import (
+    AGREE_MARGIN,
+    Solid,
+    part_solid,
+    pose_matrix,
+    shape_solid,
+    tray_body_solids,
+)
 
 # axis-aligned (lo, hi) bounds [m] of solids, each with whether the solid is that box
 Bounds = list[tuple[np.ndarray, np.ndarray, bool]]
@@ -129,25 +136,20 @@ class RegionKit:
         return out
 
 
-GRASP_MARGIN = 0.002  # [m] the open hands' space, padded, where a box must look alike
-
-
 def _bounds(s: Solid) -> tuple[np.ndarray, np.ndarray, bool]:
     lo, hi = s.aabb()
-    R = s.T_world_solid[:3, :3]
-    aligned = s.kind == "box" and bool(np.allclose(np.abs(R), np.round(np.abs(R)), atol=1e-12))
-    return lo, hi, aligned
+    return lo, hi, s.aligned_box
 
 
 def _reaching_in(
     others: list[tuple[str, Bounds]], space: tuple[np.ndarray, np.ndarray], at: np.ndarray
 ) -> list[str]:
     """What of ``others`` reaches into the open hands' ``space`` (world bounds [m]), as the
-    grasps see it from a tray standing at ``at: (3,)``: an axis-aligned box by the part of
-    it inside the space (padded by :data:`GRASP_MARGIN`), relative to the tray (a table the
-    tray slides along looks the same); any other solid by its object's definition and the
-    tray's place."""
-    lo, hi = space[0] - GRASP_MARGIN, space[1] + GRASP_MARGIN
+    grasps see it from a tray standing at ``at: (3,)``: an axis-aligned box by the part of it
+    inside the space (padded by :data:`~pickstop.scene.world.AGREE_MARGIN`), relative to the
+    tray (a table the tray slides along looks the same); any other solid by its object's
+    definition and the tray's place."""
+    lo, hi = space[0] - AGREE_MARGIN, space[1] + AGREE_MARGIN
     out = []
     for d, bounds in others:
         if not any(_overlap((b_lo, b_hi), (lo, hi)) for b_lo, b_hi, _ in bounds):

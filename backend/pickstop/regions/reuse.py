@@ -15,7 +15,7 @@ A cell's whole answer from the database (which candidate verifies, or none) is r
 checked against the scene (the links' bounding spheres) and the tray's surroundings then
 (:class:`Surroundings`, relative to the tray). Solved per cell, the answer depends on the scene
 only through what lies inside that box; where the surroundings, seen from the tray, are the
-same inside it (:func:`stale`), the answer is the same and is taken as it was. A table the
+same inside it (:func:`changes`), the answer is the same and is taken as it was. A table the
 tray slides along is the same inside the box unless the box reaches one of its ends.
 """
 
@@ -91,12 +91,6 @@ def grasps_digest(tray: Tray, grasp_sets: list[GraspSet]) -> str:
     return h.hexdigest()
 
 
-def _axis_aligned(R: np.ndarray) -> bool:
-    """Is the rotation ``R: (3, 3)`` a permutation of the axes with signs (a box's bounds are
-    then the box itself)?"""
-    return bool(np.all(np.isclose(np.abs(R), np.round(np.abs(R)), atol=1e-12)))
-
-
 @dataclass(frozen=True)
 class Surroundings:
     """The solids around a tray, seen from the tray: bounds relative to its position (x, y)."""
@@ -124,9 +118,7 @@ class Surroundings:
             )
             for s in solids
         )
-        boxes = np.array(
-            [s.kind == "box" and _axis_aligned(s.T_world_solid[:3, :3]) for s in solids], bool
-        )
+        boxes = np.array([s.aligned_box for s in solids], bool)
         return cls(tuple(solids), lo, hi, shape, boxes)
 
     def owners_within(self, lo: np.ndarray, hi: np.ndarray) -> set[str]:
@@ -225,17 +217,6 @@ def changes(old: Surroundings, new: Surroundings) -> list[Change]:
     for u in np.flatnonzero(~used).tolist():
         fill(("new", new.shape[u][0]), new.lo[u], new.hi[u])
     return out + [Change(lo, hi) for lo, hi in filled.values()]
-
-
-def stale(old: Surroundings, new: Surroundings, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """``(K,)`` True where the surroundings, seen from the tray, may differ between ``old``
-    and ``new`` inside the boxes ``lo, hi: (K, 3)`` (relative bounds [m]); False: inside the
-    box every solid is exactly as it was, so every check of a geometry within it answers as
-    it did (:func:`changes`)."""
-    out = np.zeros(len(lo), bool)
-    for c in changes(old, new):
-        out |= c.hits(lo, hi)
-    return out
 
 
 class Checked(Protocol):

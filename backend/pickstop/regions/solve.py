@@ -41,7 +41,7 @@ from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
 from pickstop.scene.grasps import GraspSet
-from pickstop.scene.world import BoxArrays, Solid
+from pickstop.scene.world import AGREE_MARGIN, BoxArrays, Solid
 
 WINDOW = 4  # candidates screened per (cell, part) at a time
 MAX_ROUNDS = 2  # refinement rounds per part (1, then 2 candidates per open cell)
@@ -54,9 +54,6 @@ REFINE_GIVE_UP = ((3, 0.01),)  # after 3 iterations, candidates still 1 cm off s
 GROW_GIVE_UP = ((5, 0.02), (10, 0.003))
 GROW_WAVES = 12  # rings of cells grown at most
 VERIFY_CHUNK = 16_384  # configurations screened at once (bounds the joint frames' memory)
-# [m] a remembered cell's box is padded by this, more than the touch tolerance, so that an
-# exact check's penetration depth cannot tell solids apart that agree inside the box
-BOX_MARGIN = 0.002
 
 
 @dataclass(frozen=True)
@@ -253,7 +250,7 @@ def _answers(
     r_cell, r_th = refined
     th = np.concatenate([planner.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
     cell = np.concatenate([s_cell, r_cell]).astype(np.int64)
-    J = len(np.unique(planner.arm.link_joint))
+    J = len(planner.arm.joint_groups.joints)
     g_lo = np.full((M, J, 3), np.inf)
     g_hi = np.full((M, J, 3), -np.inf)
     if len(th):
@@ -290,7 +287,7 @@ def _answers(
 class CheckedLinks:
     """C configurations on their bases as the sphere screen sees them: per joint, a box
     around the covering spheres of every link it carries (the hand's included), and, on
-    demand, a box around each of those spheres, padded by :data:`BOX_MARGIN`. Whatever a
+    demand, a box around each of those spheres, padded by :data:`AGREE_MARGIN`. Whatever a
     screen or an exact check of the arm against the scene looks at lies in the spheres."""
 
     lo: np.ndarray  # (C * J, 3) [m]
@@ -301,8 +298,7 @@ class CheckedLinks:
     frames: tuple[np.ndarray, np.ndarray]  # joint-major (arm.joint_major)
     xy: np.ndarray  # (C, 2) the bases [m]
     yaw: float
-    arm: ArmSpheres
-    leaves_of: list[np.ndarray]  # (J,) the covering spheres of each group
+    arm: ArmSpheres  # its joint_groups are the J groups
 
     @classmethod
     def of(
@@ -311,16 +307,13 @@ class CheckedLinks:
         """``thetas: (C, dof)`` on bases at ``xy: (C, 2)``; ``owner: (C,)`` per configuration."""
         arm = planner.arm
         _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
-        leaf_joint = arm.link_joint[arm.leaf_link]
-        joints = np.unique(leaf_joint)
-        leaves_of = [np.flatnonzero(leaf_joint == j) for j in joints]
-        lo_l = np.array([(arm.leaf_c[k] - arm.leaf_r[k, None]).min(0) for k in leaves_of])
-        hi_l = np.array([(arm.leaf_c[k] + arm.leaf_r[k, None]).max(0) for k in leaves_of])
+        groups = arm.joint_groups
+        joints, lo_l, hi_l = groups.joints, groups.lo, groups.hi
         # each group's box in its joint's frame, turned into a world box
         c = points_to_world(frames, joints, (lo_l + hi_l) / 2, xy, yaw)  # (C, J, 3)
         R = np.stack([frames[j - 1][0] for j in joints])  # (J, 3, 3, C)
         Rw = np.einsum("ij,ljkc->clik", R_z(yaw), R)  # (C, J, 3, 3) world axes
-        half = np.einsum("clik,lk->cli", np.abs(Rw), (hi_l - lo_l) / 2) + BOX_MARGIN
+        half = np.einsum("clik,lk->cli", np.abs(Rw), (hi_l - lo_l) / 2) + AGREE_MARGIN
         C, J = len(thetas), len(joints)
         return cls(
             (c - half).reshape(-1, 3),
@@ -332,7 +325,6 @@ class CheckedLinks:
             xy,
             yaw,
             arm,
-            leaves_of,
         )
 
     def touched(
@@ -344,20 +336,18 @@ class CheckedLinks:
         arm = self.arm
         out = np.zeros(len(sel), bool)
         # the links of each selected group
-        links_of = [np.unique(arm.leaf_link[k]) for k in self.leaves_of]
+        links_of = arm.joint_groups.links
         per = np.array([len(k) for k in links_of])[self.group[sel]]
         pair = np.repeat(np.arange(len(sel)), per)
         if not len(pair):
             return out
         link = np.concatenate([links_of[g] for g in self.group[sel]])
         rows = self.config[sel][pair]
-        start = arm.leaf_start
-        lo_l = np.minimum.reduceat(arm.leaf_c - arm.leaf_r[:, None], start)[link]
-        hi_l = np.maximum.reduceat(arm.leaf_c + arm.leaf_r[:, None], start)[link]
+        lo_l, hi_l = (b[link] for b in arm.link_boxes)
         joint = arm.link_joint[link] - 1
         c = leaves_to_world(self.frames, joint, rows, (lo_l + hi_l) / 2, self.xy, self.yaw)
         Rw = np.einsum("ij,njk->nik", R_z(self.yaw), self.frames[0][joint, rows])
-        half = np.einsum("nik,nk->ni", np.abs(Rw), (hi_l - lo_l) / 2) + BOX_MARGIN
+        half = np.einsum("nik,nk->ni", np.abs(Rw), (hi_l - lo_l) / 2) + AGREE_MARGIN
         hit = np.flatnonzero(hits(c - half, c + half))
         if not len(hit):
             return out
@@ -370,7 +360,7 @@ class CheckedLinks:
         cl = leaves_to_world(
             self.frames, joint[sub], rows[sub], arm.leaf_c[leaf], self.xy, self.yaw
         )
-        r = (arm.leaf_r[leaf] + BOX_MARGIN)[:, None]
+        r = (arm.leaf_r[leaf] + AGREE_MARGIN)[:, None]
         out[pair[sub[hits(cl - r, cl + r)]]] = True
         return out
 

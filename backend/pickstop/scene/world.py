@@ -19,6 +19,10 @@ from pickstop.scene.model import Box, Cylinder, Mesh, Part, Pose, Scene, Tray
 from pickstop.scene.tray_body import tray_body_boxes
 
 TOUCH = 1e-4  # [m] allowed interpenetration: resting on a surface is not a collision
+# [m] where two scenes agree this far around a region, more than TOUCH, every collision
+# answer for geometry inside the region is the same in both (a penetration depth cannot
+# tell them apart): the padding of the regions that remembered answers depend on
+AGREE_MARGIN = 0.002
 
 
 def pose_matrix(pose: Pose, dz: float = 0.0) -> np.ndarray:
@@ -64,6 +68,13 @@ class Solid:
     @property
     def transform(self) -> coal.Transform3s:
         return coal.Transform3s(self.T_world_solid[:3, :3], self.T_world_solid[:3, 3])
+
+    @property
+    def aligned_box(self) -> bool:
+        """A box turned only by a permutation of the axes (with signs): its bounds
+        (:meth:`aabb`) are the box itself."""
+        A = np.abs(self.T_world_solid[:3, :3])
+        return self.kind == "box" and bool(np.allclose(A, np.round(A), atol=1e-12))
 
     def aabb(self) -> tuple[np.ndarray, np.ndarray]:
         R = self.T_world_solid[:3, :3]
