@@ -29,11 +29,11 @@ from pickstop.robot.hand import HandShape
 from pickstop.scene.model import Box, Cylinder, Gripper, Mesh, Part, Scene, Tray
 from pickstop.scene.world import (
     Solid,
+    SolidSet,
     _coal,
     _Offset,
     part_solid,
     solid_below,
-    solids_overlap,
     tray_solids,
     world_part_transform,
 )
@@ -209,7 +209,7 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
     the open hand's own geometry."""
     T_world_part = world_part_transform(tray, part)
     cands = _candidates(scene, tray, part, hand)
-    obstacles = tray_solids(scene, tray, exclude_part=part.id)
+    obstacles = SolidSet.of(tray_solids(scene, tray, exclude_part=part.id))
     target = part_solid(tray, part)
     kept, kinds = [], []
     near_floor = 0
@@ -220,7 +220,7 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
             if any(solid_below(a, scene.floor_clearance) for a in solids):
                 low = True
                 continue
-            if any(solids_overlap(a, b) for a in solids for b in obstacles):
+            if any(obstacles.overlaps(a) for a in solids):
                 continue
             if clear_of(solids, target, PART_CLEARANCE):
                 kept.append(T_part_tcp)

@@ -146,6 +146,28 @@ def solids_overlap(a: Solid, b: Solid) -> bool:
     return collide(ga, ta, gb, tb)
 
 
+@dataclass(frozen=True)
+class SolidSet:
+    """Solids with their bounds as arrays, for overlap tests of many solids against them."""
+
+    solids: list[Solid]
+    lo: np.ndarray  # (K, 3) [m]
+    hi: np.ndarray  # (K, 3)
+
+    @classmethod
+    def of(cls, solids: list[Solid]) -> SolidSet:
+        bounds = [s.aabb() for s in solids]
+        lo = np.array([b[0] for b in bounds]).reshape(-1, 3)
+        hi = np.array([b[1] for b in bounds]).reshape(-1, 3)
+        return cls(solids, lo, hi)
+
+    def overlaps(self, a: Solid) -> bool:
+        """:func:`solids_overlap` of ``a`` and any of the solids (their bounds first, at once)."""
+        lo_a, hi_a = a.aabb()
+        near = np.all(lo_a <= self.hi - TOUCH, axis=1) & np.all(self.lo <= hi_a - TOUCH, axis=1)
+        return any(solids_overlap(a, self.solids[k]) for k in np.flatnonzero(near).tolist())
+
+
 def solid_below(s: Solid, clearance: float) -> bool:
     """Exact (coal): does ``s`` reach down to ``z <= clearance`` [m] (the floor is z = 0)?"""
     from pickstop.robot.floor import geometry_below
