@@ -62,10 +62,20 @@ def test_moved_tray_regions_match_from_scratch(planner, paper_doc, tray, di, dj,
             assert sum(m.hits for m in planner.reuse.values()) > before  # the memo was used
         scratch = _from_scratch(planner, scene, tid)
         assert not (scratch.mask & ~reused.mask).any(), f"{tid}: a cell from scratch is missing"
-        extra = np.flatnonzero(~scratch.mask[reused.cells[:, 0], reused.cells[:, 1]])
-        assert_cells_verified(planner, scene, reused, extra)
+        assert_cells_verified(planner, scene, reused, _unlike(scratch, reused))
         if tid == tray:
             assert reused.counts["feasible"] == len(reused.cells)
+
+
+def _unlike(scratch, region):
+    """Rows of ``region``'s cells that ``scratch`` lacks or solves with other witnesses."""
+    index = {(int(a), int(b)): k for k, (a, b) in enumerate(scratch.cells)}
+    out = []
+    for k, (a, b) in enumerate(region.cells.tolist()):
+        j = index.get((a, b))
+        if j is None or not np.allclose(scratch.thetas[j], region.thetas[k], rtol=0, atol=1e-9):
+            out.append(k)
+    return np.array(out, int)
 
 
 def test_anchor_keys_follow_the_tray():
@@ -170,8 +180,9 @@ def test_remembered_answers_give_the_region_from_scratch(
 ):
     """A tray moved by whole cells (alone on its table; towards its neighbour; away from it,
     seen from the neighbour): answers and exact checks are taken from the memo where nothing
-    near changed, and the region is the one a computation from scratch gives, cell for cell
-    and witness for witness."""
+    near changed, witnesses where they are free of what is new; the region holds every cell
+    a computation from scratch gives, and each cell it solves otherwise (or that scratch
+    lacks) has a witness coal verifies."""
     scene0 = parse_scene(paper_doc)
     res = scene0.base_grid.resolution
     yaw = scene0.base_yaw.yaws[0]
@@ -183,9 +194,10 @@ def test_remembered_answers_give_the_region_from_scratch(
     recalled = sum(m.recalled for m in planner.reuse.values()) - before
     assert recalled > 0.3 * reused.counts["served"]
     scratch = _from_scratch(planner, scene, region_of)
-    assert (scratch.mask == reused.mask).all()
-    assert np.allclose(scratch.thetas, reused.thetas, rtol=0, atol=1e-9)
-    assert scratch.counts == reused.counts
+    assert not (scratch.mask & ~reused.mask).any()
+    unlike = _unlike(scratch, reused)
+    assert len(unlike) < 0.2 * len(reused.cells)  # mostly the very witnesses of scratch
+    assert_cells_verified(planner, scene, reused, unlike)
 
 
 def test_the_memos_together_stay_within_their_budget(monkeypatch):
@@ -233,3 +245,92 @@ def test_where_a_sample_shows_everything_changed_the_rest_is_not_tested():
     held = memo.held([old] * n, *box, now, checked)
     assert not held.any()
     assert asked == [len(range(0, n, reuse.SAMPLE_STEP))]
+
+
+def test_box_minus_covers_what_sticks_out_and_nothing_inside():
+    """The slabs of a box outside another: none for the same box, the whole box for one
+    apart, and for a shifted one pieces that hold every point of the box outside the cut and
+    no point inside it."""
+    from pickstop.regions.reuse import box_minus
+
+    lo, hi = np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.6, 0.7])
+    assert box_minus(lo, hi, lo, hi) == []
+    far = box_minus(lo, hi, lo + 5, hi + 5)
+    assert len(far) == 1 and np.allclose(far[0][0], lo) and np.allclose(far[0][1], hi)
+    rng = np.random.default_rng(3)
+    for shift in ([0.1, 0.0, 0.0], [0.0, -0.2, 0.0], [0.3, 0.1, -0.05]):
+        cut_lo, cut_hi = lo + shift, hi + shift
+        pieces = box_minus(lo, hi, cut_lo, cut_hi)
+        assert 1 <= len(pieces) <= 6
+        pts = rng.uniform(lo, hi, (4000, 3))
+        inside_cut = np.all((pts > cut_lo) & (pts < cut_hi), axis=1)
+        in_piece = np.zeros(len(pts), bool)
+        for a, b in pieces:
+            assert np.all(a >= lo - 1e-12) and np.all(b <= hi + 1e-12)
+            in_piece |= np.all((pts >= a) & (pts <= b), axis=1)
+            assert not np.all((pts > a) & (pts < b) & inside_cut[:, None], axis=1).any()
+        assert in_piece[~inside_cut].all()
+
+
+def test_newcomers_are_what_stands_where_nothing_stood():
+    """Seen from a tray moved 0.1 m along x: a long table it slides along is new only in the
+    slab past its old end, a box left behind only where it did not stand before (relative to
+    the tray), a post that turned up is new whole; surroundings compared with themselves have
+    nothing new."""
+    from pickstop.frames import T_yaw
+    from pickstop.regions.reuse import RefineMemo
+    from pickstop.scene.world import Solid
+
+    table = _box("table", [-2.0, -0.5, 0.0], [2.0, 0.5, 0.72])
+    nb = _box("nb", [0.5, -0.1, 0.72], [0.7, 0.1, 0.8])
+    post = Solid.cylinder(T_yaw(1.0, 0.8, 0.5, 0.0), 0.05, 1.0, "post")
+    memo = RefineMemo()
+    old = memo.around(_around([table, nb]))
+    now = memo.around(_around([table, nb, post], x=0.1))
+    assert memo.newcomers(old, old) == ()
+    new = {s.owner: s for s in memo.newcomers(old, now)}
+    assert sorted(new) == ["nb", "post", "table"]
+    for owner, want in (
+        ("table", ([-2.1, -0.5, 0.0], [-2.0, 0.5, 0.72])),
+        ("nb", ([0.4, -0.1, 0.72], [0.5, 0.1, 0.8])),
+        ("post", ([0.85, 0.75, 0.0], [0.95, 0.85, 1.0])),
+    ):
+        lo, hi = new[owner].aabb()
+        assert np.allclose(lo, want[0]) and np.allclose(hi, want[1]), owner
+    assert new["post"].kind == "cylinder"
+
+
+def test_a_witness_in_the_way_of_a_new_obstacle_is_not_kept(planner, paper_doc, monkeypatch):
+    """A crate put on the table beside a tray, where the arm reaches past: witnesses clear
+    of it are kept, those it meets are not, and every witness of the new region is verified
+    by coal; the region still holds every cell a computation from scratch finds."""
+    from pickstop.regions import solve
+
+    scene0 = parse_scene(paper_doc)
+    yaw = scene0.base_yaw.yaws[0]
+    compute_tray_region(planner, scene0, scene0.tray("tray_4"), yaw)
+    doc = copy.deepcopy(paper_doc)
+    tray = next(t for t in doc["trays"] if t["id"] == "tray_4")
+    doc["obstacles"].append(
+        {
+            "id": "crate",
+            "geometry": {"shape": "box", "size": [0.12, 0.2, 0.3]},
+            "pose": {"x": tray["pose"]["x"] + 0.4, "y": tray["pose"]["y"] - 0.1, "z": 0.72},
+        }
+    )
+    scene = parse_scene(doc)
+    kept = []
+    free_of = solve.free_of_newcomers
+
+    def recorded(*args):
+        out = free_of(*args)
+        kept.append(out)
+        return out
+
+    monkeypatch.setattr(solve, "free_of_newcomers", recorded)
+    after = compute_tray_region(planner, scene, scene.tray("tray_4"), yaw)
+    kept = np.concatenate(kept)
+    assert kept.any() and not kept.all()
+    assert_cells_verified(planner, scene, after, np.arange(len(after.cells)))
+    scratch = _from_scratch(planner, scene, "tray_4")
+    assert not (scratch.mask & ~after.mask).any()

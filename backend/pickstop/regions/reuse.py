@@ -17,10 +17,18 @@ checked against the scene (the links' bounding spheres) and the tray's surroundi
 only through what lies inside that box; where the surroundings, seen from the tray, are the
 same inside it (:func:`changes`), the answer is the same and is taken as it was. A table the
 tray slides along is the same inside the box unless the box reaches one of its ends.
+
+A cell whose remembered witness was verified in other surroundings keeps it where it is free of
+what is new since (:meth:`RefineMemo.newcomers`: solids not where one of the same shape stood):
+against everything else, the floor and itself it was checked exactly then, at the same place
+relative to the tray. Such a cell is feasible however its answer from scratch would go, so a
+region after a move holds every cell a computation from scratch finds in the cells solved
+anew, and perhaps more, each with a verified witness.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from collections import OrderedDict
@@ -100,6 +108,7 @@ class Surroundings:
     hi: np.ndarray  # (S, 3)
     shape: tuple[tuple[Any, ...], ...]  # (S,) owner, kind, size, rotation, geometry: all but where
     boxes: np.ndarray  # (S,) bool: a box whose bounds are the box (an axis-aligned box)
+    at: np.ndarray  # (3,) the tray's position (x, y, 0) they were seen from [m]
 
     @classmethod
     def of(cls, solids: list[Solid], tray: Tray) -> Surroundings:
@@ -119,7 +128,14 @@ class Surroundings:
             for s in solids
         )
         boxes = np.array([s.aligned_box for s in solids], bool)
-        return cls(tuple(solids), lo, hi, shape, boxes)
+        return cls(tuple(solids), lo, hi, shape, boxes, at)
+
+    def relative(self, k: int) -> Solid:
+        """Solid ``k`` placed relative to the tray (the tray's position at the origin)."""
+        s = self.solids[k]
+        T = s.T_world_solid.copy()
+        T[:3, 3] -= self.at
+        return dataclasses.replace(s, T_world_solid=T)
 
     def owners_within(self, lo: np.ndarray, hi: np.ndarray) -> set[str]:
         """Owners of the solids whose bounds meet any of the boxes ``lo, hi: (K, 3)``."""
@@ -219,6 +235,53 @@ def changes(old: Surroundings, new: Surroundings) -> list[Change]:
     return out + [Change(lo, hi) for lo, hi in filled.values()]
 
 
+def _newcomers(was: Surroundings, new: Surroundings) -> tuple[Solid, ...]:
+    """:meth:`RefineMemo.newcomers` of ``new`` since ``was``."""
+    out: list[Solid] = []
+    for k, key in enumerate(new.shape):
+        alike = [j for j, other in enumerate(was.shape) if other == key]
+        if any(
+            np.all(np.abs(was.lo[j] - new.lo[k]) <= SAME)
+            and np.all(np.abs(was.hi[j] - new.hi[k]) <= SAME)
+            for j in alike
+        ):
+            continue
+        boxes = [j for j in alike if was.boxes[j]] if new.boxes[k] else []
+        if not boxes:
+            out.append(new.relative(k))
+            continue
+        mid = (new.lo[k] + new.hi[k]) / 2
+        j = min(boxes, key=lambda j: float(np.linalg.norm((was.lo[j] + was.hi[j]) / 2 - mid)))
+        for lo, hi in box_minus(new.lo[k], new.hi[k], was.lo[j], was.hi[j]):
+            T = np.eye(4)
+            T[:3, 3] = (lo + hi) / 2
+            out.append(Solid.box(T, hi - lo, key[0]))
+    return tuple(out)
+
+
+def box_minus(
+    lo: np.ndarray, hi: np.ndarray, cut_lo: np.ndarray, cut_hi: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Closed boxes (at most six, none thinner than :data:`SAME`) that cover the box
+    ``lo, hi`` wherever it sticks out of the box ``cut_lo, cut_hi`` (bounds (3,) [m])."""
+    out = []
+    lo, hi = np.array(lo, float), np.array(hi, float)
+    for a in range(3):
+        if cut_lo[a] > lo[a] + SAME:
+            top = hi.copy()
+            top[a] = min(cut_lo[a], hi[a])
+            out.append((lo.copy(), top))
+            lo[a] = top[a]
+        if cut_hi[a] < hi[a] - SAME:
+            bottom = lo.copy()
+            bottom[a] = max(cut_hi[a], lo[a])
+            out.append((bottom, hi.copy()))
+            hi[a] = bottom[a]
+        if hi[a] - lo[a] <= SAME:
+            break  # nothing is left inside the cut
+    return [(a, b) for a, b in out if np.all(b - a > SAME)]
+
+
 class Checked(Protocol):
     """Boxes (relative [m]) around what was checked for some cells' answers: coarse ones
     ``lo, hi: (K, 3)`` and the answer id each belongs to, ``owner: (K,)``; finer boxes
@@ -288,12 +351,14 @@ class RefineMemo:
     hits: int = 0
     misses: int = 0
     recalled: int = 0  # cell answers taken as they were
+    carried: int = 0  # of those, witnesses kept after a check against the newcomers alone
     # exact checks of the arm against the scene: (cell key, part, joint values) -> whether it
     # collided, the surroundings then, the box of its links and its base (relative [m])
     checks: dict[tuple[int, str, bytes], ExactCheck] = field(default_factory=dict)
     checks_reused: int = 0
     _next: int = 0
     _change_memo: dict[tuple[int, int], list[Change]] = field(default_factory=dict)
+    _newcomer_memo: dict[tuple[int, int], tuple[Solid, ...]] = field(default_factory=dict)
 
     def approx_bytes(self) -> int:
         """About how much memory the memo holds [bytes] (:data:`BYTES_PER` entry)."""
@@ -434,18 +499,67 @@ class RefineMemo:
             hit = self._change_memo[key] = changes(self.surroundings[old], self.surroundings[now])
         return hit
 
+    def newcomers(self, old: int, now: int) -> tuple[Solid, ...]:
+        """What of the surroundings ``now`` lies where nothing of ``old`` did, seen from the
+        tray and placed relative to it: all that a configuration free in ``old`` may meet.
+
+        A solid where one of the same shape stood is nothing new; an axis-aligned box that
+        moved is new only outside the box it was (at most six slabs: a table the tray slides
+        along); any other solid is new whole."""
+        key = (old, now)
+        hit = self._newcomer_memo.get(key)
+        if hit is None:
+            if len(self._newcomer_memo) > 4 * MAX_SURROUNDINGS:
+                self._newcomer_memo.clear()
+            hit = self._newcomer_memo[key] = _newcomers(
+                self.surroundings[old], self.surroundings[now]
+            )
+        return hit
+
     def recall(
-        self, tag: str, part: str, cell_keys: np.ndarray, now: int, checked: CheckedOf
+        self,
+        tag: str,
+        part: str,
+        cell_keys: np.ndarray,
+        now: int,
+        checked: CheckedOf,
+        free_of: Callable[[np.ndarray, np.ndarray, tuple[Solid, ...]], np.ndarray] | None = None,
     ) -> tuple[np.ndarray, list[CellAnswer | None]]:
-        """The remembered answers of cells ``cell_keys: (M,)`` still true in the surroundings
-        ``now`` (an id from :meth:`around`): ``(M,)`` whether each is, and the answers
-        (:meth:`held`; ``checked``: the links of an answer's checked configurations)."""
+        """The remembered answers of cells ``cell_keys: (M,)`` that stand in the surroundings
+        ``now`` (an id from :meth:`around`): ``(M,)`` whether each does, and the answers.
+
+        A found answer from other surroundings stands where ``free_of(idx, thetas, solids)``
+        says its witness (``thetas`` of cells ``idx``, indices into ``cell_keys``) is free of
+        the :meth:`newcomers`;
+        any other answer where it still holds (:meth:`held`; ``checked``: the links of an
+        answer's checked configurations). Without ``free_of``, every answer needs :meth:`held`.
+        """
         keys = cell_keys.tolist()
         got = [self.answers.get((tag, part, k)) for k in keys]
-        idx = [i for i, a in enumerate(got) if a is not None]
         ok = np.zeros(len(keys), bool)
+        witnessed: dict[int, list[int]] = {}  # by the surroundings they were found in
+        idx: list[int] = []
+        mine: list[CellAnswer] = []
+        for i, a in enumerate(got):
+            if a is None:
+                continue
+            if (
+                free_of is not None
+                and a.found
+                and a.around != now
+                and a.around in self.surroundings
+            ):
+                witnessed.setdefault(a.around, []).append(i)
+            else:
+                idx.append(i)
+                mine.append(a)
+        for k, rows in witnessed.items():
+            at = np.array(rows)
+            assert free_of is not None
+            thetas = np.stack([got[i].theta for i in rows])  # type: ignore[union-attr]
+            ok[at] = free_of(at, thetas, self.newcomers(k, now))
+            self.carried += int(ok[at].sum())
         if idx:
-            mine = [a for a in got if a is not None]
             ok[idx] = self.held(
                 [a.around for a in mine],
                 np.array([a.lo for a in mine]),

@@ -188,8 +188,9 @@ def _solve_cells(
     """:func:`_rounds` over the database's candidates (the own voxels, or the vicinity) of M
     cells, each solved on its own. Where the targets carry a memo, a cell's remembered answer
     is taken while the surroundings, seen from the tray, are as they were wherever the
-    configurations it checked reach (:meth:`~pickstop.regions.reuse.RefineMemo.recall`);
-    the other cells are solved and their answers remembered."""
+    configurations it checked reach, and a remembered witness while it is free of what is new
+    there (:meth:`~pickstop.regions.reuse.RefineMemo.recall`); the other cells are solved and
+    their answers remembered."""
     M, dof = len(cen), planner.solver.chain.dof
     memo, keys = tg.memo, tg.cell_keys
     if memo is None or keys is None or world.around is None:
@@ -204,7 +205,11 @@ def _solve_cells(
             planner, np.concatenate(th).reshape(-1, dof), xy, world.yaw, np.repeat(ids, n)
         )
 
-    ok, got = memo.recall(tag, part, keys, world.around, checked)
+    def free_of(idx: np.ndarray, thetas: np.ndarray, solids: tuple[Solid, ...]) -> np.ndarray:
+        xy = cen[idx] - np.asarray(world.tray_xy)
+        return free_of_newcomers(planner, world, thetas, xy, part, solids)
+
+    ok, got = memo.recall(tag, part, keys, world.around, checked, free_of)
     found, th_out, g_out = np.zeros(M, bool), np.zeros((M, dof)), np.zeros(M, int)
     reused = [a for a, k in zip(got, ok.tolist(), strict=True) if k and a is not None]
     idx = np.flatnonzero(ok)
@@ -228,6 +233,36 @@ def _solve_cells(
             tag, part, keys[todo], _answers(planner, world, cen[todo], f, th, g, screened, refined)
         )
     return found, th_out, g_out
+
+
+def free_of_newcomers(
+    planner: RegionKit,
+    world: ArmWorld,
+    thetas: np.ndarray,
+    base_xy: np.ndarray,
+    target: str,
+    solids: tuple[Solid, ...],
+) -> np.ndarray:
+    """``(B,)`` True where witnesses ``thetas: (B, dof)`` on bases ``base_xy: (B, 2)``, each
+    verified before in surroundings that lacked only ``solids``, are free of those too (bases
+    and solids relative to the tray): the sphere screen, then coal for whatever it flags.
+    Against the rest of the scene, the floor and itself each was checked exactly when it was
+    found, at the same place relative to the tray."""
+    B = len(thetas)
+    if not solids or not B:
+        return np.ones(B, bool)
+    boxes = BoxArrays.of(list(solids))
+    hit = np.zeros(B, bool)
+    for s in range(0, B, VERIFY_CHUNK):
+        sl = slice(s, s + VERIFY_CHUNK)
+        _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(thetas[sl].T), frames=True)
+        hit[sl] = screen_arm(
+            planner.arm, boxes, frames, base_xy[sl], world.yaw, world.env, target, None
+        )
+    for j in np.flatnonzero(hit).tolist():
+        x, y = base_xy[j]
+        hit[j] = planner.exact_arm.colliding(thetas[j], x, y, world.yaw, list(solids), target)
+    return ~hit
 
 
 def _answers(
