@@ -2,7 +2,7 @@
 
     PICKSTOP_DATA_DIR=<data with a TIAGo database> python benchmarks/bench_live.py
         [--scenes paper_experiment five_trays factory_cell] [--trays N]
-        [--only moves|options]
+        [--only moves|options] [--hold S]
 
 Starts ``pickstop serve`` on 127.0.0.1 over the data folder, then per example scene: plans the
 scene as it is (warm), and for each of its first ``--trays`` trays and each move (0.05, 0.1,
@@ -13,6 +13,8 @@ then); a move that makes
 the scene invalid (a tray into its neighbour, off its table) is skipped. Then sigma steps
 (0.05 to 0.15 m), rule, target and objective changes on the scene as it is. Prints the time
 each request took at the client (HTTP and JSON included), median and p90, per kind and scene.
+``--hold S`` waits S seconds between a move's preview and its exact plan (the engineer
+holding the tray still before letting go: the service plans the previewed layout ahead then).
 ``--only options`` runs only the sigma, rule, target and objective part (a minute instead of
 several per scene), ``--only moves`` only the tray moves; ``--sweeps K`` repeats the sigma
 sweep K times (more samples, a steadier median).
@@ -87,18 +89,23 @@ def _moved(doc: dict, tray_id: str, dx: float, dy: float, dyaw: float) -> dict:
 
 
 def bench_scene(
-    c: httpx.Client, name: str, n_trays: int, only: str | None = None, sweeps: int = 1
+    c: httpx.Client,
+    name: str,
+    n_trays: int,
+    only: str | None = None,
+    sweeps: int = 1,
+    hold: float = 0.0,
 ) -> None:
     doc = json.loads((SCENES / f"{name}.json").read_text())
     t, code = _plan(c, doc, {})
     print(f"\n{name}: first plan {t * 1e3:.0f} ms ({code})")
     if only != "options":
-        bench_moves(c, doc, n_trays)
+        bench_moves(c, doc, n_trays, hold)
     if only != "moves":
         bench_options(c, doc, sweeps)
 
 
-def bench_moves(c: httpx.Client, doc: dict, n_trays: int) -> None:
+def bench_moves(c: httpx.Client, doc: dict, n_trays: int, hold: float = 0.0) -> None:
     preview: dict[str, list[float]] = {"move": [], "turn": []}
     exact: dict[str, list[float]] = {"move": [], "turn": []}
     own: dict[str, list[float]] = {"preview": [], "exact": []}
@@ -111,6 +118,7 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int) -> None:
             tp, pcode = _plan(c, moved, {}, "preview")
             no_preview |= pcode == -1
             tp_own = SERVER[-1] if pcode not in (-1,) and SERVER else float("nan")
+            time.sleep(hold)  # the tray held still before it is let go
             te, code = _plan(c, moved, {})
             if code != 200:
                 skipped += 1  # the move made the scene invalid or infeasible
@@ -128,7 +136,8 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int) -> None:
         label = "translations 0.05-0.5 m" if kind == "move" else "turns by 0.3 rad"
         pv = "not offered" if no_preview else _stats(preview[kind])
         print(f"  preview, {label:24s} {pv}")
-        print(f"  exact,   {label:24s} {_stats(exact[kind])}")
+        after = f"exact {hold:g} s after" if hold else "exact,  "
+        print(f"  {after} {label:24s} {_stats(exact[kind])}")
     for what, xs in own.items():
         print(f"  {what} of translations, the plan's own time (timings.total): {_stats(xs)}")
     print(f"  ({skipped} moves skipped: the moved layout is invalid or has no plan)")
@@ -171,6 +180,9 @@ def main() -> None:
         help="only the tray moves, or only the sigma/rule/target/objective changes",
     )
     ap.add_argument("--sweeps", type=int, default=1, help="sigma sweeps per scene")
+    ap.add_argument(
+        "--hold", type=float, default=0.0, help="seconds between a preview and its exact plan"
+    )
     args = ap.parse_args()
     port = _port()
     env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]'}
@@ -182,7 +194,7 @@ def main() -> None:
             db = c.get("/api/v1/databases").json()
             print("database:", ", ".join(f"{d['id']} ({d['samples']:,} samples)" for d in db))
             for name in args.scenes:
-                bench_scene(c, name, args.trays, args.only, args.sweeps)
+                bench_scene(c, name, args.trays, args.only, args.sweeps, args.hold)
     finally:
         proc.terminate()
         proc.wait(timeout=30)

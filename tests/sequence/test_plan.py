@@ -293,3 +293,80 @@ def test_a_background_selection_lets_go_of_the_lock_while_solving(stop_planner, 
         )
         assert lock.locked()  # held again on return
     assert seen == [False] and sel.order == (1,)
+
+
+def _moved_doc(doc, tray_id, dx):
+    doc = copy.deepcopy(doc)
+    next(t for t in doc["trays"] if t["id"] == tray_id)["pose"]["x"] += dx
+    return doc
+
+
+def _count_regions(monkeypatch):
+    import pickstop.regions.planner as region_planner
+
+    made: list[str] = []
+    real = region_planner.compute_tray_region
+
+    def counted(kit, scene, tray, yaw, key=""):
+        made.append(tray.id)
+        return real(kit, scene, tray, yaw, key)
+
+    monkeypatch.setattr(region_planner, "compute_tray_region", counted)
+    return made
+
+
+def test_a_layout_planned_ahead_leaves_its_plan_nothing_to_compute(planner, paper_doc, monkeypatch):
+    """The exact plan of a previewed layout, made ahead while the editor holds still: the
+    plan asked for on release computes no region and is the verified plan of that layout."""
+    import threading
+
+    from pickstop.api.planning import _Yielding
+
+    sp = StopPlanner(planner)
+    sp.plan(parse_scene(paper_doc), PlanOptions(samples=0))
+    moved = parse_scene(_moved_doc(paper_doc, "tray_1", 2 * 0.025))
+    lock = _Yielding(threading.Lock(), lambda: False)
+    assert sp.plan_ahead(moved, PlanOptions(samples=0), lock)
+    assert not lock.lock.locked()
+    made = _count_regions(monkeypatch)
+    plan = sp.plan(moved, PlanOptions(samples=0))
+    assert made == [] and plan.verified
+    for stop in plan.stops:
+        assert_stop_verified(planner, moved, stop)
+
+
+def test_planning_ahead_gives_way_to_a_request_and_keeps_nothing_half_done(
+    planner, paper_doc, monkeypatch
+):
+    """A request waiting for the planner stops the plan ahead at the regions' next
+    checkpoint: the lock is let go, no region of the unfinished layout is kept as done, and
+    the request's own plan of that layout is verified."""
+    import threading
+
+    from pickstop.api.planning import _Yielding
+    from pickstop.regions.kit import RegionKit
+
+    sp = StopPlanner(planner)
+    sp.plan(parse_scene(paper_doc), PlanOptions(samples=0))
+    moved = parse_scene(_moved_doc(paper_doc, "tray_1", -3 * 0.025))
+    checks: list[int] = []
+    real = RegionKit.checkpoint
+
+    def counted(self):
+        checks.append(1)
+        return real(self)
+
+    monkeypatch.setattr(RegionKit, "checkpoint", counted)
+
+    def waiting():  # a request comes while the second region step is under way
+        return len(checks) >= 2
+
+    lock = _Yielding(threading.Lock(), waiting)
+    assert not sp.plan_ahead(moved, PlanOptions(samples=0), lock)
+    assert not lock.lock.locked() and planner.interrupt is None
+    assert planner._cached(moved, "tray_1", moved.base_yaw.yaws[0]) is None
+    made = _count_regions(monkeypatch)
+    plan = sp.plan(moved, PlanOptions(samples=0))
+    assert "tray_1" in made and plan.verified
+    for stop in plan.stops:
+        assert_stop_verified(planner, moved, stop)

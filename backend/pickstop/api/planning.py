@@ -32,6 +32,9 @@ from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
 log = logging.getLogger("pickstop.api")
 
 QUIET = 0.1  # [s] without a new plan before the last one's are planned ahead
+# [s] without a newer request before a previewed layout's exact plan is made ahead: a drag
+# asks for previews several times a second; holding still for this long is a pause.
+HOLD = 0.25
 
 
 class _Yielding:
@@ -112,10 +115,15 @@ class Planning:
         return plan
 
     def preview(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
-        """An unverified plan to draw while the layout is edited (``StopPlanner.preview``)."""
+        """An unverified plan to draw while the layout is edited (``StopPlanner.preview``);
+        once no request has come for :data:`HOLD` seconds, the layout's exact plan is made
+        in the background (:meth:`_plan_ahead`)."""
         slot = self.slot(scene, db_id)
         with self._locked(slot):
-            return slot.planner.preview(scene, options)
+            plan = slot.planner.preview(scene, options)
+        self._generation += 1
+        self.background.submit(self._plan_ahead, slot, scene, options, self._generation)
+        return plan
 
     def plan_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
         """:meth:`plan` as the JSON the API answers with, serialised once where it is made
@@ -149,6 +157,29 @@ class Planning:
             slot.planner.prefetch_checks(scene, lock, stale=stale)
         except Exception:  # a background nicety: never let it disturb a request
             log.exception("planning ahead failed")
+
+    def _plan_ahead(
+        self, slot: PlannerSlot, scene: Scene, options: PlanOptions, generation: int
+    ) -> None:
+        """The exact plan of a previewed layout (``StopPlanner.plan_ahead``), begun once
+        nothing newer has been asked for in :data:`HOLD` seconds (the editor paused its
+        drag), giving way at once to any request and given up for a newer one."""
+
+        def stale() -> bool:
+            return self._generation != generation
+
+        end = time.monotonic() + HOLD
+        while not stale() and time.monotonic() < end:
+            time.sleep(0.01)
+        if stale():
+            return
+        lock = _Yielding(slot.lock, lambda: self._waiting > 0)
+        try:
+            slot.planner.plan_ahead(scene, options, lock, stale=stale)
+        except PickStopError:
+            pass  # the layout has no plan: the request on release will say why
+        except Exception:  # a background nicety: never let it disturb a request
+            log.exception("planning a previewed layout ahead failed")
 
     def regions(
         self,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,6 +36,12 @@ from pickstop.scene.world import (
     tray_body_solids,
 )
 
+
+class Interrupted(Exception):
+    """Raised at a region computation's next :meth:`RegionKit.checkpoint` once its
+    ``interrupt`` says to give way (background work, when a request waits)."""
+
+
 # axis-aligned (lo, hi) bounds [m] of solids, each with whether the solid is that box
 Bounds = list[tuple[np.ndarray, np.ndarray, bool]]
 MEMO_SIZE = 4096  # open-hand spaces and object bounds kept, each
@@ -56,6 +63,8 @@ class RegionKit:
     grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
     reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
+    # Set while background work computes: true once it is to give way (see checkpoint).
+    interrupt: Callable[[], bool] | None = field(default=None, init=False, repr=False)
     _hand_spaces: dict[str, tuple[np.ndarray, np.ndarray]] = field(
         default_factory=dict, init=False, repr=False
     )
@@ -77,6 +86,13 @@ class RegionKit:
         self.exact_self = ExactSelfCollision(self.robot, disabled)
         self.exact_arm = ExactArm(self.robot)
         self.reach_xy = self.db.reach_xy
+
+    def checkpoint(self) -> None:
+        """Raise :class:`Interrupted` if the computation under way is to give way. Called
+        between the steps of a region (parts, rounds, waves of growth), where every memo is
+        whole: what was done so far stays remembered for the next computation."""
+        if self.interrupt is not None and self.interrupt():
+            raise Interrupted()
 
     def grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
         """The grasps of every part of ``tray``, reused while nothing that reaches into the

@@ -141,6 +141,7 @@ def compute_tray_region(
     witness = np.zeros((len(IX), len(part_ids), robot.dof))
     grasp_of = np.zeros((len(IX), len(part_ids)), int)
     for k, tg in enumerate(targets):
+        planner.checkpoint()
         found, th, gi = solve.solve_part(planner, world, tg.take(alive), cen[alive])
         alive = alive[found]
         witness[alive, k] = th[found]
@@ -150,6 +151,7 @@ def compute_tray_region(
             return empty(no_cell_grasps(tg.grasps.part_id, tray, counts["footprint_free"]))
     solved = np.zeros(len(IX), bool)
     solved[alive] = True
+    planner.checkpoint()
     counts["grown"] = solve.grow(
         planner, world, targets, cen, np.stack([IY, IX], 1), solved, witness, grasp_of
     )

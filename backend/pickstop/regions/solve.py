@@ -477,6 +477,7 @@ def _rounds(
     th_out = np.zeros((M, solver.chain.dof))
     g_out = np.zeros(M, int)
     for attempt in range(rounds):
+        planner.checkpoint()
         open_cells = np.flatnonzero(~found & (screened < per_cell))
         pending = ~found[cell] & (state == 1)
         ready = np.zeros(M, bool)
@@ -781,6 +782,7 @@ def grow(
     fresh = found.copy()
     added = 0
     for _ in range(GROW_WAVES):
+        planner.checkpoint()
         has_fresh = ((nb >= 0) & fresh[np.maximum(nb, 0)]).any(1)
         open_ = np.flatnonzero(~found & has_fresh)
         if not len(open_):

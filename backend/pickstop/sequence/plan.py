@@ -42,6 +42,7 @@ from pickstop.regions.footprint import (
     sweep_blocked,
     upper_body,
 )
+from pickstop.regions.kit import Interrupted
 from pickstop.regions.offgrid import feasible_near
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
@@ -427,6 +428,33 @@ class StopPlanner:
                 self._planned.put(key, True)
             done += 1
         return done
+
+    def plan_ahead(
+        self,
+        scene: Scene,
+        options: pm.PlanOptions,
+        lock: Any,
+        stale: Callable[[], bool] = lambda: False,
+    ) -> bool:
+        """The exact plan of a layout being previewed, made in the background while the
+        editor holds still, so that the plan asked for on release finds it done: the regions
+        first, given up at their next checkpoint once a request waits for ``lock`` (its
+        ``waiting()``) or ``stale()``; then the plan as a request makes it, no Monte Carlo.
+        Work given up is not lost: the memos keep what was done (each keyed by its inputs,
+        so nothing is taken for a layout it does not hold for). Returns whether it finished."""
+        with lock:
+            self.regions.interrupt = lambda: stale() or lock.waiting()
+            try:
+                self.regions.regions(scene)
+            except Interrupted:
+                return False
+            finally:
+                self.regions.interrupt = None
+        if stale():
+            return False
+        with lock:
+            _Planning(self, scene, options.model_copy(update={"samples": 0}), unlock=lock).run()
+        return True
 
     # -- the plan ------------------------------------------------------------------------------
     def plan(self, scene: Scene, options: pm.PlanOptions | None = None) -> pm.Plan:

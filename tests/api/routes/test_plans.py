@@ -166,3 +166,48 @@ def test_a_plan_is_answered_as_the_record_model_would_serialise_it(client, paper
             assert client.get(r.headers["location"]).json()["plan"] == r.json()["plan"]
         bare = rec.model_copy(update={"plan": None})
         assert record_body(bare, rec.plan.model_dump_json().encode()) == r.content
+
+
+def test_a_previewed_layout_is_planned_ahead_while_the_editor_holds_still(
+    api_settings, monkeypatch
+):
+    """After a preview and a pause with no request, the service makes the layout's exact
+    plan in the background: the plan asked for on release computes no region and is
+    verified."""
+    import threading
+
+    import pickstop.regions.planner as region_planner
+    from pickstop.sequence.plan import StopPlanner
+
+    finished: list[bool] = []
+    done = threading.Event()
+    real = StopPlanner.plan_ahead
+
+    def ahead(self, *a, **k):
+        finished.append(real(self, *a, **k))
+        done.set()
+        return finished[-1]
+
+    monkeypatch.setattr(StopPlanner, "plan_ahead", ahead)
+    settings = api_settings.model_copy(update={"planner_processes": 0})
+    with TestClient(create_app(settings)) as client:
+        doc = paper()
+        first = client.post(PLANS, json={"scene": doc, "options": {"samples": 0}, "store": False},
+                            headers=AUTH)  # fmt: skip
+        assert first.status_code == 200
+        moved = copy.deepcopy(doc)
+        moved["trays"][0]["pose"]["x"] += 0.05
+        req = {"scene": moved, "options": {"samples": 0}, "mode": "preview", "store": False}
+        assert client.post(PLANS, json=req, headers=AUTH).status_code == 200
+        assert done.wait(120) and finished == [True]
+        made: list[str] = []
+        compute = region_planner.compute_tray_region
+
+        def counted(kit, scene, tray, yaw, key=""):
+            made.append(tray.id)
+            return compute(kit, scene, tray, yaw, key)
+
+        monkeypatch.setattr(region_planner, "compute_tray_region", counted)
+        after = client.post(PLANS, json={**req, "mode": "sync"}, headers=AUTH)
+        assert after.status_code == 200 and after.json()["plan"]["verified"] is True
+        assert made == []
