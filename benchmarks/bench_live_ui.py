@@ -8,7 +8,8 @@ scene in this process and Debian's headless Chromium (Playwright, software WebGL
 the page (``performance.now()``): (1) previews drawn per second while tray_4 moves 2.5 cm every
 50 ms, as a gizmo drag delivers poses (set from the server side, so the browser's own pointer
 handling is left out); (2) a real mouse drag of the gizmo: pointer moves the page handles per
-second and previews drawn; (3) release of a drag to the exact plan drawn; (4) the end of a
+second and previews drawn; (3) release of a drag to the exact plan drawn, and (3b) the same
+after holding the tray still for a second (the service plans it ahead then); (4) the end of a
 sigma slider gesture to the redrawn plan. ``--flat-lighting`` runs the planner with its
 hemisphere light instead of the environment map (``pickstop ui --flat-lighting``);
 ``--draft-scale X`` sets the previews' pixel ratio (1: full resolution throughout).
@@ -72,6 +73,7 @@ COUNT_PREVIEWS = """() => {
     });
     window.__fObs.observe(document.body, {subtree: true, childList: true, characterData: true});
 }"""
+HOLD_STILL = 1.0  # [s] a tray held still before it is let go, in (3b)
 # Armed before a gesture: its last pointer move and release, every panel text after it, and
 # every change of the scene's nodes (what the canvas must draw anew).
 TIMER = """() => {
@@ -110,16 +112,16 @@ def _frame_after(pg, t: float) -> float:
     return float(next(f[1] for f in pg.evaluate("window.__frames") if f[0] > t))
 
 
-def _since_gesture(pg, marker: str) -> tuple[float, float]:
-    """Gesture end (last pointer move) to ``marker`` in the panel, and to the canvas frame
-    that shows it [ms]."""
+def _since_gesture(pg, marker: str, since: str = "move") -> tuple[float, float]:
+    """Gesture end (its last pointer move, or with ``since="up"`` its release) to ``marker``
+    in the panel, and to the canvas frame that shows it [ms]."""
     pg.wait_for_function(
         "m => window.__t.up !== null && window.__t.changes.some(c => c[1].includes(m))",
         arg=marker,
         timeout=120_000,
     )
     t = pg.evaluate("window.__t")
-    start = t["move"] if t["move"] is not None else t["up"]
+    start = t["move"] if t["move"] is not None and since == "move" else t["up"]
     text = next(c[0] for c in t["changes"] if marker in c[1] and c[0] >= start)
     # The scene's nodes last changed with this text (one batch) or before it: the first
     # frame that starts after that change draws them; no change since the gesture began (a
@@ -206,12 +208,15 @@ def _project(cam, p, size=(1280, 800)) -> tuple[float, float]:
     return w / 2 + f * pc[0] / pc[2], h / 2 + f * pc[1] / pc[2]
 
 
-def _drag(pg, a, b, steps: int, pause: float) -> None:
+def _drag(pg, a, b, steps: int, pause: float, hold: float = 0.0) -> None:
+    """Press at ``a``, move to ``b`` in ``steps`` moves ``pause`` s apart, hold still for
+    ``hold`` s, release."""
     pg.mouse.move(*a)
     pg.mouse.down()
     for k in range(1, steps + 1):
         pg.mouse.move(a[0] + (b[0] - a[0]) * k / steps, a[1] + (b[1] - a[1]) * k / steps)
         time.sleep(pause)
+    time.sleep(hold)
     pg.mouse.up()
 
 
@@ -298,6 +303,19 @@ def main() -> None:
                   f"{len(f)})")  # fmt: skip
             print(f"(3) drag release -> exact plan drawn: {ms:.0f} ms (panel text {text_ms:.0f} "
                   f"ms; {t['moves']} pointer moves)")  # fmt: skip
+            time.sleep(1.0)
+            # (3b) The same drag back, the tray held still for a second before the release.
+            tray = next(t for t in app.state.doc["trays"] if t["id"] == "tray_4")
+            base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
+            a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
+            b = _project(cam, base + np.array([0.51, 0.0, 0.0]))
+            pg.evaluate(TIMER)
+            _drag(pg, a, b, 20, 0.05, hold=HOLD_STILL)
+            pg.wait_for_function("document.body.innerText.includes('Status: ready')",
+                                 timeout=120_000)  # fmt: skip
+            text_ms, ms = _since_gesture(pg, f"plan #{app.state.seq} in", since="up")
+            print(f"(3b) drag held still {HOLD_STILL:g} s, then released -> exact plan drawn: "
+                  f"{ms:.0f} ms (panel text {text_ms:.0f} ms)")  # fmt: skip
             time.sleep(1.0)
             # (4) sigma slider gestures.
             times, texts = [], []

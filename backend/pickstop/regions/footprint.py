@@ -8,7 +8,9 @@ legs) is never called free when its torso would touch it.
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -111,40 +113,82 @@ def blocked_by(
     fp = robot.footprint
     x, y = centres[:, 0], centres[:, 1]
     out = np.zeros(len(x), bool)
+    region, concave = _blocked_region(robot, solids, yaw, footprint, upper)
+    if region is not None:
+        out |= _inside(region, x, y)
+    if concave is not None:
+        # A concave footprint: exact test per position near an obstacle.
+        rot = np.asarray(fp.polygon) @ rot2(yaw).T
+        near = np.flatnonzero(shapely.contains_xy(concave.buffer(fp.bounding_radius), x, y))
+        for i in near:
+            out[i] = shapely.Polygon(rot + centres[i]).intersects(concave)
+    return out
+
+
+BLOCKED_MEMO = 64  # blocked regions kept per robot (solids x yaw x which body)
+
+
+def _blocked_region(
+    robot: RobotModel, solids: list[Solid], yaw: float, footprint: bool, upper: bool
+) -> tuple[BaseGeometry | None, BaseGeometry | None]:
+    """Where the base at ``yaw`` may not stand for ``solids``: the region of base positions
+    that touch one (None: none), and for a concave footprint the union of the outlines that
+    reach below its height, tested per position. Made once per solids, yaw and body parts
+    (kept in the robot's ``memo``): a point's test is then one lookup."""
+    key = (_solids_key(solids), float(yaw), footprint, upper)
+    memo = robot.memo.setdefault("blocked_regions", OrderedDict())
+    hit = memo.get(key)
+    if hit is not None:
+        memo.move_to_end(key)
+        return hit
+    fp = robot.footprint
+    parts: list[BaseGeometry] = []
+    concave = None
     low = [shapely.Polygon(floor_outline(s)) for s in solids if s.aabb()[0][2] < fp.height]
     if footprint and low:
         union = shapely.union_all(low)
         if fp.radius is not None:
             # Polygon buffers lie inside the true rounded one by the sagitta: grow to cover it.
             grow = fp.radius / math.cos(math.pi / (4 * QUAD_SEGS)) + 1e-6
-            out |= _inside(union.buffer(grow, quad_segs=QUAD_SEGS), x, y)
+            parts.append(union.buffer(grow, quad_segs=QUAD_SEGS))
         else:
             rot = np.asarray(fp.polygon) @ rot2(yaw).T
             outline = shapely.Polygon(rot)
             if outline.equals(outline.convex_hull):
                 # Convex footprint and convex outlines: the positions where they meet are the
                 # Minkowski difference, the hull of the vertex differences (exact).
-                parts = [
+                parts += [
                     shapely.MultiPoint(
                         (floor_outline(sol)[:-1, None, :] - rot[None, :, :]).reshape(-1, 2)
                     ).convex_hull
                     for sol in solids
                     if sol.aabb()[0][2] < fp.height
                 ]
-                out |= _inside(shapely.union_all(parts), x, y)
             else:
-                # A concave footprint: exact test per position near an obstacle.
-                near = np.flatnonzero(shapely.contains_xy(union.buffer(fp.bounding_radius), x, y))
-                for i in near:
-                    out[i] = shapely.Polygon(rot + centres[i]).intersects(union)
+                concave = union
     if upper:
         body = upper_body(robot)
-        if body.within_footprint:  # where the footprint meets a solid, so it does anyway
-            solids = [s for s in solids if s.aabb()[0][2] >= fp.height]
-        region = _upper_blocked(body, solids, yaw)
+        high = (
+            [s for s in solids if s.aabb()[0][2] >= fp.height] if body.within_footprint else solids
+        )
+        region = _upper_blocked(body, high, yaw)
         if region is not None:
-            out |= _inside(region, x, y)
+            parts.append(region)
+    out = (shapely.union_all(parts) if parts else None, concave)
+    memo[key] = out
+    while len(memo) > BLOCKED_MEMO:
+        memo.popitem(last=False)
     return out
+
+
+def _solids_key(solids: list[Solid]) -> str:
+    """What a blocked region depends on of ``solids``: each one's bounding box (its pose and
+    half extents; :func:`floor_outline` and the heights look at nothing else)."""
+    h = hashlib.sha256()
+    for s in solids:
+        h.update(np.ascontiguousarray(s.T_world_solid, float).tobytes())
+        h.update(np.ascontiguousarray(s.half, float).tobytes())
+    return h.hexdigest()
 
 
 def _inside(geom: BaseGeometry, x: np.ndarray, y: np.ndarray) -> np.ndarray:
