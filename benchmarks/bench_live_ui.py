@@ -1,7 +1,7 @@
 """Live layout editing in the browser: previews per second, release and slider to redrawn.
 
     PICKSTOP_DATA_DIR=<data with a TIAGo database> \
-        python benchmarks/bench_live_ui.py [--flat-lighting]
+        python benchmarks/bench_live_ui.py [--environment-lighting] [--draft-scale X]
 
 Starts ``pickstop serve`` on 127.0.0.1 over the data folder, the 3D planner on the paper-like
 scene in this process and Debian's headless Chromium (Playwright, software WebGL). Measured in
@@ -10,9 +10,10 @@ the page (``performance.now()``): (1) previews drawn per second while tray_4 mov
 handling is left out); (2) a real mouse drag of the gizmo: pointer moves the page handles per
 second and previews drawn; (3) release of a drag to the exact plan drawn, and (3b) the same
 after holding the tray still for a second (the service plans it ahead then); (4) the end of a
-sigma slider gesture to the redrawn plan. ``--flat-lighting`` runs the planner with its
-hemisphere light instead of the environment map (``pickstop ui --flat-lighting``);
-``--draft-scale X`` sets the previews' pixel ratio (1: full resolution throughout).
+sigma slider gesture to the redrawn plan. ``--environment-lighting`` runs the planner with
+the environment map instead of its hemisphere light (``pickstop ui --lighting environment``);
+``--draft-scale X`` sets the previews' pixel ratio (default the planner's; 1: full resolution
+throughout).
 
 "Drawn" means a canvas frame shows it: every frame the WebGL renderer draws is logged (its
 animation-frame callback wrapped before the page loads); a plan counts as drawn once its
@@ -225,6 +226,7 @@ def main() -> None:
 
     from pickstop_ui.app import PlannerApp
     from pickstop_ui.client import PickStopClient
+    from pickstop_ui.draft import DRAFT_SCALE
 
     port = _port()
     env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key("bench-key")}"]'}
@@ -234,9 +236,9 @@ def main() -> None:
     try:
         client = PickStopClient(f"http://127.0.0.1:{port}", "bench-key")
         stored = client.create_scene(json.loads(SCENE.read_text()))
-        flat = "--flat-lighting" in sys.argv
+        flat = "--environment-lighting" not in sys.argv
         draft = float(sys.argv[sys.argv.index("--draft-scale") + 1]) if (
-            "--draft-scale" in sys.argv) else 0.5  # fmt: skip
+            "--draft-scale" in sys.argv) else DRAFT_SCALE  # fmt: skip
         app = PlannerApp(client, stored.id, port=_port(), flat_lighting=flat, draft_scale=draft)
         meter = _Meter(app)
         print(f"lighting: {'flat (hemisphere light)' if flat else 'environment map'}; draft "

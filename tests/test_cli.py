@@ -102,6 +102,7 @@ def test_build_again_is_a_no_op(cli_data, capsys):
         ),
         (["ui", "--draft-scale", "0"], "--draft-scale: must be in (0, 1], got 0"),
         (["ui", "--draft-scale", "1.5"], "must be in (0, 1], got 1.5"),
+        (["ui", "--lighting", "dark"], "--lighting: invalid choice: 'dark'"),
         (["nonsense"], "invalid choice"),
     ],
 )

@@ -526,7 +526,7 @@ def cmd_ui(args: argparse.Namespace) -> int:
     if not scene_id:
         raise InputError("give --scene SCENE_ID or --scene-file FILE", field="scene")
     try:
-        app = run(args.api, scene_id, key, args.host, args.port, args.flat_lighting,
+        app = run(args.api, scene_id, key, args.host, args.port, args.lighting == "flat",
                   args.draft_scale)  # fmt: skip
     except ApiProblem as e:
         raise PickStopError(f"{args.api}: {e.title}: {e.detail}") from None
@@ -658,17 +658,22 @@ def build_parser() -> argparse.ArgumentParser:
     ui.add_argument("--host", default="127.0.0.1")
     ui.add_argument("--port", type=positive_int, default=8080)
     ui.add_argument(
-        "--flat-lighting",
-        action="store_true",
-        help="one hemisphere light, no environment map: about twice the frame rate in a "
-        "browser without a GPU (software WebGL), flatter colours",
+        "--lighting",
+        choices=("flat", "environment"),
+        default="flat",
+        help="flat: one hemisphere light (default; about twice the frame rate of the other in "
+        "a browser without a GPU); environment: an environment map, shinier colours",
     )
+    ui.add_argument(  # the default since --lighting; kept for scripts that still pass it
+        "--flat-lighting", dest="lighting", action="store_const", const="flat",
+        help=argparse.SUPPRESS,
+    )  # fmt: skip
     ui.add_argument(
         "--draft-scale",
         type=unit_fraction,
-        default=0.5,
         help="pixel ratio, as a fraction of the device's, at which a browser without a GPU "
-        "draws the previews that follow a drag (default 0.5; 1: full resolution throughout)",
+        "draws the previews that follow a drag (default 0.35, about an eighth of the pixels; "
+        "1: full resolution throughout)",
     )
     ui.set_defaults(func=cmd_ui)
 

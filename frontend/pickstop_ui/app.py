@@ -36,7 +36,7 @@ from pickstop.frames import quat_yaw, yaw_quat
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
-from pickstop_ui.draft import DraftResolution
+from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
@@ -78,12 +78,12 @@ class PlannerApp:
         host: str = "127.0.0.1",
         port: int = 8080,
         draw_robot: bool = True,
-        flat_lighting: bool = False,
-        draft_scale: float = 0.5,
+        flat_lighting: bool = True,
+        draft_scale: float = DRAFT_SCALE,
     ) -> None:
-        """``flat_lighting``: light the scene with one hemisphere light instead of the
-        environment map, which costs a software renderer (a browser without a GPU) about
-        half of every frame; colours then look flatter. ``draft_scale``: the pixel ratio
+        """``flat_lighting``: light the scene with one hemisphere light (the default) rather
+        than the environment map, which costs a software renderer (a browser without a GPU)
+        about half of every frame and gives shinier colours. ``draft_scale``: the pixel ratio
         (a fraction of the device's) at which such a browser draws while the engineer edits
         (from a change until its success rates are drawn); 1: full resolution throughout."""
         self.api = client
@@ -403,11 +403,12 @@ def run(
     api_key: str | None,
     host: str,
     port: int,
-    flat_lighting: bool = False,
-    draft_scale: float = 0.5,
+    flat_lighting: bool = True,
+    draft_scale: float | None = None,
 ) -> PlannerApp:
+    """The planner of a stored scene; ``draft_scale`` None: :data:`DRAFT_SCALE`."""
     client = PickStopClient(api_url, api_key)
     return PlannerApp(
         client, scene_id, host=host, port=port, flat_lighting=flat_lighting,
-        draft_scale=draft_scale,
+        draft_scale=DRAFT_SCALE if draft_scale is None else draft_scale,
     )  # fmt: skip
