@@ -22,8 +22,10 @@ A cell whose remembered witness was verified in other surroundings keeps it wher
 what is new since (:meth:`RefineMemo.newcomers`: solids not where one of the same shape stood):
 against everything else, the floor and itself it was checked exactly then, at the same place
 relative to the tray. Such a cell is feasible however its answer from scratch would go, so a
-region after a move holds every cell a computation from scratch finds in the cells solved
-anew, and perhaps more, each with a verified witness.
+region after a move holds every cell the database solves from scratch, and perhaps more, each
+with a verified witness. Growth from solved cells seeds the open ones with their witnesses: a
+cell that kept another witness than scratch would pick may grow other neighbours, so at the
+region's edge a grown cell may differ either way (every one verified all the same).
 """
 
 from __future__ import annotations
@@ -528,9 +530,9 @@ class RefineMemo:
         """The remembered answers of cells ``cell_keys: (M,)`` that stand in the surroundings
         ``now`` (an id from :meth:`around`): ``(M,)`` whether each does, and the answers.
 
-        A found answer from other surroundings stands where ``free_of(idx, thetas, solids)``
-        says its witness (``thetas`` of cells ``idx``, indices into ``cell_keys``) is free of
-        the :meth:`newcomers`;
+        A found answer from other surroundings stands where its links' boxes stay clear of the
+        :meth:`newcomers`' bounds, or ``free_of(idx, thetas, solids)`` says its witness
+        (``thetas`` of cells ``idx``, indices into ``cell_keys``) is free of them;
         any other answer where it still holds (:meth:`held`; ``checked``: the links of an
         answer's checked configurations). Without ``free_of``, every answer needs :meth:`held`.
         """
@@ -554,10 +556,22 @@ class RefineMemo:
                 idx.append(i)
                 mine.append(a)
         for k, rows in witnessed.items():
-            at = np.array(rows)
             assert free_of is not None
-            thetas = np.stack([got[i].theta for i in rows])  # type: ignore[union-attr]
-            ok[at] = free_of(at, thetas, self.newcomers(k, now))
+            mine_k = [a for a in (got[i] for i in rows) if a is not None]
+            new = self.newcomers(k, now)
+            at = np.array(rows)
+            ok[at] = True
+            if new:
+                # Only a witness whose links' boxes meet a newcomer's bounds can touch it.
+                bounds = [s.aabb() for s in new]
+                n_lo = np.array([b[0] for b in bounds])[None, None]
+                n_hi = np.array([b[1] for b in bounds])[None, None]
+                g_lo = np.array([a.groups_lo for a in mine_k])[:, :, None]
+                g_hi = np.array([a.groups_hi for a in mine_k])[:, :, None]
+                near = np.flatnonzero(_meets(g_lo, g_hi, n_lo, n_hi).any(axis=(1, 2)))
+                if len(near):
+                    thetas = np.stack([mine_k[j].theta for j in near.tolist()])
+                    ok[at[near]] = free_of(at[near], thetas, new)
             self.carried += int(ok[at].sum())
         if idx:
             ok[idx] = self.held(
