@@ -1,4 +1,4 @@
-"""Work reused across tray positions: every cell the database solves from scratch, every witness verified."""
+"""Work reused across tray positions: the cells the database solves, every witness verified."""
 
 from __future__ import annotations
 
@@ -38,9 +38,7 @@ def _from_scratch(planner, scene, tray_id, grow=True):
     kept, planner.reuse = planner.reuse, ReuseCache()
     try:
         with mock.patch.object(solve, "grow", solve.grow if grow else lambda *a: 0):
-            return compute_tray_region(
-                planner, scene, scene.tray(tray_id), scene.base_yaw.yaws[0]
-            )
+            return compute_tray_region(planner, scene, scene.tray(tray_id), scene.base_yaw.yaws[0])
     finally:
         planner.reuse = kept
 
