@@ -34,7 +34,7 @@ ROUTE = np.array([231, 205, 71])  # (255, 200, 0) as lit and shaded in the view
 REJECTED = np.array([222, 38, 40])
 KEPT = np.array([40, 200, 90])
 STALE = np.array([140, 140, 175])
-TRAY4_PATCH = np.array([254, 238, 213])  # tray_4 orange, translucent over the white floor
+TRAY4_PATCH = np.array([251, 227, 197])  # tray_4 orange, translucent over the floor (flat light)
 
 pytestmark = pytest.mark.skipif(
     shutil.which("chromium") is None, reason="Debian's chromium is not installed"
