@@ -153,3 +153,19 @@ def assert_route_clear(robot, scene, plan, step: float = 0.01) -> None:
         # a leg ends at its stop at the stop's yaw
         if n < len(plan.stops) and held[-1] is not None:
             assert math.isclose(held[-1], plan.stops[n].yaw, abs_tol=1e-9)
+
+
+def count_regions(monkeypatch) -> list[str]:
+    """The ids of the trays whose regions are computed from now on (the list fills as the
+    region planner computes them)."""
+    import pickstop.regions.planner as region_planner
+
+    made: list[str] = []
+    real = region_planner.compute_tray_region
+
+    def counted(kit, scene, tray, yaw, key=""):
+        made.append(tray.id)
+        return real(kit, scene, tray, yaw, key)
+
+    monkeypatch.setattr(region_planner, "compute_tray_region", counted)
+    return made

@@ -14,7 +14,7 @@ from pickstop.scene.load import parse_scene
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import Plan, PlanOptions
-from tests.utils import assert_stop_verified
+from tests.utils import assert_stop_verified, count_regions
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 
@@ -301,20 +301,6 @@ def _moved_doc(doc, tray_id, dx):
     return doc
 
 
-def _count_regions(monkeypatch):
-    import pickstop.regions.planner as region_planner
-
-    made: list[str] = []
-    real = region_planner.compute_tray_region
-
-    def counted(kit, scene, tray, yaw, key=""):
-        made.append(tray.id)
-        return real(kit, scene, tray, yaw, key)
-
-    monkeypatch.setattr(region_planner, "compute_tray_region", counted)
-    return made
-
-
 def test_a_layout_planned_ahead_leaves_its_plan_nothing_to_compute(planner, paper_doc, monkeypatch):
     """The exact plan of a previewed layout, made ahead while the editor holds still: the
     plan asked for on release computes no region and is the verified plan of that layout."""
@@ -328,7 +314,7 @@ def test_a_layout_planned_ahead_leaves_its_plan_nothing_to_compute(planner, pape
     lock = _Yielding(threading.Lock(), lambda: False)
     assert sp.plan_ahead(moved, PlanOptions(samples=0), lock)
     assert not lock.lock.locked()
-    made = _count_regions(monkeypatch)
+    made = count_regions(monkeypatch)
     plan = sp.plan(moved, PlanOptions(samples=0))
     assert made == [] and plan.verified
     for stop in plan.stops:
@@ -365,7 +351,7 @@ def test_planning_ahead_gives_way_to_a_request_and_keeps_nothing_half_done(
     assert not sp.plan_ahead(moved, PlanOptions(samples=0), lock)
     assert not lock.lock.locked() and planner.interrupt is None
     assert planner._cached(moved, "tray_1", moved.base_yaw.yaws[0]) is None
-    made = _count_regions(monkeypatch)
+    made = count_regions(monkeypatch)
     plan = sp.plan(moved, PlanOptions(samples=0))
     assert "tray_1" in made and plan.verified
     for stop in plan.stops:

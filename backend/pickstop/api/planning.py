@@ -14,7 +14,7 @@ import json
 import logging
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Executor
 from typing import Any
 
@@ -140,46 +140,54 @@ class Planning:
         """The plans of the neighbouring sigma bands and the other objective (what the 3D
         planner's slider and switch ask next), then every candidate's centre check; begun
         once no plan has been asked for in :data:`QUIET` seconds (a slider gesture's steps
-        are not slowed by work for the steps it has already left), given up for a newer
-        plan's."""
+        are not slowed by work for the steps it has already left)."""
 
-        def stale() -> bool:
-            return self._generation != generation
-
-        end = time.monotonic() + QUIET
-        while not stale() and time.monotonic() < end:
-            time.sleep(0.01)
-        if stale():
-            return
-        lock = _Yielding(slot.lock, lambda: self._waiting > 0)
-        try:
+        def work(lock: _Yielding, stale: Callable[[], bool]) -> None:
             slot.planner.prefetch_selections(scene, options, lock, stale=stale)
             slot.planner.prefetch_checks(scene, lock, stale=stale)
-        except Exception:  # a background nicety: never let it disturb a request
-            log.exception("planning ahead failed")
+
+        self._when_quiet(slot, generation, QUIET, work)
 
     def _plan_ahead(
         self, slot: PlannerSlot, scene: Scene, options: PlanOptions, generation: int
     ) -> None:
         """The exact plan of a previewed layout (``StopPlanner.plan_ahead``), begun once
         nothing newer has been asked for in :data:`HOLD` seconds (the editor paused its
-        drag), giving way at once to any request and given up for a newer one."""
+        drag)."""
+        self._when_quiet(
+            slot,
+            generation,
+            HOLD,
+            lambda lock, stale: slot.planner.plan_ahead(scene, options, lock, stale=stale),
+        )
+
+    def _when_quiet(
+        self,
+        slot: PlannerSlot,
+        generation: int,
+        quiet: float,
+        work: Callable[[_Yielding, Callable[[], bool]], object],
+    ) -> None:
+        """``work(lock, stale)`` in the background once no request has come for ``quiet``
+        seconds since the one of ``generation``: under the slot's lock as background work
+        takes it (it gives way to any request), given up once ``stale()`` (a newer request
+        came). Never lets an error disturb a request: a layout without a plan is left for a
+        request to explain, anything else is logged."""
 
         def stale() -> bool:
             return self._generation != generation
 
-        end = time.monotonic() + HOLD
+        end = time.monotonic() + quiet
         while not stale() and time.monotonic() < end:
             time.sleep(0.01)
         if stale():
             return
-        lock = _Yielding(slot.lock, lambda: self._waiting > 0)
         try:
-            slot.planner.plan_ahead(scene, options, lock, stale=stale)
+            work(_Yielding(slot.lock, lambda: self._waiting > 0), stale)
         except PickStopError:
-            pass  # the layout has no plan: the request on release will say why
-        except Exception:  # a background nicety: never let it disturb a request
-            log.exception("planning a previewed layout ahead failed")
+            pass
+        except Exception:
+            log.exception("planning ahead failed")
 
     def regions(
         self,

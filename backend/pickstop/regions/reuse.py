@@ -240,12 +240,16 @@ def changes(old: Surroundings, new: Surroundings) -> list[Change]:
 def _newcomers(was: Surroundings, new: Surroundings) -> tuple[Solid, ...]:
     """:meth:`RefineMemo.newcomers` of ``new`` since ``was``."""
     out: list[Solid] = []
+    by_shape: dict[tuple[Any, ...], list[int]] = {}
+    for j, key in enumerate(was.shape):
+        by_shape.setdefault(key, []).append(j)
     for k, key in enumerate(new.shape):
-        alike = [j for j, other in enumerate(was.shape) if other == key]
-        if any(
-            np.all(np.abs(was.lo[j] - new.lo[k]) <= SAME)
-            and np.all(np.abs(was.hi[j] - new.hi[k]) <= SAME)
-            for j in alike
+        alike = by_shape.get(key, [])
+        if alike and bool(
+            (
+                np.all(np.abs(was.lo[alike] - new.lo[k]) <= SAME, axis=1)
+                & np.all(np.abs(was.hi[alike] - new.hi[k]) <= SAME, axis=1)
+            ).any()
         ):
             continue
         boxes = [j for j in alike if was.boxes[j]] if new.boxes[k] else []

@@ -176,8 +176,8 @@ def test_a_previewed_layout_is_planned_ahead_while_the_editor_holds_still(
     verified."""
     import threading
 
-    import pickstop.regions.planner as region_planner
     from pickstop.sequence.plan import StopPlanner
+    from tests.utils import count_regions
 
     finished: list[bool] = []
     done = threading.Event()
@@ -200,14 +200,7 @@ def test_a_previewed_layout_is_planned_ahead_while_the_editor_holds_still(
         req = {"scene": moved, "options": {"samples": 0}, "mode": "preview", "store": False}
         assert client.post(PLANS, json=req, headers=AUTH).status_code == 200
         assert done.wait(120) and finished == [True]
-        made: list[str] = []
-        compute = region_planner.compute_tray_region
-
-        def counted(kit, scene, tray, yaw, key=""):
-            made.append(tray.id)
-            return compute(kit, scene, tray, yaw, key)
-
-        monkeypatch.setattr(region_planner, "compute_tray_region", counted)
+        made = count_regions(monkeypatch)
         after = client.post(PLANS, json={**req, "mode": "sync"}, headers=AUTH)
         assert after.status_code == 200 and after.json()["plan"]["verified"] is True
         assert made == []
