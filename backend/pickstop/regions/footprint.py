@@ -95,7 +95,7 @@ def footprint_check(
     ok[idx] = False
     owners = set()
     for solid in solids if len(idx) else []:
-        if blocked_by(robot, [solid], centres[idx], yaw, footprint=False).any():
+        if blocked_by(robot, [solid], centres[idx], yaw, footprint=False, keep=False).any():
             owners.add(solid.owner)
     return ok, owners
 
@@ -107,13 +107,16 @@ def blocked_by(
     yaw: float,
     footprint: bool = True,
     upper: bool = True,
+    keep: bool = True,
 ) -> np.ndarray:
     """``(M,)`` True where the base at ``centres: (M, 2)`` [m], ``yaw`` [rad] touches one of
-    ``solids``: its footprint (``footprint``) or its upper body (``upper``)."""
+    ``solids``: its footprint (``footprint``) or its upper body (``upper``). ``keep``: the
+    blocked region is kept for the next call with these solids (False for a one-off test,
+    so that it does not push out the regions of whole scenes)."""
     fp = robot.footprint
     x, y = centres[:, 0], centres[:, 1]
     out = np.zeros(len(x), bool)
-    region, concave = _blocked_region(robot, solids, yaw, footprint, upper)
+    region, concave = _blocked_region(robot, solids, yaw, footprint, upper, keep)
     if region is not None:
         out |= _inside(region, x, y)
     if concave is not None:
@@ -129,7 +132,12 @@ BLOCKED_MEMO = 64  # blocked regions kept per robot (solids x yaw x which body)
 
 
 def _blocked_region(
-    robot: RobotModel, solids: list[Solid], yaw: float, footprint: bool, upper: bool
+    robot: RobotModel,
+    solids: list[Solid],
+    yaw: float,
+    footprint: bool,
+    upper: bool,
+    keep: bool = True,
 ) -> tuple[BaseGeometry | None, BaseGeometry | None]:
     """Where the base at ``yaw`` may not stand for ``solids``: the region of base positions
     that touch one (None: none), and for a concave footprint the union of the outlines that
@@ -175,6 +183,8 @@ def _blocked_region(
         if region is not None:
             parts.append(region)
     out = (shapely.union_all(parts) if parts else None, concave)
+    if not keep:
+        return out
     memo[key] = out
     while len(memo) > BLOCKED_MEMO:
         memo.popitem(last=False)
