@@ -88,8 +88,11 @@ class PlannerSlot:
 class PlannerPool:
     """Robots, databases and planners of one data folder, each loaded once per process."""
 
-    def __init__(self, data_dir: Path) -> None:
+    def __init__(self, data_dir: Path, region_processes: int = 1) -> None:
+        """region_processes: the planners' ``workers`` (processes computing a plan's regions
+        at once, :mod:`pickstop.regions.workers`)."""
         self.data_dir = Path(data_dir)
+        self.region_processes = region_processes
         self._robots: dict[str, RobotModel] = {}  # config_key -> robot
         self._databases: dict[tuple[str, str], ReachDatabase] = {}  # (robot hash, db id)
         self._defaults: dict[str, str] = {}  # robot hash -> the database used when none named
@@ -132,7 +135,9 @@ class PlannerPool:
             key = (robot.robot_hash, db.id)
             slot = self._slots.get(key)
             if slot is None:
-                rp = RegionPlanner(robot, db, cache_dir=cache_dir(self.data_dir))
+                rp = RegionPlanner(
+                    robot, db, cache_dir=cache_dir(self.data_dir), workers=self.region_processes
+                )
                 slot = self._slots[key] = PlannerSlot(rp)
             return slot
 

@@ -67,6 +67,13 @@ class Settings(BaseSettings):
         description="child processes that compute plans, previews and regions, so that reads "
         "never wait on a planner for the interpreter lock (0: threads of the API process)",
     )
+    region_processes: int = Field(
+        default=2,
+        ge=1,
+        le=32,
+        description="processes computing a plan's regions at once: the planner's own and "
+        "helpers forked from it, each tray computed where it was before (1: the planner alone)",
+    )
     job_deadline: float = Field(
         default=6 * 3600.0, gt=0, description="seconds a job may run (then it fails)"
     )

@@ -49,7 +49,11 @@ class Service:
         self.data_dir.mkdir(parents=True, exist_ok=True)
         self.store = ServiceStore(self.data_dir)
         self.threads = ThreadPoolExecutor(max_workers=2, thread_name_prefix="pickstop-plan")
-        self.planners = planners if planners is not None else PlannerPool(self.data_dir)
+        self.planners = (
+            planners
+            if planners is not None
+            else PlannerPool(self.data_dir, settings.region_processes)
+        )
         self.robots = RobotRegistry(self.store, self.data_dir, self.planners)
         self.scenes = SceneChecks(self.limits, self.data_dir, self.store, self.robots)
         # Plans, previews and regions run in a child process (planner_process.py) unless the

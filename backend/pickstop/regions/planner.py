@@ -2,8 +2,9 @@
 
 :meth:`RegionPlanner.regions` answers every task tray at every yaw of a scene: from the memo of
 the last layouts, from the per-tray cache while :mod:`pickstop.regions.validity` says a region
-still holds, else computed by :mod:`pickstop.regions.pipeline` (several at once in forked
-processes, :mod:`pickstop.regions.workers`). The last region of each tray is kept for previews
+still holds, else computed by :mod:`pickstop.regions.pipeline` (with ``workers`` > 1, several
+at once, each tray at home in the planner's process or one of its forked helpers:
+:mod:`pickstop.regions.workers`). The last region of each tray is kept for previews
 (:mod:`pickstop.regions.carry`).
 """
 
@@ -29,7 +30,9 @@ class RegionPlanner(RegionKit):
 
     cache: dict[str, list[CacheEntry]] = field(default_factory=dict)  # by own key
     cache_size: int = 256  # own keys kept
-    workers: int = 1  # processes for several regions at once (forked: they share the database)
+    # processes computing regions: this one and workers - 1 helpers forked from it (they share
+    # the database; each tray is computed where it was before, its memos there)
+    workers: int = 1
     _layouts: dict[str, dict[tuple[str, float], TrayRegion]] = field(
         default_factory=dict, init=False, repr=False
     )  # the regions of the last layouts
@@ -42,15 +45,18 @@ class RegionPlanner(RegionKit):
 
     def tray_region(self, scene: Scene, tray_id: str, yaw: float | None = None) -> TrayRegion:
         """The region of one tray, reused from the cache while nothing it looked at changed."""
-        tray = scene.tray(tray_id)
         yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
         hit = self._cached(scene, tray_id, yaw)
         if hit is not None:
             self._last.remember(scene, hit)
             return hit
-        region = compute_tray_region(self, scene, tray, yaw, own_key(self, scene, tray, yaw))
+        region = self._compute(scene, tray_id, yaw)
         self._store(scene, region)
         return region
+
+    def _compute(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
+        tray = scene.tray(tray_id)
+        return compute_tray_region(self, scene, tray, yaw, own_key(self, scene, tray, yaw))
 
     def regions(
         self, scene: Scene, workers: int | None = None
@@ -58,7 +64,7 @@ class RegionPlanner(RegionKit):
         """Regions of every tray the task needs, at every yaw of the policy.
 
         workers: processes for the regions not in the cache (default: the planner's
-        ``workers``); they are forked from this process, so they share its database.
+        ``workers``): this one and helpers forked from it, so they share its database.
         """
         pairs = [(t, y) for t in scene.task_trays for y in scene.base_yaw.yaws]
         # The regions are a function of the layout: the same layout (a change of sigma, rule
@@ -73,8 +79,8 @@ class RegionPlanner(RegionKit):
             return dict(hit)
         workers = self.workers if workers is None else workers
         todo = [(t, y) for t, y in pairs if self._cached(scene, t, y) is None]
-        if workers > 1 and len(todo) > 1:
-            for region in self._pool(workers).regions(scene, todo):
+        if workers > 1 and todo:
+            for region in self._pool(workers).regions(scene, todo, self._compute):
                 self._store(scene, region)
         out = {(t, y): self.tray_region(scene, t, y) for t, y in pairs}
         self._layouts[layout] = out
@@ -120,7 +126,7 @@ class RegionPlanner(RegionKit):
         return self._workers
 
     def close(self) -> None:
-        """Stop the worker processes, if any."""
+        """Stop the helper processes, if any (started again when next needed)."""
         if self._workers is not None:
             self._workers.close()
             self._workers = None

@@ -1,52 +1,256 @@
-"""Regions computed in worker processes forked from the planner's.
+"""Regions computed by several processes at once, each tray at home in one of them.
 
-Forked children share the parent's reachability database (its pages are copied only if
-written, and they are only read) and start with its memos of grasps and refinements. The
-kit reaches the children as the pool's initializer argument, which a fork hands over in
-memory: nothing is pickled but the scene and the regions that come back.
+The planner's process is one of the ``processes``; the others are helpers forked from it,
+which live as long as the pool. Forked children share the parent's reachability database (its
+pages are copied only if written, and they are only read) and start with its memos. Each tray
+(with its yaw) has a **home**: the process that computed its region first computes it again,
+so what its memos learned there (grasps, refinements, remembered cell answers across tray
+positions: :mod:`pickstop.regions.reuse`) serves the next layout. A tray new to the pool goes
+to the process with the least to do. Nothing is pickled but the scene going out and the
+regions coming back (a few hundred kB, about a millisecond).
+
+A region computed here is the one the planner's process would compute from the same memos:
+every cell it calls feasible carries a witness verified for the real geometry there.
+
+Background work gives way in the helpers as in the planner: once the planner's ``interrupt``
+says so, a shared flag tells every helper to stop at its next checkpoint
+(:meth:`~pickstop.regions.kit.RegionKit.checkpoint`), and :class:`Interrupted` is raised once
+they have. A helper that dies is replaced on the next call, and its share computed by the
+planner's process meanwhile.
 """
 
 from __future__ import annotations
 
+import logging
 import multiprocessing
-from multiprocessing.pool import Pool
+import os
+import pickle
+from collections.abc import Callable
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from typing import Any
 
 from pickstop.regions.cells import TrayRegion
-from pickstop.regions.kit import RegionKit
+from pickstop.regions.kit import Interrupted, RegionKit
 from pickstop.regions.pipeline import compute_tray_region
 from pickstop.regions.validity import own_key
 from pickstop.scene.model import Scene
 
-_KIT: RegionKit | None = None  # set in each worker process, never in the parent
+log = logging.getLogger("pickstop.regions")
+
+POLL = 0.005  # [s] between looks at the planner's interrupt while helpers compute
+_KIT: RegionKit | None = None  # set in each helper process, never in the parent
+
+Pair = tuple[str, float]  # (tray id, yaw [rad])
+Compute = Callable[[Scene, str, float], TrayRegion]
+
+
+@dataclass
+class _Helper:
+    process: Any  # multiprocessing.Process
+    conn: Connection
 
 
 class RegionWorkers:
-    """``processes`` forked workers computing regions with ``kit`` as it was at the fork."""
+    """``processes`` processes computing regions with ``kit``: the caller's own and
+    ``processes - 1`` helpers forked from it, each tray at home in one (see the module)."""
 
     def __init__(self, kit: RegionKit, processes: int) -> None:
         if processes < 1:
             raise ValueError(f"processes must be at least 1, got {processes}")
+        self.kit = kit
         self.processes = processes
-        ctx = multiprocessing.get_context("fork")
-        self._pool: Pool = ctx.Pool(processes, initializer=_adopt, initargs=(kit,))
+        self.homes: dict[str, int] = {}  # home key -> process (0: the caller's own)
+        self._ctx = multiprocessing.get_context("fork")
+        self._stop = self._ctx.RawValue("b", 0)  # shared: 1 while helpers are to give way
+        self._helpers: list[_Helper | None] = [None] * (processes - 1)
+        self._rid = 0
 
-    def regions(self, scene: Scene, pairs: list[tuple[str, float]]) -> list[TrayRegion]:
-        """The region of each ``(tray id, yaw)`` of ``scene``, from scratch, in order."""
-        return self._pool.starmap(_region, [(scene, t, y) for t, y in pairs])
+    def regions(self, scene: Scene, pairs: list[Pair], compute: Compute) -> list[TrayRegion]:
+        """The region of each ``(tray id, yaw)`` of ``scene``, in order: those at home here by
+        ``compute(scene, tray id, yaw)``, the others by their helpers meanwhile.
+
+        Raises :class:`Interrupted` (after every helper stopped) if the kit's interrupt says
+        to give way."""
+        share = self._share(scene, pairs)
+        out: dict[Pair, TrayRegion] = {}
+        sent: dict[int, int] = {}  # helper index -> request id
+        self._stop.value = 0
+        for h in range(1, self.processes):
+            mine = [p for p, w in zip(pairs, share, strict=True) if w == h]
+            if mine and (rid := self._send(h - 1, scene, mine)) is not None:
+                sent[h - 1] = rid
+            elif mine:
+                share = [0 if w == h else w for w in share]  # no helper: computed here
+        try:
+            for p, w in zip(pairs, share, strict=True):
+                if w == 0:
+                    out[p] = compute(scene, *p)
+            for h, rid in sent.items():
+                got = self._receive(h, rid)
+                if got is None:  # the helper died: its share is computed here
+                    for p, w in zip(pairs, share, strict=True):
+                        if w == h + 1:
+                            self.homes[_home_key(scene, p)] = 0
+                            out[p] = compute(scene, *p)
+                else:
+                    out.update(got)
+        except BaseException:
+            self._stop.value = 1
+            for h, rid in sent.items():
+                self._drain(h, rid)
+            raise
+        return [out[p] for p in pairs]
+
+    def _share(self, scene: Scene, pairs: list[Pair]) -> list[int]:
+        """Which process computes each pair: its home, else the one with the least to do
+        (then the fewest homes)."""
+        load = [0] * self.processes
+        homes = [0] * self.processes
+        for w in self.homes.values():
+            if w < self.processes:
+                homes[w] += 1
+        out: list[int | None] = []
+        for p in pairs:
+            home = self.homes.get(_home_key(scene, p))
+            out.append(home if home is not None and home < self.processes else None)
+            if out[-1] is not None:
+                load[out[-1]] += 1
+        for i, p in enumerate(pairs):
+            if out[i] is None:
+                w = min(range(self.processes), key=lambda k: (load[k], homes[k], k))
+                homes[w] += 1
+                load[w] += 1
+                out[i] = self.homes[_home_key(scene, p)] = w
+        return [w for w in out if w is not None]
+
+    def _send(self, h: int, scene: Scene, pairs: list[Pair]) -> int | None:
+        """Ask helper ``h`` for the regions of ``pairs``: the request's id, or None if no
+        helper can be started."""
+        self._rid += 1
+        for _ in range(2):  # a helper found dead is replaced once
+            helper = self._helpers[h] or self._start(h)
+            try:
+                helper.conn.send((self._rid, scene, pairs))
+                return self._rid
+            except (OSError, ValueError):
+                self._retire(h)
+        return None
+
+    def _receive(self, h: int, rid: int) -> dict[Pair, TrayRegion] | None:
+        """Helper ``h``'s answer to request ``rid``; None if it died. Raises what it raised,
+        and :class:`Interrupted` once the kit says to give way (the helper stopped)."""
+        helper = self._helpers[h]
+        assert helper is not None
+        while True:
+            try:
+                if not helper.conn.poll(POLL):
+                    if self.kit.interrupt is not None and self.kit.interrupt():
+                        raise Interrupted()
+                    continue
+                got_rid, kind, payload = helper.conn.recv()
+            except (EOFError, OSError):
+                log.warning("a region helper process ended; its trays are computed here")
+                self._retire(h)
+                return None
+            if got_rid != rid:
+                continue  # the answer to a request given up before
+            if kind == "error":
+                raise pickle.loads(payload)
+            if kind == "interrupted":
+                raise Interrupted()
+            return dict(payload)
+
+    def _drain(self, h: int, rid: int) -> None:
+        """Wait for helper ``h`` to answer request ``rid`` (it stops at its next checkpoint),
+        so that the next request finds it idle; a helper that does not answer is replaced."""
+        helper = self._helpers[h]
+        if helper is None:
+            return
+        try:
+            while helper.conn.poll(5.0):
+                if helper.conn.recv()[0] == rid:
+                    return
+        except (EOFError, OSError):
+            pass
+        self._retire(h)
+
+    def _start(self, h: int) -> _Helper:
+        mine, theirs = self._ctx.Pipe()
+        proc = self._ctx.Process(
+            target=_serve,
+            args=(self.kit, theirs, mine, self._stop),
+            name=f"pickstop-regions-{h + 1}",
+            daemon=True,
+        )
+        proc.start()
+        theirs.close()
+        helper = self._helpers[h] = _Helper(proc, mine)
+        return helper
+
+    def _retire(self, h: int) -> None:
+        helper, self._helpers[h] = self._helpers[h], None
+        if helper is not None:
+            helper.conn.close()
+            helper.process.kill()
+            helper.process.join(timeout=5)
+
+    @property
+    def pids(self) -> list[int | None]:
+        """The helpers' process ids (None: not started, or ended)."""
+        return [None if h is None else h.process.pid for h in self._helpers]
 
     def close(self) -> None:
-        """Stop the worker processes."""
-        self._pool.terminate()
-        self._pool.join()
+        """Stop the helper processes."""
+        for h in range(len(self._helpers)):
+            self._retire(h)
 
 
-def _adopt(kit: RegionKit) -> None:
+def _home_key(scene: Scene, pair: Pair) -> str:
+    """What a home is kept by: the tray's definition but for where it stands, its id and the
+    yaw (the memos of a tray moved about are one tray's)."""
+    tray = scene.tray(pair[0])
+    return f"{tray.id}|{pair[1]!r}|{tray.model_dump_json(exclude={'pose': {'x', 'y'}})}"
+
+
+def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> None:
+    """A helper's life: regions for the planner's requests until its end of the pipe closes."""
     global _KIT
+    parents.close()  # so that the planner's end closing reads as the end here
     _KIT = kit
+    kit.interrupt = lambda: bool(stop.value)
+    code = 0
+    try:
+        while True:
+            try:
+                rid, scene, pairs = conn.recv()
+            except (EOFError, OSError):
+                break
+            try:
+                out = [(p, _region(scene, *p)) for p in pairs]
+                conn.send((rid, "ok", out))
+            except Interrupted:
+                conn.send((rid, "interrupted", None))
+            except Exception as e:
+                conn.send((rid, "error", _pickled(e)))
+    except (OSError, ValueError):
+        code = 1
+    finally:
+        os._exit(code)  # nothing of the planner's process (threads, exit handlers) runs here
 
 
 def _region(scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
     kit = _KIT
-    assert kit is not None, "a region worker runs only in a RegionWorkers pool"
+    assert kit is not None, "a region helper runs only in a RegionWorkers process"
     tray = scene.tray(tray_id)
     return compute_tray_region(kit, scene, tray, yaw, own_key(kit, scene, tray, yaw))
+
+
+def _pickled(e: BaseException) -> bytes:
+    """``e`` as it can cross to the planner's process (its words kept if it cannot)."""
+    try:
+        out = pickle.dumps(e)
+        pickle.loads(out)
+        return out
+    except Exception:
+        return pickle.dumps(RuntimeError(f"{type(e).__name__}: {e}"))
