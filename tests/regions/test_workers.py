@@ -11,6 +11,7 @@ import signal
 import numpy as np
 import pytest
 
+from pickstop.regions import kit as kit_mod
 from pickstop.regions import workers as workers_mod
 from pickstop.regions.kit import Interrupted
 from pickstop.regions.planner import RegionPlanner
@@ -64,6 +65,13 @@ def test_two_processes_give_one_process_regions_across_moves(fresh, paper_doc, m
         assert a.keys() == b.keys()
     mover = _helper_tray(two, layouts[0])
     computed = count_regions(monkeypatch)  # in this process (the helpers were forked before)
+    real = kit_mod.grasps_for_part
+    made: list[object] = []
+
+    def counted(*a: object) -> object:
+        made.append(a)
+        return real(*a)
+
     for dx, dy in ((0.05, 0.0), (0.0, -0.1)):
         scene = parse_scene(_moved(paper_doc, mover, dx, dy))
         a = one.regions(scene)
@@ -73,6 +81,12 @@ def test_two_processes_give_one_process_regions_across_moves(fresh, paper_doc, m
         for k in a:
             np.testing.assert_array_equal(a[k].mask, b[k].mask)
             np.testing.assert_allclose(a[k].thetas, b[k].thetas)
+        # The helper's grasps came back with its region: the stops' checks here need them.
+        made.clear()
+        monkeypatch.setattr(kit_mod, "grasps_for_part", counted)
+        two.grasps(scene, scene.tray(mover))
+        assert not made
+        monkeypatch.setattr(kit_mod, "grasps_for_part", real)
         r = b[(mover, scene.base_yaw.yaws[0])]
         assert_cells_verified(two, scene, r, np.arange(0, len(r.cells), 37))
 

@@ -118,6 +118,13 @@ class RegionKit:
             out.append(_moved_by(self.grasp_cache[full], at))
         return out
 
+    def learn_grasps(self, entries: dict[str, GraspSet]) -> None:
+        """Keep grasps another process computed (:mod:`pickstop.regions.workers`), by the
+        keys :meth:`grasps` finds them by."""
+        if len(self.grasp_cache) + len(entries) > MEMO_SIZE:
+            self.grasp_cache.clear()
+        self.grasp_cache.update(entries)
+
     def hand_space(self, scene: Scene, tray: Tray, part: Part) -> tuple[np.ndarray, np.ndarray]:
         """:func:`pickstop.scene.grasps.hand_space`, computed once per tray (wherever it
         stands on the floor), part and hand."""

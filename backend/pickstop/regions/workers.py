@@ -7,7 +7,8 @@ pages are copied only if written, and they are only read) and start with its mem
 so what its memos learned there (grasps, refinements, remembered cell answers across tray
 positions: :mod:`pickstop.regions.reuse`) serves the next layout. A tray new to the pool goes
 to the process with the least to do. Nothing is pickled but the scene going out and the
-regions coming back (a few hundred kB, about a millisecond).
+regions coming back (a few hundred kB, about a millisecond), with the grasps the helper
+computed for them (the planner's checks of stops need them too).
 
 A region computed here is the one the planner's process would compute from the same memos:
 every cell it calls feasible carries a witness verified for the real geometry there.
@@ -159,7 +160,9 @@ class RegionWorkers:
                 raise pickle.loads(payload)
             if kind == "interrupted":
                 raise Interrupted()
-            return dict(payload)
+            regions, grasps = payload
+            self.kit.learn_grasps(grasps)  # the stops' checks here need them too
+            return dict(regions)
 
     def _drain(self, h: int, rid: int) -> None:
         """Wait for helper ``h`` to answer request ``rid`` (it stops at its next checkpoint),
@@ -227,8 +230,10 @@ def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> 
             except (EOFError, OSError):
                 break
             try:
+                known = set(kit.grasp_cache)
                 out = [(p, _region(scene, *p)) for p in pairs]
-                conn.send((rid, "ok", out))
+                grasps = {k: g for k, g in kit.grasp_cache.items() if k not in known}
+                conn.send((rid, "ok", (out, grasps)))
             except Interrupted:
                 conn.send((rid, "interrupted", None))
             except Exception as e:
