@@ -356,3 +356,39 @@ def test_planning_ahead_gives_way_to_a_request_and_keeps_nothing_half_done(
     assert "tray_1" in made and plan.verified
     for stop in plan.stops:
         assert_stop_verified(planner, moved, stop)
+
+
+def test_a_stop_check_is_reused_until_something_near_its_tray_changes(
+    stop_planner, planner, paper_doc, monkeypatch
+):
+    """A stop's exact check depends on its tray's region and the objects the arm can meet
+    from there (regions/offgrid.check_key): moving a pillar near trays 1 and 2 checks their
+    stops anew and leaves tray 4's as they were."""
+    import pickstop.sequence.plan as plan_module
+    from pickstop.regions.pipeline import arm_radius
+
+    pillar = {"id": "pillar", "geometry": {"shape": "cylinder", "radius": 0.1, "height": 2.0},
+              "pose": {"x": -0.7, "y": 2.7}}  # fmt: skip
+    paper_doc["obstacles"].append(pillar)
+    scene = parse_scene(paper_doc)
+    near = {
+        t: any('"pillar"' in d for d in planner.objects_near(scene, scene.tray(t), arm_radius(
+            planner, scene.tray(t))))
+        for t in ("tray_1", "tray_4")
+    }  # fmt: skip
+    assert near == {"tray_1": True, "tray_4": False}
+    stop_planner.plan(scene, PlanOptions(samples=0))
+    checked: list[str] = []
+    real = plan_module.feasible_near
+
+    def counted(kit, scene, region, *a, **k):
+        checked.append(region.tray_id)
+        return real(kit, scene, region, *a, **k)
+
+    monkeypatch.setattr(plan_module, "feasible_near", counted)
+    pillar["pose"]["y"] = 2.5
+    moved = parse_scene(paper_doc)
+    plan = stop_planner.plan(moved, PlanOptions(samples=0))
+    assert "tray_4" not in checked and "tray_1" in checked
+    for stop in plan.stops:
+        assert_stop_verified(planner, moved, stop)

@@ -7,6 +7,8 @@ edges and their squares merge into one polygon.
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import math
 from dataclasses import dataclass, field
 
@@ -68,6 +70,15 @@ class TrayRegion:
     seconds: float
     key: str = ""
     envelope: Envelope | None = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def digest(self) -> str:
+        """What the region holds, as a key: its feasible cells, their witnesses and grasps
+        (with its own key, what it was computed from)."""
+        h = hashlib.sha256(f"{self.key}|{self.tray_id}|{self.yaw!r}".encode())
+        for a in (self.cells, self.thetas, self.grasp_index):
+            h.update(np.ascontiguousarray(a).tobytes())
+        return h.hexdigest()
 
     @property
     def area(self) -> float:

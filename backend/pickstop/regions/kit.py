@@ -138,6 +138,19 @@ class RegionKit:
         lo, hi = self._hand_spaces[key]
         return lo + at, hi + at
 
+    def objects_near(self, scene: Scene, tray: Tray, radius: float) -> list[str]:
+        """The definitions of the objects but ``tray`` with a solid whose bounding box comes
+        within ``radius`` [m] of the tray's centre in the floor plane."""
+        c = np.array([tray.pose.x, tray.pose.y])
+        out = []
+        for d, bounds in self._bounds_of(scene, tray.id):
+            for lo, hi, _ in bounds:
+                gap = np.maximum(np.maximum(lo[:2] - c, c - hi[:2]), 0.0)
+                if float(np.hypot(*gap)) <= radius:
+                    out.append(d)
+                    break
+        return out
+
     def _bounds_of(self, scene: Scene, exclude: str) -> list[tuple[str, Bounds]]:
         """Every object but the tray ``exclude``: its definition and its solids' bounds, each
         with whether the solid is an axis-aligned box (its bounds are the box)."""

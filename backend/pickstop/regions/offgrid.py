@@ -8,6 +8,8 @@ nearest feasible cells where the database's voxels hold nothing usable.
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 from pickstop.regions import solve
@@ -15,8 +17,9 @@ from pickstop.regions.cells import TrayRegion
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import footprint_free
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.pipeline import tray_world
+from pickstop.regions.pipeline import arm_radius, tray_world
 from pickstop.regions.solve import ArmWorld, Targets
+from pickstop.regions.validity import own_key
 from pickstop.scene.model import Scene, Tray
 
 
@@ -59,6 +62,23 @@ def feasible_at(
     ok = np.zeros(M, bool)
     ok[alive] = True
     return ok, thetas, grasp
+
+
+def check_key(
+    planner: RegionKit, scene: Scene, region: TrayRegion, xy: tuple[float, float], yaw: float
+) -> str:
+    """What :func:`feasible_near` of ``region`` at one base pose depends on, and nothing else:
+    the region (its tray, grid, floor, gripper, robot and database: its own key; its cells
+    and witnesses, the seeds), the objects near enough for the arm to meet
+    (:func:`~pickstop.regions.pipeline.arm_radius`, by definition), the pose, and whether the
+    base's footprint fits there now (it looks at the objects near the pose). A tray moved
+    elsewhere leaves the checks of the other trays as they were."""
+    tray = scene.tray(region.tray_id)
+    free = bool(footprint_free(scene, planner.robot, np.array([xy], float), yaw)[0])
+    near = planner.objects_near(scene, tray, arm_radius(planner, tray))
+    own = own_key(planner, scene, tray, region.yaw)
+    blob = "\0".join([own, region.digest, repr((xy, yaw, free)), *near])
+    return hashlib.sha256(blob.encode()).hexdigest()
 
 
 NEIGHBOUR_SEEDS = 6  # witnesses of the nearest feasible cells tried as IK seeds

@@ -201,14 +201,20 @@ def reuse_key(
     return hashlib.sha256(json.dumps(blob, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def arm_radius(planner: RegionKit, tray: Tray) -> float:
+    """[m] How far from the tray's centre, in the floor plane, a solid's bounding box may lie
+    and still be met by the arm reaching into the tray from a base within reach: the solids
+    its region and its off-grid checks look at (:func:`tray_world`)."""
+    return tray_reach(planner, tray) + planner.reach_xy + 0.2
+
+
 def tray_world(
     planner: RegionKit, scene: Scene, tray: Tray, yaw: float
 ) -> tuple[float, list[Solid], BoxArrays, np.ndarray]:
     """Reach radius around the tray [m], the solids near it (exact and as arrays), R_base_world."""
     tc = np.array([tray.pose.x, tray.pose.y])
-    reach = tray_reach(planner, tray)
-    solids = nearby(scene_solids(scene), tc, reach + planner.reach_xy + 0.2)
-    return reach, solids, BoxArrays.of(solids), frames.R_base_world(yaw)
+    solids = nearby(scene_solids(scene), tc, arm_radius(planner, tray))
+    return tray_reach(planner, tray), solids, BoxArrays.of(solids), frames.R_base_world(yaw)
 
 
 # -- why a region is empty: one wording for the pipeline and the reference solvers -------------

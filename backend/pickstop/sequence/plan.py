@@ -43,7 +43,7 @@ from pickstop.regions.footprint import (
     upper_body,
 )
 from pickstop.regions.kit import Interrupted
-from pickstop.regions.offgrid import feasible_near
+from pickstop.regions.offgrid import check_key, feasible_near
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
 from pickstop.scene.world import scene_solids
@@ -231,11 +231,17 @@ class StopPlanner:
             return hit
         return self._paths.put(key, shortest_paths(floor.fmap, points, yaws, floor.docking()))
 
+    def check_key(self, scene: Scene, region: TrayRegion, xy: tuple[float, float]) -> str:
+        """What :meth:`check` of ``region`` at ``xy`` depends on
+        (:func:`~pickstop.regions.offgrid.check_key`): a tray moved elsewhere leaves it."""
+        return check_key(self.regions, scene, region, xy, region.yaw)
+
     def check(
-        self, scene: Scene, world_key: str, region: TrayRegion, xy: tuple[float, float]
+        self, scene: Scene, region: TrayRegion, xy: tuple[float, float], key: str | None = None
     ) -> tuple[bool, np.ndarray, np.ndarray]:
-        """The exact region test for one tray at one base pose (cached)."""
-        key = (world_key, region.tray_id, xy, region.yaw)
+        """The exact region test for one tray at one base pose (cached by
+        :meth:`check_key`, ``key`` if known)."""
+        key = self.check_key(scene, region, xy) if key is None else key
         hit = self._checks.hit(key)
         if hit is None:
             ok, th, g = feasible_near(self.regions, scene, region, np.array([xy]), region.yaw)
@@ -243,15 +249,15 @@ class StopPlanner:
         return hit
 
     def witnesses(
-        self, scene: Scene, world_key: str, region: TrayRegion, xy: tuple[float, float]
+        self, scene: Scene, region: TrayRegion, xy: tuple[float, float]
     ) -> list[pm.Witness] | None:
         """The arm configurations that pick every part of the region's tray from ``xy`` (one
         witness per part, from :meth:`check`), or None if the exact check fails there
         (cached with the check)."""
-        key = (world_key, region.tray_id, xy, region.yaw)
+        key = self.check_key(scene, region, xy)
         if key in self._witnesses:
             return self._witnesses.hit(key)
-        ok, th, g = self.check(scene, world_key, region, xy)
+        ok, th, g = self.check(scene, region, xy, key)
         ws = None
         if ok:
             tray = scene.tray(region.tray_id)
@@ -314,16 +320,15 @@ class StopPlanner:
         with guard:
             regions = self.regions.regions(scene)
             cands = self.candidates(regions)
-            world = world_key(scene)
         done = 0
         for c in sorted(cands, key=lambda c: -c.radius):
             for t in sorted(c.trays):
                 if stale():
                     return done
                 with guard:
-                    key = (world, t, c.centre, c.yaw)
+                    key = self.check_key(scene, regions[t, c.yaw], c.centre)
                     if self._checks.hit(key) is None:
-                        self.check(scene, world, regions[t, c.yaw], c.centre)
+                        self.check(scene, regions[t, c.yaw], c.centre, key)
                         done += 1
         return done
 
@@ -656,7 +661,7 @@ class _Planning:
                 trays = tuple(t for t in self.required if t in serves[c])
                 ws = []
                 for t in trays:
-                    mine = sp.witnesses(scene, self.world, regions[t, cand.yaw], cand.centre)
+                    mine = sp.witnesses(scene, regions[t, cand.yaw], cand.centre)
                     if mine is None:
                         self.rejected[c] = (
                             f"the exact check at its centre failed for tray {t} (the region's "
