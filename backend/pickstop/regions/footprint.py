@@ -72,15 +72,26 @@ def upper_body(robot: RobotModel) -> UpperBody:
     return body
 
 
-def footprint_free(scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: float) -> np.ndarray:
+def footprint_free(
+    scene: Scene,
+    robot: RobotModel,
+    centres: np.ndarray,
+    yaw: float,
+    solids: list[Solid] | None = None,
+) -> np.ndarray:
     """``(M,)`` True where the base at ``centres: (M, 2)`` [m], ``yaw`` [rad] stands on the
     floor clear of every solid: its footprint clear of whatever reaches below the footprint's
-    height (tables, pillars, racks), its upper body clear of whatever overhangs."""
-    return footprint_check(scene, robot, centres, yaw)[0]
+    height (tables, pillars, racks), its upper body clear of whatever overhangs. ``solids``:
+    the scene's (:func:`~pickstop.scene.world.scene_solids`), if made already."""
+    return footprint_check(scene, robot, centres, yaw, solids)[0]
 
 
 def footprint_check(
-    scene: Scene, robot: RobotModel, centres: np.ndarray, yaw: float
+    scene: Scene,
+    robot: RobotModel,
+    centres: np.ndarray,
+    yaw: float,
+    solids: list[Solid] | None = None,
 ) -> tuple[np.ndarray, set[str]]:
     """:func:`footprint_free`, and the owners of overhanging solids that block a position
     whose footprint is clear (moving one of them may free it)."""
@@ -88,7 +99,7 @@ def footprint_check(
     x, y = centres[:, 0], centres[:, 1]
     floor = shapely.box(*scene.floor.min, *scene.floor.max).buffer(-r)
     ok = shapely.contains_xy(floor, x, y) if not floor.is_empty else np.zeros(len(x), bool)
-    solids = scene_solids(scene)
+    solids = scene_solids(scene) if solids is None else solids
     ok &= ~blocked_by(robot, solids, centres, yaw, upper=False)
     idx = np.flatnonzero(ok)
     idx = idx[blocked_by(robot, solids, centres[idx], yaw, footprint=False)]

@@ -21,6 +21,7 @@ from pickstop.regions.pipeline import arm_radius, tray_world
 from pickstop.regions.solve import ArmWorld, Targets
 from pickstop.regions.validity import own_key
 from pickstop.scene.model import Scene, Tray
+from pickstop.scene.world import Solid
 
 
 def _arm_world(
@@ -65,16 +66,22 @@ def feasible_at(
 
 
 def check_key(
-    planner: RegionKit, scene: Scene, region: TrayRegion, xy: tuple[float, float], yaw: float
+    planner: RegionKit,
+    scene: Scene,
+    region: TrayRegion,
+    xy: tuple[float, float],
+    yaw: float,
+    solids: list[Solid] | None = None,
 ) -> str:
     """What :func:`feasible_near` of ``region`` at one base pose depends on, and nothing else:
     the region (its tray, grid, floor, gripper, robot and database: its own key; its cells
     and witnesses, the seeds), the objects near enough for the arm to meet
     (:func:`~pickstop.regions.pipeline.arm_radius`, by definition), the pose, and whether the
     base's footprint fits there now (it looks at the objects near the pose). A tray moved
-    elsewhere leaves the checks of the other trays as they were."""
+    elsewhere leaves the checks of the other trays as they were. ``solids``: the scene's
+    (:func:`~pickstop.scene.world.scene_solids`), if made already."""
     tray = scene.tray(region.tray_id)
-    free = bool(footprint_free(scene, planner.robot, np.array([xy], float), yaw)[0])
+    free = bool(footprint_free(scene, planner.robot, np.array([xy], float), yaw, solids)[0])
     near = planner.objects_near(scene, tray, arm_radius(planner, tray))
     own = own_key(planner, scene, tray, region.yaw)
     blob = "\0".join([own, region.digest, repr((xy, yaw, free)), *near])

@@ -16,7 +16,7 @@ from pickstop.regions.carry import LastRegions
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import compute_tray_region
-from pickstop.regions.validity import CacheEntry, own_key, snapshot, still_valid
+from pickstop.regions.validity import CacheEntry, Snapshot, own_key, snapshot, still_valid
 from pickstop.regions.workers import RegionWorkers
 from pickstop.scene.model import Scene
 
@@ -78,19 +78,35 @@ class RegionPlanner(RegionKit):
                 self._last.remember(scene, region)
             return dict(hit)
         workers = self.workers if workers is None else workers
-        todo = [(t, y) for t, y in pairs if self._cached(scene, t, y) is None]
-        if workers > 1 and todo:
-            for region in self._pool(workers).regions(scene, todo, self._compute):
-                self._store(scene, region)
-        out = {(t, y): self.tray_region(scene, t, y) for t, y in pairs}
+        snaps = {t: snapshot(scene, t) for t in dict.fromkeys(t for t, _ in pairs)}
+        out: dict[tuple[str, float], TrayRegion] = {}
+        for t, y in pairs:
+            kept = self._cached(scene, t, y, snaps[t])
+            if kept is not None:
+                self._last.remember(scene, kept)
+                out[t, y] = kept
+        todo = [p for p in pairs if p not in out]
+        computed = (
+            self._pool(workers).regions(scene, todo, self._compute)
+            if workers > 1 and todo
+            else [self._compute(scene, t, y) for t, y in todo]
+        )
+        for (t, y), region in zip(todo, computed, strict=True):
+            self._store(scene, region, snaps[t])
+            out[t, y] = region
+        out = {p: out[p] for p in pairs}
         self._layouts[layout] = out
         while len(self._layouts) > LAYOUTS:
             self._layouts.pop(next(iter(self._layouts)))
         return dict(out)
 
-    def _cached(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion | None:
+    def _cached(
+        self, scene: Scene, tray_id: str, yaw: float, snap: Snapshot | None = None
+    ) -> TrayRegion | None:
+        """The cached region of the tray still valid in ``scene`` (``snap``: its
+        :func:`~pickstop.regions.validity.snapshot`, if made already), or None."""
         tray = scene.tray(tray_id)
-        snap = snapshot(scene, tray.id)
+        snap = snapshot(scene, tray.id) if snap is None else snap
         for entry in self.cache.get(own_key(self, scene, tray, yaw), []):
             if still_valid(self, entry, snap):
                 return entry.region
@@ -111,10 +127,11 @@ class RegionPlanner(RegionKit):
         self.cache.clear()
         self._last.clear()
 
-    def _store(self, scene: Scene, region: TrayRegion) -> None:
+    def _store(self, scene: Scene, region: TrayRegion, snap: Snapshot | None = None) -> None:
         self._last.remember(scene, region)
         entries = self.cache.setdefault(region.key, [])
-        entries.insert(0, CacheEntry(region, snapshot(scene, region.tray_id)))
+        snap = snapshot(scene, region.tray_id) if snap is None else snap
+        entries.insert(0, CacheEntry(region, snap))
         del entries[LAYOUTS_PER_TRAY:]
         if len(self.cache) > self.cache_size:
             self.cache.pop(next(iter(self.cache)))

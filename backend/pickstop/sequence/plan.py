@@ -141,6 +141,7 @@ class StopPlanner:
         self._selections = _Lru(256)
         self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
         self._planned = _Lru(1024)  # (layout, options) planned ahead by prefetch_selections
+        self._solids: tuple[Scene, list[Any]] | None = None  # the last scene's solids
 
     # -- pieces ------------------------------------------------------------------------------
     def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Intersection]:
@@ -234,7 +235,9 @@ class StopPlanner:
     def check_key(self, scene: Scene, region: TrayRegion, xy: tuple[float, float]) -> str:
         """What :meth:`check` of ``region`` at ``xy`` depends on
         (:func:`~pickstop.regions.offgrid.check_key`): a tray moved elsewhere leaves it."""
-        return check_key(self.regions, scene, region, xy, region.yaw)
+        if self._solids is None or self._solids[0] is not scene:
+            self._solids = (scene, scene_solids(scene))  # the last scene's, made once
+        return check_key(self.regions, scene, region, xy, region.yaw, self._solids[1])
 
     def check(
         self, scene: Scene, region: TrayRegion, xy: tuple[float, float], key: str | None = None
