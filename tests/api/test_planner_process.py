@@ -41,6 +41,8 @@ def test_a_planner_process_that_dies_is_reported_and_replaced(api_settings):
         quick = {"scene": paper(), "options": {"samples": 0}, "store": False}
         assert c.post(PLANS, json=quick, headers=AUTH).status_code == 200
         first = service.planning.pid
+        helpers = _children(first)  # the planner's region helpers (regions/workers.py)
+        assert helpers, "the paper scene's regions were computed by one process"
         seed = time.time_ns() % 2**31  # nothing cached: a Monte Carlo of several seconds
         heavy = {"scene": paper(), "options": {"samples": 20000, "seed": seed}, "store": False}
         answer: list[object] = []
@@ -57,6 +59,28 @@ def test_a_planner_process_that_dies_is_reported_and_replaced(api_settings):
         r = c.post(PLANS, json=quick, headers=AUTH)
         assert r.status_code == 200, r.text
         assert service.planning.pid not in (None, first)
+        # Its helpers ended with it (they read the end of their pipes).
+        end = time.monotonic() + 10
+        while any(_alive(h) for h in helpers) and time.monotonic() < end:
+            time.sleep(0.05)
+        assert not any(_alive(h) for h in helpers)
+
+
+def _children(pid: int) -> list[int]:
+    out: list[int] = []
+    for task in os.listdir(f"/proc/{pid}/task"):
+        with open(f"/proc/{pid}/task/{task}/children") as f:
+            out += [int(x) for x in f.read().split()]
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """Running (not gone, not a zombie nobody reaped)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
 
 
 def test_the_planner_process_ends_with_the_service(api_settings):
