@@ -136,6 +136,7 @@ class StopPlanner:
         self._fmaps = _Lru(cache_size)
         self._paths = _Lru(cache_size)
         self._checks = _Lru(4096)
+        self._check_keys = _Lru(4096)  # (world key, region digest, pose) -> check key
         self._witnesses = _Lru(4096)
         self._rates = _Lru(4096)
         self._selections = _Lru(256)
@@ -232,12 +233,20 @@ class StopPlanner:
             return hit
         return self._paths.put(key, shortest_paths(floor.fmap, points, yaws, floor.docking()))
 
-    def check_key(self, scene: Scene, region: TrayRegion, xy: tuple[float, float]) -> str:
+    def check_key(
+        self, scene: Scene, region: TrayRegion, xy: tuple[float, float], world: str | None = None
+    ) -> str:
         """What :meth:`check` of ``region`` at ``xy`` depends on
-        (:func:`~pickstop.regions.offgrid.check_key`): a tray moved elsewhere leaves it."""
+        (:func:`~pickstop.regions.offgrid.check_key`): a tray moved elsewhere leaves it.
+        ``world``: the scene's :func:`world_key`, if known (the key is then looked up: the
+        same world, region and pose have the same key)."""
+        known = None if world is None else (world, region.digest, xy)
+        if known is not None and (hit := self._check_keys.hit(known)) is not None:
+            return str(hit)
         if self._solids is None or self._solids[0] is not scene:
             self._solids = (scene, scene_solids(scene))  # the last scene's, made once
-        return check_key(self.regions, scene, region, xy, region.yaw, self._solids[1])
+        key = check_key(self.regions, scene, region, xy, region.yaw, self._solids[1])
+        return key if known is None else str(self._check_keys.put(known, key))
 
     def check(
         self, scene: Scene, region: TrayRegion, xy: tuple[float, float], key: str | None = None
@@ -252,12 +261,12 @@ class StopPlanner:
         return hit
 
     def witnesses(
-        self, scene: Scene, region: TrayRegion, xy: tuple[float, float]
+        self, scene: Scene, region: TrayRegion, xy: tuple[float, float], world: str | None = None
     ) -> list[pm.Witness] | None:
         """The arm configurations that pick every part of the region's tray from ``xy`` (one
         witness per part, from :meth:`check`), or None if the exact check fails there
-        (cached with the check)."""
-        key = self.check_key(scene, region, xy)
+        (cached with the check; ``world`` as for :meth:`check_key`)."""
+        key = self.check_key(scene, region, xy, world)
         if key in self._witnesses:
             return self._witnesses.hit(key)
         ok, th, g = self.check(scene, region, xy, key)
@@ -323,13 +332,14 @@ class StopPlanner:
         with guard:
             regions = self.regions.regions(scene)
             cands = self.candidates(regions)
+            world = world_key(scene)
         done = 0
         for c in sorted(cands, key=lambda c: -c.radius):
             for t in sorted(c.trays):
                 if stale():
                     return done
                 with guard:
-                    key = self.check_key(scene, regions[t, c.yaw], c.centre)
+                    key = self.check_key(scene, regions[t, c.yaw], c.centre, world)
                     if self._checks.hit(key) is None:
                         self.check(scene, regions[t, c.yaw], c.centre, key)
                         done += 1
@@ -664,7 +674,7 @@ class _Planning:
                 trays = tuple(t for t in self.required if t in serves[c])
                 ws = []
                 for t in trays:
-                    mine = sp.witnesses(scene, regions[t, cand.yaw], cand.centre)
+                    mine = sp.witnesses(scene, regions[t, cand.yaw], cand.centre, self.world)
                     if mine is None:
                         self.rejected[c] = (
                             f"the exact check at its centre failed for tray {t} (the region's "
