@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import os
 import signal
+import time
 
 import numpy as np
 import pytest
@@ -161,8 +162,12 @@ def test_a_helpers_error_reaches_the_caller(fresh, paper_doc, monkeypatch):
     two = fresh(2)
     with pytest.raises(ValueError, match=r"no region for tray_\d here"):
         two.regions(parse_scene(paper_doc))
-    # The helper lives on and answers the next request (its copy of the module still fails).
+    # The helper lives on, idle, and answers the next request at once (its copy of the
+    # module still fails).
     pid = two._workers.pids[0]
+    assert pid is not None
+    t0 = time.monotonic()
     with pytest.raises(ValueError, match=r"no region for tray_\d here"):
         two.regions(parse_scene(paper_doc))
     assert two._workers.pids[0] == pid
+    assert time.monotonic() - t0 < 4.0  # it was not waited for, nor replaced

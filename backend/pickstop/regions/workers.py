@@ -26,6 +26,7 @@ import logging
 import multiprocessing
 import os
 import pickle
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
@@ -40,6 +41,7 @@ from pickstop.scene.model import Scene
 log = logging.getLogger("pickstop.regions")
 
 POLL = 0.005  # [s] between looks at the planner's interrupt while helpers compute
+MAX_HOMES = 4096  # trays (by definition but for where they stand) whose homes are kept
 _KIT: RegionKit | None = None  # set in each helper process, never in the parent
 
 Pair = tuple[str, float]  # (tray id, yaw [rad])
@@ -61,7 +63,7 @@ class RegionWorkers:
             raise ValueError(f"processes must be at least 1, got {processes}")
         self.kit = kit
         self.processes = processes
-        self.homes: dict[str, int] = {}  # home key -> process (0: the caller's own)
+        self.homes: OrderedDict[str, int] = OrderedDict()  # home key -> process (0: this one)
         self._ctx = multiprocessing.get_context("fork")
         self._stop = self._ctx.RawValue("b", 0)  # shared: 1 while helpers are to give way
         self._helpers: list[_Helper | None] = [None] * (processes - 1)
@@ -87,21 +89,35 @@ class RegionWorkers:
             for p, w in zip(pairs, share, strict=True):
                 if w == 0:
                     out[p] = compute(scene, *p)
-            for h, rid in sent.items():
-                got = self._receive(h, rid)
-                if got is None:  # the helper died: its share is computed here
+            for h, rid in list(sent.items()):
+                kind, payload = self._receive(h, rid)
+                del sent[h]  # answered
+                if kind == "error":
+                    raise pickle.loads(payload)
+                if kind == "interrupted":
+                    raise Interrupted()
+                if kind == "ended":  # the helper died: its share is computed here
                     for p, w in zip(pairs, share, strict=True):
                         if w == h + 1:
-                            self.homes[_home_key(scene, p)] = 0
+                            self._home(scene, p, 0)
                             out[p] = compute(scene, *p)
-                else:
-                    out.update(got)
+                    continue
+                regions, grasps = payload
+                self.kit.learn_grasps(grasps)  # the stops' checks here need them too
+                out.update(regions)
         except BaseException:
             self._stop.value = 1
-            for h, rid in sent.items():
+            for h, rid in sent.items():  # those not answered yet
                 self._drain(h, rid)
             raise
         return [out[p] for p in pairs]
+
+    def _home(self, scene: Scene, pair: Pair, w: int) -> None:
+        key = _home_key(scene, pair)
+        self.homes[key] = w
+        self.homes.move_to_end(key)
+        while len(self.homes) > MAX_HOMES:
+            self.homes.popitem(last=False)
 
     def _share(self, scene: Scene, pairs: list[Pair]) -> list[int]:
         """Which process computes each pair: its home, else the one with the least to do
@@ -117,12 +133,14 @@ class RegionWorkers:
             out.append(home if home is not None and home < self.processes else None)
             if out[-1] is not None:
                 load[out[-1]] += 1
+                self._home(scene, p, out[-1])  # recently used: kept
         for i, p in enumerate(pairs):
             if out[i] is None:
                 w = min(range(self.processes), key=lambda k: (load[k], homes[k], k))
                 homes[w] += 1
                 load[w] += 1
-                out[i] = self.homes[_home_key(scene, p)] = w
+                out[i] = w
+                self._home(scene, p, w)
         return [w for w in out if w is not None]
 
     def _send(self, h: int, scene: Scene, pairs: list[Pair]) -> int | None:
@@ -138,9 +156,11 @@ class RegionWorkers:
                 self._retire(h)
         return None
 
-    def _receive(self, h: int, rid: int) -> dict[Pair, TrayRegion] | None:
-        """Helper ``h``'s answer to request ``rid``; None if it died. Raises what it raised,
-        and :class:`Interrupted` once the kit says to give way (the helper stopped)."""
+    def _receive(self, h: int, rid: int) -> tuple[str, Any]:
+        """Helper ``h``'s answer to request ``rid``: ``("ok", (regions, grasps))``,
+        ``("error", pickled exception)``, ``("interrupted", None)``, or ``("ended", None)`` if
+        it died. Raises :class:`Interrupted` once the kit says to give way (the answer is
+        still to come then)."""
         helper = self._helpers[h]
         assert helper is not None
         while True:
@@ -153,16 +173,10 @@ class RegionWorkers:
             except (EOFError, OSError):
                 log.warning("a region helper process ended; its trays are computed here")
                 self._retire(h)
-                return None
-            if got_rid != rid:
-                continue  # the answer to a request given up before
-            if kind == "error":
-                raise pickle.loads(payload)
-            if kind == "interrupted":
-                raise Interrupted()
-            regions, grasps = payload
-            self.kit.learn_grasps(grasps)  # the stops' checks here need them too
-            return dict(regions)
+                return "ended", None
+            if got_rid == rid:
+                return kind, payload
+            # else the answer to a request given up before
 
     def _drain(self, h: int, rid: int) -> None:
         """Wait for helper ``h`` to answer request ``rid`` (it stops at its next checkpoint),
