@@ -92,26 +92,44 @@ def test_two_processes_give_one_process_regions_across_moves(fresh, paper_doc, m
         assert_cells_verified(two, scene, r, np.arange(0, len(r.cells), 37))
 
 
-def test_background_work_gives_way_in_the_helpers(fresh, paper_doc):
+@pytest.mark.parametrize("where", ["waiting", "computing"])
+def test_background_work_gives_way_in_the_helpers(fresh, paper_doc, monkeypatch, where):
+    """Told to give way while this process waits for the helper, or while it computes its own
+    share: the helper stops too, nothing half done is kept, and the helper answers the next
+    request in full."""
     two = fresh(2)
     base = parse_scene(paper_doc)
     two.regions(base)
     mover = _helper_tray(two, base)
     yaw = base.base_yaw.yaws[0]
     scene = parse_scene(_moved(paper_doc, mover, 0.1))
-    # This process has nothing of its own to compute: it gives way while the helper works.
-    asked = []
+    if where == "waiting":  # this process has nothing of its own left to compute
+        for t in scene.task_trays:
+            if t != mover:
+                two.tray_region(scene, t, yaw)
+    inside = [False]  # this process computes its own share
+    real = two._compute
+
+    def own(*a):
+        inside[0] = True
+        try:
+            return real(*a)
+        finally:
+            inside[0] = False
+
+    monkeypatch.setattr(two, "_compute", own)
+    asked: list[bool] = []
 
     def interrupt() -> bool:
-        asked.append(1)
-        return len(asked) > 3
+        asked.append(inside[0])
+        return (where == "computing") == inside[0] and len(asked) > 3
 
     two.interrupt = interrupt
     with pytest.raises(Interrupted):
         two.regions(scene)
     two.interrupt = None
+    assert asked[-1] == (where == "computing")
     assert two._cached(scene, mover, yaw) is None  # nothing half done is kept
-    # The helper stopped and waits for the next request, which it answers in full.
     pid = two._workers.pids[0]
     r = two.regions(scene)[(mover, yaw)]
     assert two._workers.pids[0] == pid

@@ -3,7 +3,7 @@
 The planner's process is one of the ``processes``; the others are helpers forked from it,
 which live as long as the pool. Forked children share the parent's reachability database (its
 pages are copied only if written, and they are only read) and start with its memos. Each tray
-(with its yaw) has a **home**: the process that computed its region first computes it again,
+(with its yaw) has a **home**: the process that computed its region last computes it again,
 so what its memos learned there (grasps, refinements, remembered cell answers across tray
 positions: :mod:`pickstop.regions.reuse`) serves the next layout. A tray new to the pool goes
 to the process with the least to do. Nothing is pickled but the scene going out and the
