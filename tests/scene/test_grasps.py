@@ -153,3 +153,42 @@ def test_grasps_too_close_to_the_floor_are_dropped(hand):
     assert all(n > 0 for n, _ in counts[0.0])
     for (kept, near), (kept_high, near_high) in zip(counts[0.0], counts[0.05], strict=True):
         assert kept_high < kept and near_high - near >= kept - kept_high
+
+
+def _grasps_one_solid_at_a_time(scene, tray, part, hand):
+    """The grasps of ``part`` as the open hand's solids test them one by one (each one's
+    bounds from the solid itself): what grasps_for_part's bounds at once must agree with."""
+    from pickstop.scene.grasps import PART_CLEARANCE, _candidates, _heights, clear_of
+    from pickstop.scene.world import SolidSet, part_solid, solid_below
+
+    T_wp = world_part_transform(tray, part)
+    obstacles = SolidSet.of(tray_solids(scene, tray, exclude_part=part.id))
+    target = part_solid(tray, part)
+    kept, low_ones = [], 0
+    for T0, kind in _candidates(scene, tray, part, hand):
+        low = False
+        for T in _heights(T0, kind, part):
+            solids = hand_solids(hand, T_wp @ T)
+            if any(solid_below(a, scene.floor_clearance) for a in solids):
+                low = True
+                continue
+            if any(obstacles.overlaps(a) for a in solids):
+                continue
+            if clear_of(solids, target, PART_CLEARANCE):
+                kept.append(T)
+                break
+        else:
+            low_ones += low
+    return np.array(kept).reshape(-1, 4, 4), low_ones
+
+
+@pytest.mark.parametrize("name", ["paper_experiment", "factory_cell", "rack_cell"])
+def test_grasps_tested_at_once_are_those_tested_one_solid_at_a_time(hand, name):
+    doc = json.loads((Path(__file__).parents[2] / f"examples/scenes/{name}.json").read_text())
+    scene = parse_scene(doc)
+    for tray in scene.trays[:6]:
+        for part in tray.parts:
+            got = grasps_for_part(scene, tray, part, hand)
+            want, low = _grasps_one_solid_at_a_time(scene, tray, part, hand)
+            np.testing.assert_array_equal(got.Ts_part_tcp, want)
+            assert got.near_floor == low

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import coal
 import numpy as np
@@ -28,12 +29,14 @@ from pickstop.frames import R_z, transform
 from pickstop.robot.hand import HandShape
 from pickstop.scene.model import Box, Cylinder, Gripper, Mesh, Part, Scene, Tray
 from pickstop.scene.world import (
+    TOUCH,
     Solid,
     SolidSet,
     _coal,
     _Offset,
     part_solid,
     solid_below,
+    solids_overlap,
     tray_solids,
     world_part_transform,
 )
@@ -141,6 +144,83 @@ def hand_solids(hand: HandShape, T_world_tcp: np.ndarray) -> list[Solid]:
     return out
 
 
+@dataclass(frozen=True)
+class _HandBoxes:
+    """The open hand's collision geometries with their local bounds, placed at a grasp all at
+    once: each one's world bounds from arrays, its solid (as :func:`hand_solids` makes it)
+    only where a bounds test cannot settle it."""
+
+    geometries: tuple[Any, ...]
+    T_tcp_geom: np.ndarray  # (G, 4, 4)
+    centre: np.ndarray  # (G, 3) the centre of each one's local bounds
+    half: np.ndarray  # (G, 3)
+
+    @classmethod
+    def of(cls, hand: HandShape) -> _HandBoxes:
+        c, h = [], []
+        for _, geom, _ in hand.geometries:
+            geom.computeLocalAABB()
+            lo, hi = (
+                np.asarray(geom.aabb_local.min_, float),
+                np.asarray(geom.aabb_local.max_, float),
+            )
+            c.append((lo + hi) / 2)
+            h.append((hi - lo) / 2)
+        return cls(
+            tuple(g for _, g, _ in hand.geometries),
+            np.array([T for *_, T in hand.geometries], float).reshape(-1, 4, 4),
+            np.array(c, float).reshape(-1, 3),
+            np.array(h, float).reshape(-1, 3),
+        )
+
+    def at(self, T_world_tcp: np.ndarray) -> _HandAt:
+        T = T_world_tcp[None] @ self.T_tcp_geom
+        T[:, :3, 3] += np.einsum("gij,gj->gi", T[:, :3, :3], self.centre)
+        ext = np.einsum("gij,gj->gi", np.abs(T[:, :3, :3]), self.half)
+        return _HandAt(self, T, T[:, :3, 3] - ext, T[:, :3, 3] + ext)
+
+
+@dataclass(frozen=True)
+class _HandAt:
+    """The open hand at one grasp (:class:`_HandBoxes`): the exact tests of
+    :func:`grasps_for_part`, each solid tested with coal only where its bounds leave it open."""
+
+    boxes: _HandBoxes
+    T: np.ndarray  # (G, 4, 4) each solid's centre frame in the world
+    lo: np.ndarray  # (G, 3) world bounds
+    hi: np.ndarray
+
+    def solid(self, k: int) -> Solid:
+        b = self.boxes
+        return Solid(
+            "mesh", self.T[k], b.half[k], "hand", 0.0, _Offset(b.geometries[k], b.centre[k])
+        )
+
+    def below(self, clearance: float) -> bool:
+        """:func:`solid_below` of any of the hand's solids."""
+        low = np.flatnonzero(self.lo[:, 2] <= clearance).tolist()
+        return any(solid_below(self.solid(k), clearance) for k in low)
+
+    def meets(self, obstacles: SolidSet) -> bool:
+        """:meth:`SolidSet.overlaps` of any of the hand's solids."""
+        near = np.all(self.lo[:, None] <= obstacles.hi[None] - TOUCH, axis=2) & np.all(
+            obstacles.lo[None] <= self.hi[:, None] - TOUCH, axis=2
+        )
+        for k in np.flatnonzero(near.any(1)).tolist():
+            a = self.solid(k)
+            if any(
+                solids_overlap(a, obstacles.solids[j]) for j in np.flatnonzero(near[k]).tolist()
+            ):
+                return True
+        return False
+
+    def clear_of(self, target: Solid, margin: float) -> bool:
+        """:func:`clear_of` of the hand's solids and ``target``."""
+        lo_t, hi_t = target.aabb()
+        near = ~(np.any(self.lo > hi_t + margin, axis=1) | np.any(lo_t > self.hi + margin, axis=1))
+        return clear_of([self.solid(k) for k in np.flatnonzero(near).tolist()], target, margin)
+
+
 def _candidates(
     scene: Scene, tray: Tray, part: Part, hand: HandShape
 ) -> list[tuple[np.ndarray, str]]:
@@ -211,18 +291,19 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
     cands = _candidates(scene, tray, part, hand)
     obstacles = SolidSet.of(tray_solids(scene, tray, exclude_part=part.id))
     target = part_solid(tray, part)
+    boxes = _HandBoxes.of(hand)
     kept, kinds = [], []
     near_floor = 0
     for T0, kind in cands:
         low = False
         for T_part_tcp in _heights(T0, kind, part):
-            solids = hand_solids(hand, T_world_part @ T_part_tcp)
-            if any(solid_below(a, scene.floor_clearance) for a in solids):
+            at = boxes.at(T_world_part @ T_part_tcp)
+            if at.below(scene.floor_clearance):
                 low = True
                 continue
-            if any(obstacles.overlaps(a) for a in solids):
+            if at.meets(obstacles):
                 continue
-            if clear_of(solids, target, PART_CLEARANCE):
+            if at.clear_of(target, PART_CLEARANCE):
                 kept.append(T_part_tcp)
                 kinds.append(kind)
                 break
