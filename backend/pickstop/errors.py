@@ -51,3 +51,31 @@ class QueryError(InputError):
 
 class UnavailableError(PickStopError):
     """The work could not be done now, through no fault of the request: try again."""
+
+
+def dump_error(e: BaseException) -> bytes:
+    """``e`` pickled to cross to another process (the planner's, the API's), or a
+    :class:`PickStopError` with its message and field if it will not."""
+    import pickle
+
+    try:
+        data = pickle.dumps(e)
+        pickle.loads(data)
+        return data
+    except Exception:
+        msg = getattr(e, "message", None) or f"{type(e).__name__}: {e}"
+        return pickle.dumps(PickStopError(str(msg), field=getattr(e, "field", None)))
+
+
+def load_error(
+    payload: bytes, failed: type[Exception] = UnavailableError, words: str = ""
+) -> BaseException:
+    """The exception :func:`dump_error` sent; a ``failed`` with ``words`` if it cannot be
+    rebuilt in this process (or with what came, if that is no exception)."""
+    import pickle
+
+    try:
+        err = pickle.loads(payload)
+    except Exception:  # a class this process cannot rebuild: keep the words
+        return failed(words or "an error could not be passed on from another process")
+    return err if isinstance(err, BaseException) else failed(str(err))

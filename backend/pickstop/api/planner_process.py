@@ -25,7 +25,6 @@ import contextlib
 import itertools
 import logging
 import os
-import pickle
 import queue
 import socket
 import subprocess
@@ -37,7 +36,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from pickstop.api.work import Cancelled, Work
-from pickstop.errors import PickStopError, UnavailableError
+from pickstop.errors import UnavailableError, dump_error, load_error
 from pickstop.settings import Settings
 
 log = logging.getLogger("pickstop.api")
@@ -123,7 +122,13 @@ class PlannerProcess:
             elif status == "cancelled":
                 fut.set_exception(Cancelled())
             else:
-                fut.set_exception(_error(payload))
+                fut.set_exception(
+                    load_error(
+                        payload,
+                        PlannerProcessError,
+                        "the planner failed with an error that could not be passed on",
+                    )
+                )
         with self._lock:  # this child's calls fail; a newer child's are its own
             if self._conn is conn:
                 self._proc, self._conn = None, None
@@ -223,25 +228,6 @@ class PlannerProcess:
         return proc.pid if proc is not None else None
 
 
-def _error(payload: bytes) -> BaseException:
-    try:
-        err = pickle.loads(payload)
-    except Exception:  # a class the parent cannot rebuild: keep its words
-        return PlannerProcessError("the planner failed with an error that could not be passed on")
-    return err if isinstance(err, BaseException) else PlannerProcessError(str(err))
-
-
-def _dump_error(e: BaseException) -> bytes:
-    """``e`` pickled, or a :class:`PickStopError` with its message and field if it won't."""
-    try:
-        data = pickle.dumps(e)
-        pickle.loads(data)
-        return data
-    except Exception:
-        msg = getattr(e, "message", None) or f"{type(e).__name__}: {e}"
-        return pickle.dumps(PickStopError(str(msg), field=getattr(e, "field", None)))
-
-
 # -- the child side --------------------------------------------------------------------------
 def child_settings() -> Settings:
     """In the child: the parent's settings, as it passed them."""
@@ -294,7 +280,7 @@ def _serve(conn: Connection, service: Any) -> None:
             except Cancelled:
                 send((rid, "cancelled", None))
             except BaseException as e:
-                send((rid, "error", _dump_error(e)))
+                send((rid, "error", dump_error(e)))
             finally:
                 with state:
                     current[:] = [None, None]

@@ -25,13 +25,13 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
-import pickle
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any
 
+from pickstop.errors import dump_error, load_error
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import Interrupted, RegionKit
 from pickstop.regions.pipeline import compute_tray_region
@@ -93,7 +93,7 @@ class RegionWorkers:
                 kind, payload = self._receive(h, rid)
                 del sent[h]  # answered
                 if kind == "error":
-                    raise pickle.loads(payload)
+                    raise load_error(payload)
                 if kind == "interrupted":
                     raise Interrupted()
                 if kind == "ended":  # the helper died: its share is computed here
@@ -251,7 +251,7 @@ def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> 
             except Interrupted:
                 conn.send((rid, "interrupted", None))
             except Exception as e:
-                conn.send((rid, "error", _pickled(e)))
+                conn.send((rid, "error", dump_error(e)))
     except (OSError, ValueError):
         code = 1
     finally:
@@ -263,13 +263,3 @@ def _region(scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
     assert kit is not None, "a region helper runs only in a RegionWorkers process"
     tray = scene.tray(tray_id)
     return compute_tray_region(kit, scene, tray, yaw, own_key(kit, scene, tray, yaw))
-
-
-def _pickled(e: BaseException) -> bytes:
-    """``e`` as it can cross to the planner's process (its words kept if it cannot)."""
-    try:
-        out = pickle.dumps(e)
-        pickle.loads(out)
-        return out
-    except Exception:
-        return pickle.dumps(RuntimeError(f"{type(e).__name__}: {e}"))
