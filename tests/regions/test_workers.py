@@ -7,7 +7,6 @@ from __future__ import annotations
 import copy
 import os
 import signal
-import time
 
 import numpy as np
 import pytest
@@ -183,9 +182,7 @@ def test_a_helpers_error_reaches_the_caller(fresh, paper_doc, monkeypatch):
     # The helper lives on, idle, and answers the next request at once (its copy of the
     # module still fails).
     pid = two._workers.pids[0]
-    assert pid is not None
-    t0 = time.monotonic()
+    assert pid is not None  # not given up on after its answer
     with pytest.raises(ValueError, match=r"no region for tray_\d here"):
         two.regions(parse_scene(paper_doc))
     assert two._workers.pids[0] == pid
-    assert time.monotonic() - t0 < 4.0  # it was not waited for, nor replaced

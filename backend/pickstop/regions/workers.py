@@ -99,7 +99,7 @@ class RegionWorkers:
                 if kind == "ended":  # the helper died: its share is computed here
                     for p, w in zip(pairs, share, strict=True):
                         if w == h + 1:
-                            self._home(scene, p, 0)
+                            self._home(_home_key(scene, p), 0)
                             out[p] = compute(scene, *p)
                     continue
                 regions, grasps = payload
@@ -112,8 +112,7 @@ class RegionWorkers:
             raise
         return [out[p] for p in pairs]
 
-    def _home(self, scene: Scene, pair: Pair, w: int) -> None:
-        key = _home_key(scene, pair)
+    def _home(self, key: str, w: int) -> None:
         self.homes[key] = w
         self.homes.move_to_end(key)
         while len(self.homes) > MAX_HOMES:
@@ -127,20 +126,21 @@ class RegionWorkers:
         for w in self.homes.values():
             if w < self.processes:
                 homes[w] += 1
+        keys = [_home_key(scene, p) for p in pairs]
         out: list[int | None] = []
-        for p in pairs:
-            home = self.homes.get(_home_key(scene, p))
+        for key in keys:
+            home = self.homes.get(key)
             out.append(home if home is not None and home < self.processes else None)
             if out[-1] is not None:
                 load[out[-1]] += 1
-                self._home(scene, p, out[-1])  # recently used: kept
-        for i, p in enumerate(pairs):
+                self._home(key, out[-1])  # recently used: kept
+        for i, key in enumerate(keys):
             if out[i] is None:
                 w = min(range(self.processes), key=lambda k: (load[k], homes[k], k))
                 homes[w] += 1
                 load[w] += 1
                 out[i] = w
-                self._home(scene, p, w)
+                self._home(key, w)
         return [w for w in out if w is not None]
 
     def _send(self, h: int, scene: Scene, pairs: list[Pair]) -> int | None:

@@ -132,16 +132,8 @@ def candidate_grasps(
 
 def hand_solids(hand: HandShape, T_world_tcp: np.ndarray) -> list[Solid]:
     """The open hand's own collision geometry at a grasp point, as solids in the world."""
-    out = []
-    for _, geom, T_tcp_geom in hand.geometries:
-        T = T_world_tcp @ T_tcp_geom
-        geom.computeLocalAABB()
-        lo, hi = np.asarray(geom.aabb_local.min_, float), np.asarray(geom.aabb_local.max_, float)
-        c = (lo + hi) / 2
-        Tc = T.copy()
-        Tc[:3, 3] += T[:3, :3] @ c
-        out.append(Solid("mesh", Tc, (hi - lo) / 2, "hand", 0.0, _Offset(geom, c)))
-    return out
+    at = _HandBoxes.of(hand).at(T_world_tcp)
+    return [at.solid(k) for k in range(len(at.T))]
 
 
 @dataclass(frozen=True)
