@@ -212,6 +212,33 @@ def test_remembered_answers_give_the_region_from_scratch(
     assert_cells_verified(planner, scene, reused, unlike)
 
 
+def test_answers_that_held_outlive_the_surroundings_they_were_computed_in(
+    planner, paper_doc, monkeypatch
+):
+    """A tray's neighbour moved again and again: the tray's answers that held are kept as
+    answers in the surroundings of each layout, so they are still taken when the memo has long
+    dropped the surroundings they were first computed in; the region still holds every cell
+    the database solves from scratch, each with a verified witness."""
+    from pickstop.regions import reuse
+
+    monkeypatch.setattr(reuse, "MAX_SURROUNDINGS", 2)
+    scene0 = parse_scene(paper_doc)
+    res, yaw = scene0.base_grid.resolution, scene0.base_yaw.yaws[0]
+    compute_tray_region(planner, scene0, scene0.tray("tray_2"), yaw)
+    for k in range(1, 5):  # four layouts: twice as many as the memo keeps surroundings
+        scene = _moved(paper_doc, "tray_3", k * res, 0.0)
+        assert scene is not None
+        before = sum(m.recalled for m in planner.reuse.values())
+        region = compute_tray_region(planner, scene, scene.tray("tray_2"), yaw)
+        recalled = sum(m.recalled for m in planner.reuse.values()) - before
+        assert recalled > 0.5 * region.counts["served"], k
+    solved = _from_scratch(planner, scene, "tray_2", grow=False)
+    assert not (solved.mask & ~region.mask).any()
+    assert_cells_verified(
+        planner, scene, region, _unlike(_from_scratch(planner, scene, "tray_2"), region)
+    )
+
+
 def test_the_memos_together_stay_within_their_budget(monkeypatch):
     """However many trays are planned, the memos together are kept within MAX_BYTES: the
     least recently used go first, the one in use stays."""

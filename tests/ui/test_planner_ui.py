@@ -209,8 +209,9 @@ def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app):
     target = _sigma_splitting_a_stop(plan)
     # The robots stand on their circles: the engineer hides them to see the circles whole.
     _robots_checkbox(ui_page).click()
+    # The checkbox's value reaches the server before its callback hides the robots.
     _wait_for(lambda: not planner_app.show_robots.value)
-    assert not any(frame.visible for frame, _ in planner_app.layer.ghosts)
+    _wait_for(lambda: not any(frame.visible for frame, _ in planner_app.layer.ghosts))
     time.sleep(1.5)
     before = _shot(ui_page, "02-sigma-before")
     green_before = len(_pixels(before, KEPT, tol=35))

@@ -313,11 +313,12 @@ class Checked(Protocol):
 CheckedOf = Callable[[list["CellAnswer"], list[int]], Checked]
 
 
-@dataclass(frozen=True)
+@dataclass
 class CellAnswer:
     """What the database gave one cell for one part: the verified witness (or none), its
     grasp, the relative box ``lo, hi`` [m] that holds every configuration it checked, and
-    those configurations: database rows and refined joint values."""
+    those configurations: database rows and refined joint values. Only ``around`` ever
+    changes (:meth:`RefineMemo.recall`)."""
 
     found: bool
     theta: np.ndarray  # (dof,)
@@ -332,10 +333,11 @@ class CellAnswer:
     groups_hi: np.ndarray
 
 
-@dataclass(frozen=True)
+@dataclass
 class ExactCheck:
     """One exact check of the arm against the scene, remembered: whether it collided, in
-    which of the memo's surroundings, and the relative box [m] of its links and its base."""
+    which of the memo's surroundings, and the relative box [m] of its links and its base.
+    Only ``around`` ever changes (:meth:`RefineMemo.remembered_checks`)."""
 
     colliding: bool
     around: int
@@ -488,6 +490,7 @@ class RefineMemo:
         for i, g, o in zip(idx, mine, ok.tolist(), strict=True):
             if o:
                 out[i] = g.colliding
+                g.around = now  # it holds there: a check in ``now`` has the same outcome
         self.checks_reused += int(ok.sum())
         return out
 
@@ -586,8 +589,22 @@ class RefineMemo:
                 lambda sel: checked([mine[i] for i in sel.tolist()], sel.tolist()),
                 (np.array([a.groups_lo for a in mine]), np.array([a.groups_hi for a in mine])),
             )
+        self._relabel(got, ok, now)
         self.recalled += int(ok.sum())
         return ok, got
+
+    @staticmethod
+    def _relabel(got: list[CellAnswer | None], ok: np.ndarray, now: int) -> None:
+        """Answers recalled in the surroundings ``now`` are kept as answers in ``now``, so
+        that they outlive the surroundings they were computed in (the memo keeps
+        :data:`MAX_SURROUNDINGS`). Sound for both kinds: an answer that held would be computed
+        the same in ``now`` (every check it made has the same outcome there), and a witness
+        carried is free of all of ``now`` (of the old surroundings when it was verified, of the
+        newcomers since when it was carried)."""
+        for i in np.flatnonzero(ok).tolist():
+            a = got[i]
+            if a is not None:
+                a.around = now
 
     def remember(
         self,
