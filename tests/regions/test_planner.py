@@ -432,3 +432,36 @@ def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, m
     assert not planner.exact_self.colliding(th).any()
     for t, (x, y) in zip(th, cen[found], strict=True):
         assert not planner.exact_arm.colliding(t, x, y, region.yaw, solids, gs.part_id)
+
+
+def test_a_preview_carries_the_nearest_region_with_cells_and_takes_a_held_region_as_it_is(
+    planner, paper_doc
+):
+    """Once a tray was planned out of reach (its region empty), a preview of it back near its
+    first place carries the region computed there, not the empty one; where a cached region
+    still holds, the preview takes it exactly as computed."""
+    home = parse_scene(paper_doc)
+    pair = ("tray_2", home.base_yaw.yaws[0])
+    first = planner.tray_region(home, *pair)
+    assert len(first.cells) > 20
+
+    def moved(dx: float = 0.0, dz: float = 0.0):
+        doc = copy.deepcopy(paper_doc)
+        tray = next(t for t in doc["trays"] if t["id"] == "tray_2")
+        tray["pose"]["x"] += dx
+        tray["pose"]["z"] += dz
+        return parse_scene(doc)
+
+    high = moved(dz=1.5)  # out of the arm's reach: planned empty, now the newest region
+    assert len(planner.tray_region(high, *pair).cells) == 0
+    assert len(planner.known_regions(high, [pair])[pair].cells) == 0
+
+    assert planner.known_regions(home, [pair])[pair] is first  # held: taken as it is
+    near = planner.known_regions(moved(dx=0.05), [pair])[pair]
+    assert near.key == f"carried:{first.key}" and len(near.cells) > 0.8 * len(first.cells)
+    res = first.grid.res
+    xy = first.grid.centres(first.cells[:, 1], first.cells[:, 0])
+    got = near.grid.centres(near.cells[:, 1], near.cells[:, 0])
+    # every carried cell is a first cell moved with the tray (to within the grid's snap)
+    gap = np.abs(got[:, None, :] - (xy + np.array([0.05, 0.0]))[None]).max(axis=2).min(axis=1)
+    assert (gap <= res + 1e-9).all()

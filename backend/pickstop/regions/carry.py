@@ -73,36 +73,58 @@ def carried_regions(
 
 
 class LastRegions:
-    """The last region computed for each tray, with the tray as it stood: what a preview
-    carries. Keyed by tray id, yaw and what the tray is (its pose aside), the newest last."""
+    """The last regions computed for each tray, each with the tray as it stood: what a preview
+    carries. Keyed by tray id, yaw and what the tray is (its pose aside); a few poses per key,
+    the newest first, so that a preview carries the region computed nearest to where the tray
+    is now, and an empty region (the tray once dragged out of reach) does not hide the regions
+    known elsewhere."""
 
-    def __init__(self, size: int) -> None:
-        self.size = size  # regions kept
-        self._by_tray: dict[tuple[str, float, str], tuple[Tray, TrayRegion]] = {}
+    def __init__(self, size: int, per_tray: int = 4) -> None:
+        self.size = size  # keys kept
+        self.per_tray = per_tray  # poses kept per key
+        self._by_tray: dict[tuple[str, float, str], list[tuple[Tray, TrayRegion]]] = {}
 
     def remember(self, scene: Scene, region: TrayRegion) -> None:
-        """Keep ``region``, computed in ``scene``, as its tray's last."""
+        """Keep ``region``, computed in ``scene``, as its tray's newest."""
         key = (region.tray_id, region.yaw, carry_key(scene, region.tray_id))
-        self._by_tray.pop(key, None)
-        self._by_tray[key] = (scene.tray(region.tray_id), region)
+        tray = scene.tray(region.tray_id)
+        kept = [e for e in self._by_tray.pop(key, []) if e[0].pose != tray.pose]
+        self._by_tray[key] = [(tray, region), *kept][: self.per_tray]
         if len(self._by_tray) > self.size:
             self._by_tray.pop(next(iter(self._by_tray)))
 
     def carried(
         self, robot: RobotModel, scene: Scene, pairs: list[tuple[str, float]]
     ) -> dict[tuple[str, float], TrayRegion]:
-        """For each ``(tray id, yaw)`` remembered: its last region carried to where the tray
-        stands in ``scene`` (:func:`carried_regions`)."""
+        """For each ``(tray id, yaw)`` remembered: the region computed nearest to where the tray
+        stands in ``scene`` (:func:`nearest`), carried there (:func:`carried_regions`)."""
         known = []
         for p in pairs:
-            hit = self._by_tray.get((*p, carry_key(scene, p[0])))
-            if hit is not None:
-                known.append((p, hit))
+            entries = self._by_tray.get((*p, carry_key(scene, p[0])))
+            if entries:
+                known.append((p, nearest(entries, scene.tray(p[0]))))
         carried = carried_regions(robot, scene, [k for _, k in known])
         return {p: r for (p, _), r in zip(known, carried, strict=True)}
 
     def clear(self) -> None:
         self._by_tray.clear()
+
+
+TURN_LENGTH = 0.5  # [m per rad]: how far a turn of the tray counts against a translation
+
+
+def nearest(entries: list[tuple[Tray, TrayRegion]], now: Tray) -> tuple[Tray, TrayRegion]:
+    """Of the ``(tray as it stood, region)`` entries, the one whose tray stood nearest to
+    ``now`` (a translation plus ``TURN_LENGTH`` per radian turned), among those with cells if
+    any has some; ties go to the newest (the first)."""
+
+    def far(e: tuple[Tray, TrayRegion]) -> tuple[bool, float]:
+        was, region = e
+        turn = math.remainder(now.pose.yaw - was.pose.yaw, math.tau)
+        moved = math.hypot(now.pose.x - was.pose.x, now.pose.y - was.pose.y)
+        return len(region.cells) == 0, moved + TURN_LENGTH * abs(turn)
+
+    return min(entries, key=far)
 
 
 def carry_key(scene: Scene, tray_id: str) -> str:

@@ -115,10 +115,13 @@ class RegionPlanner(RegionKit):
     def known_regions(
         self, scene: Scene, pairs: list[tuple[str, float]]
     ) -> dict[tuple[str, float], TrayRegion]:
-        """For each ``(tray id, yaw)`` planned before: the last region computed for the tray
-        wherever it stood, carried rigidly to where it stands now and clipped to the cells
-        where the base footprint fits (for a preview: nothing is checked but the footprint)."""
-        return self._last.carried(self.robot, scene, pairs)
+        """For each ``(tray id, yaw)`` planned before: its cached region if it still holds in
+        ``scene`` (exact), else the region computed for the tray nearest to where it stands
+        now, carried there rigidly and clipped to the cells where the base footprint fits (for
+        a preview: nothing is checked but the footprint)."""
+        exact = {p: r for p in pairs if (r := self._cached(scene, *p)) is not None}
+        rest = [p for p in pairs if p not in exact]
+        return {**exact, **self._last.carried(self.robot, scene, rest)} if rest else exact
 
     def forget(self) -> None:
         """Drop every region kept (layouts, cache, last regions); grasps and other memos of
