@@ -60,6 +60,7 @@ def _stats(xs: list[float]) -> str:
 
 
 SERVER: list[float] = []  # the plans' own total times [s] (timings.total), request by request
+PARTS: list[dict[str, float]] = []  # the plans' timings [s] by stage, request by request
 LAST_SIZE = [0]  # bytes of the last response body
 
 
@@ -75,7 +76,9 @@ def _plan(c: httpx.Client, doc: dict, options: dict, mode: str = "sync") -> tupl
     LAST_SIZE[0] = len(r.content)
     if r.status_code == 422 and r.json().get("field") == "mode":
         return dt, -1
-    SERVER.append(r.json()["plan"]["timings"]["total"] if r.status_code == 200 else float("nan"))
+    timings = r.json()["plan"]["timings"] if r.status_code == 200 else {}
+    SERVER.append(timings.get("total", float("nan")))
+    PARTS.append(timings)
     return dt, r.status_code
 
 
@@ -109,6 +112,7 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int, hold: float = 0.0) -> 
     preview: dict[str, list[float]] = {"move": [], "turn": []}
     exact: dict[str, list[float]] = {"move": [], "turn": []}
     own: dict[str, list[float]] = {"preview": [], "exact": []}
+    stages: list[dict[str, float]] = []  # the exact translations' timings
     skipped = 0
     no_preview = False
     for tray in doc["trays"][:n_trays]:
@@ -126,6 +130,7 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int, hold: float = 0.0) -> 
             exact[kind].append(te)
             if kind == "move":
                 own["exact"].append(SERVER[-1])
+                stages.append(PARTS[-1])
             if pcode == 200:
                 preview[kind].append(tp)
                 if kind == "move":
@@ -140,6 +145,13 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int, hold: float = 0.0) -> 
         print(f"  {after} {label:24s} {_stats(exact[kind])}")
     for what, xs in own.items():
         print(f"  {what} of translations, the plan's own time (timings.total): {_stats(xs)}")
+    if stages:
+        keys = [k for k in stages[0] if k != "total" and isinstance(stages[0][k], float)]
+        mids = {k: statistics.median(s.get(k, 0.0) for s in stages) * 1e3 for k in keys}
+        print(
+            "  exact of translations by stage, medians: "
+            + ", ".join(f"{k} {v:.0f} ms" for k, v in mids.items() if v >= 0.5)
+        )
     print(f"  ({skipped} moves skipped: the moved layout is invalid or has no plan)")
 
 

@@ -163,6 +163,30 @@ def test_a_table_the_tray_slides_along_is_the_same_away_from_its_ends():
     assert not stale(old, old, lo, hi).any()
 
 
+def test_another_tray_that_moved_is_one_change_where_it_was_and_one_where_it_is():
+    """The floor and walls of a neighbouring tray, seen from a tray that moved, are a change
+    where any of them was and one where any of them is (two boxes to test, not two per wall):
+    each wall's old and new place is stale, a box clear of the neighbour is not."""
+    from pickstop.regions.reuse import changes
+
+    walls = [
+        ([0.5, -0.1, 0.72], [0.7, 0.1, 0.73]),  # floor
+        ([0.5, -0.1, 0.73], [0.51, 0.1, 0.8]),
+        ([0.69, -0.1, 0.73], [0.7, 0.1, 0.8]),
+        ([0.5, -0.1, 0.73], [0.7, -0.09, 0.8]),
+        ([0.5, 0.09, 0.73], [0.7, 0.1, 0.8]),
+    ]
+    tray = [_box("nb", lo, hi) for lo, hi in walls]
+    old, new = _around(tray), _around(tray, x=0.05)
+    assert len(changes(old, new)) == 2
+    lo = np.array([w[0] for w in walls], float)
+    hi = np.array([w[1] for w in walls], float)
+    assert stale(old, new, lo, hi).all()  # where each was
+    assert stale(old, new, lo - [0.05, 0, 0], hi - [0.05, 0, 0]).all()  # where each is
+    clear = np.array([[-0.3, -0.3, 0.6]]), np.array([[0.3, 0.3, 0.9]])
+    assert not stale(old, new, *clear).any()
+
+
 def test_what_moved_without_a_partner_or_turned_is_a_change_wherever_it_was_or_is():
     """A solid that appears, disappears or turns (no longer axis-aligned) changes every box
     its bounds meet, before or after; a box away from all of them stays as it was."""

@@ -195,9 +195,11 @@ def changes(old: Surroundings, new: Surroundings) -> list[Change]:
     """How ``new`` differs from ``old``, seen from the tray.
 
     Solids of the same shape and owner are paired in order. A pair where it was is no change;
-    a pair of axis-aligned boxes that moved is one :class:`Change` that tells where they look
-    alike (a table the tray slides along); any other pair that moved, and any solid without a
-    partner, changes the box it was or is in (those of one owner merged into one box).
+    an axis-aligned box that moved, the one solid of its owner that did, is one
+    :class:`Change` that tells where they look alike (a table the tray slides along); any
+    other pair that moved (the walls and floor of another tray), and any solid without a
+    partner, changes the box it was or is in (those of one owner merged into one box: a
+    handful of changes to test, not one per wall).
     """
     partners: dict[tuple[Any, ...], list[int]] = {}
     for k, key in enumerate(new.shape):
@@ -214,6 +216,7 @@ def changes(old: Surroundings, new: Surroundings) -> list[Change]:
             (lo, hi) if was is None else (np.minimum(was[0], lo), np.maximum(was[1], hi))
         )
 
+    slid: dict[str, list[tuple[int, int]]] = {}  # per owner, the boxes that moved
     for j, key in enumerate(old.shape):
         n = seen.get(key, 0)
         seen[key] = n + 1
@@ -228,12 +231,20 @@ def changes(old: Surroundings, new: Surroundings) -> list[Change]:
         ):
             continue  # the same solid where it was
         if old.boxes[j] and new.boxes[k]:
-            out.append(Change(old.lo[j], old.hi[j], new.lo[k], new.hi[k]))
+            slid.setdefault(key[0], []).append((j, k))
         else:
             fill(("old", key[0]), old.lo[j], old.hi[j])
             fill(("new", key[0]), new.lo[k], new.hi[k])
     for u in np.flatnonzero(~used).tolist():
         fill(("new", new.shape[u][0]), new.lo[u], new.hi[u])
+    for owner, pairs in slid.items():
+        if len(pairs) == 1 and ("old", owner) not in filled and ("new", owner) not in filled:
+            ((j, k),) = pairs
+            out.append(Change(old.lo[j], old.hi[j], new.lo[k], new.hi[k]))
+            continue
+        for j, k in pairs:
+            fill(("old", owner), old.lo[j], old.hi[j])
+            fill(("new", owner), new.lo[k], new.hi[k])
     return out + [Change(lo, hi) for lo, hi in filled.values()]
 
 
