@@ -465,3 +465,36 @@ def test_a_preview_carries_the_nearest_region_with_cells_and_takes_a_held_region
     # every carried cell is a first cell moved with the tray (to within the grid's snap)
     gap = np.abs(got[:, None, :] - (xy + np.array([0.05, 0.0]))[None]).max(axis=2).min(axis=1)
     assert (gap <= res + 1e-9).all()
+
+
+def test_a_turned_tray_carries_its_region_whole(planner, paper_doc):
+    """A preview of a turned tray carries its region turned about the tray, without the holes
+    a turned grid falling out of step with the grid would leave: its shape has no more holes
+    than the region's, about its area (but for the footprint), and each carried cell comes
+    from a cell of the region, turned back."""
+    import shapely
+
+    scene = parse_scene(paper_doc)
+    pair = ("tray_2", scene.base_yaw.yaws[0])
+    first = planner.tray_region(scene, *pair)
+    doc = copy.deepcopy(paper_doc)
+    tray = next(t for t in doc["trays"] if t["id"] == "tray_2")
+    tray["pose"]["yaw"] = 0.3
+    turned = parse_scene(doc)
+    got = planner.known_regions(turned, [pair])[pair]
+    assert got.key == f"carried:{first.key}"
+
+    def holes(region) -> int:
+        geoms = getattr(region.polygon, "geoms", [region.polygon])
+        return sum(len(g.interiors) for g in geoms if isinstance(g, shapely.Polygon))
+
+    assert holes(got) <= holes(first)
+    assert 0.8 * len(first.cells) <= got.counts["footprint_free"] <= 1.1 * len(first.cells)
+    t = scene.tray("tray_2").pose
+    c, s = np.cos(-0.3), np.sin(-0.3)
+    xy = got.grid.centres(got.cells[:, 1], got.cells[:, 0]) - [t.x, t.y]
+    back = xy @ np.array([[c, s], [-s, c]]) + [t.x, t.y]
+    g = first.grid
+    ix = np.floor((back[:, 0] - g.x0) / g.res).astype(int)
+    iy = np.floor((back[:, 1] - g.y0) / g.res).astype(int)
+    assert first.mask[iy, ix].all()

@@ -1,11 +1,12 @@
 """A known region carried with its tray: what a preview draws while the tray is dragged.
 
 The cells of a region computed with the tray at one pose are moved rigidly with the tray to
-its new pose (x, y and yaw), snapped to the base grid, and kept where the base footprint still
-fits the floor and its obstacles. The base's own yaw does not turn with the tray, so after a
-turn the carried shape is only a sketch; after a translation it is what the exact region
-would be if nothing but the footprint had changed. Either way nothing in it is verified: the
-exact region replaces it when the tray is released.
+its new pose (x, y and yaw): a cell of the base grid is in the carried region where its centre,
+carried back with the tray, falls in a cell of the region, and it is kept where the base
+footprint still fits the floor and its obstacles. The base's own yaw does not turn with the
+tray, so after a turn the carried shape is only a sketch; after a translation it is what the
+exact region would be if nothing but the footprint had changed. Either way nothing in it is
+verified: the exact region replaces it when the tray is released.
 """
 
 from __future__ import annotations
@@ -30,20 +31,7 @@ def carried_regions(
     stands in ``scene``; the footprints of every tray's cells are checked at once per yaw."""
     t0 = time.perf_counter()
     grid = CellGrid.of(scene)
-    moved = []
-    for was, region in known:
-        now = scene.tray(region.tray_id)
-        xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])  # (K, 2) [m]
-        turn = now.pose.yaw - was.pose.yaw
-        c, s = math.cos(turn), math.sin(turn)
-        rel = xy - [was.pose.x, was.pose.y]
-        xy = rel @ np.array([[c, s], [-s, c]]) + [now.pose.x, now.pose.y]
-        ix = np.floor((xy[:, 0] - grid.x0) / grid.res).astype(np.int64)
-        iy = np.floor((xy[:, 1] - grid.y0) / grid.res).astype(np.int64)
-        keep = np.flatnonzero((ix >= 0) & (ix < grid.nx) & (iy >= 0) & (iy < grid.ny))
-        _, first = np.unique(iy[keep] * grid.nx + ix[keep], return_index=True)
-        keep = keep[np.sort(first)]
-        moved.append((keep, ix[keep], iy[keep]))
+    moved = [_carry(region, was, scene.tray(region.tray_id), grid) for was, region in known]
     fits: list[np.ndarray] = [np.zeros(0, bool)] * len(known)
     for yaw in {r.yaw for _, r in known}:
         mine = [k for k, (_, r) in enumerate(known) if r.yaw == yaw]
@@ -70,6 +58,42 @@ def carried_regions(
             )
         )
     return out
+
+
+def _carry(
+    region: TrayRegion, was: Tray, now: Tray, grid: CellGrid
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The cells of ``grid`` the region covers once carried from ``was`` to ``now``: each
+    cell whose centre, carried back, falls in a cell of the region (so a turned region has
+    no holes where the turned grid and the grid fall out of step). Returns, per cell, the
+    region's row it comes from, its ``ix`` and ``iy``."""
+    none = np.zeros(0, np.int64)
+    if not len(region.cells):
+        return none, none, none
+    src, res = region.grid, grid.res
+    turn = now.pose.yaw - was.pose.yaw
+    c, s = math.cos(turn), math.sin(turn)
+    rot = np.array([[c, s], [-s, c]])  # row vectors: v @ rot turns v by +turn
+    xy = src.centres(region.cells[:, 1], region.cells[:, 0])
+    ahead = (xy - [was.pose.x, was.pose.y]) @ rot + [now.pose.x, now.pose.y]
+    pad = src.res  # a carried cell's centre lies within this of a cell it covers
+    lo = np.floor((ahead.min(0) - pad - [grid.x0, grid.y0]) / res).astype(np.int64)
+    hi = np.floor((ahead.max(0) + pad - [grid.x0, grid.y0]) / res).astype(np.int64)
+    lo, hi = np.maximum(lo, 0), np.minimum(hi, [grid.nx - 1, grid.ny - 1])
+    if np.any(hi < lo):
+        return none, none, none
+    gx, gy = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
+    ix, iy = gx.ravel(), gy.ravel()
+    back = (grid.centres(ix, iy) - [now.pose.x, now.pose.y]) @ rot.T + [was.pose.x, was.pose.y]
+    sx = np.floor((back[:, 0] - src.x0) / src.res).astype(np.int64)
+    sy = np.floor((back[:, 1] - src.y0) / src.res).astype(np.int64)
+    inside = (sx >= 0) & (sx < src.nx) & (sy >= 0) & (sy < src.ny)
+    row_of = np.full((src.ny, src.nx), -1, np.int64)
+    row_of[region.cells[:, 0], region.cells[:, 1]] = np.arange(len(region.cells))
+    row = np.full(len(ix), -1, np.int64)
+    row[inside] = row_of[sy[inside], sx[inside]]
+    keep = np.flatnonzero(row >= 0)
+    return row[keep], ix[keep], iy[keep]
 
 
 class LastRegions:
