@@ -498,3 +498,22 @@ def test_a_turned_tray_carries_its_region_whole(planner, paper_doc):
     ix = np.floor((back[:, 0] - g.x0) / g.res).astype(int)
     iy = np.floor((back[:, 1] - g.y0) / g.res).astype(int)
     assert first.mask[iy, ix].all()
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.booleans()), min_size=0, max_size=60)
+)
+def test_open_cells_near_solved_ones_are_those_a_bucket_away(points):
+    """The cells that also query the vicinity: those in the bucket of a solved one, or in
+    one of the eight around it (buckets of the vicinity distance)."""
+    from pickstop.regions.solve import _near_found
+
+    cen = np.array([p[:2] for p in points], float).reshape(-1, 2)
+    found = np.array([p[2] for p in points], bool)
+    key = np.floor(cen / 0.05).astype(int)
+    want = [
+        any(f and np.abs(key[i] - key[j]).max() <= 1 for j, f in enumerate(found))
+        for i in range(len(cen))
+    ]
+    assert _near_found(cen, found, 0.05).tolist() == want

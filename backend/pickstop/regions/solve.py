@@ -401,13 +401,23 @@ class CheckedLinks:
 
 
 def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
-    """``(M,)`` True for points within about ``dist`` [m] of a found one (hash grid)."""
-    key = np.floor(cen / dist).astype(np.int64)
-    marked = {(int(a), int(b)) for a, b in key[found]}
+    """``(M,)`` True for points within about ``dist`` [m] of a found one: in the same or a
+    neighbouring bucket of a grid of ``dist`` squares (the points are one tray's cells in
+    the arm's reach, so the buckets are a few thousand)."""
     out = np.zeros(len(cen), bool)
-    for i, (a, b) in enumerate(key.tolist()):
-        out[i] = any((a + da, b + db) in marked for da in (-1, 0, 1) for db in (-1, 0, 1))
-    return out
+    if not found.any():
+        return out
+    key = np.floor(cen / dist).astype(np.int64)
+    key -= key.min(0) - 1  # a border of one bucket on each side
+    marked = np.zeros(tuple(key.max(0) + 2), bool)
+    marked[key[found, 0], key[found, 1]] = True
+    near = marked.copy()
+    for da in (-1, 0, 1):
+        for db in (-1, 0, 1):
+            if da or db:
+                near[1:-1, 1:-1] |= marked[1 + da : marked.shape[0] - 1 + da,
+                                           1 + db : marked.shape[1] - 1 + db]  # fmt: skip
+    return near[key[:, 0], key[:, 1]]
 
 
 def _gather(
