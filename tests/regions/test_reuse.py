@@ -236,6 +236,29 @@ def test_remembered_answers_give_the_region_from_scratch(
     assert_cells_verified(planner, scene, reused, unlike)
 
 
+def test_a_cell_grown_before_keeps_its_witness_where_it_verifies(planner, paper_doc):
+    """The tray alone on its table moved by whole cells: the cells grown into its region
+    before are solved again by the witnesses they were grown with, checked exactly where
+    they stand now, not refined anew from their neighbours'; every cell the database solves
+    from scratch is kept, and each cell solved otherwise has a witness coal verifies."""
+    scene0 = parse_scene(paper_doc)
+    res, yaw = scene0.base_grid.resolution, scene0.base_yaw.yaws[0]
+    first = compute_tray_region(planner, scene0, scene0.tray("tray_4"), yaw)
+    assert first.counts["grown"] > 10
+    scene = _moved(paper_doc, "tray_4", 2 * res, 0.0)
+    assert scene is not None
+    before = sum(m.regrown for m in planner.reuse.values())
+    region = compute_tray_region(planner, scene, scene.tray("tray_4"), yaw)
+    regrown = sum(m.regrown for m in planner.reuse.values()) - before
+    # each part of most of the cells grown before
+    assert regrown > 0.5 * first.counts["grown"] * len(first.part_ids)
+    solved = _from_scratch(planner, scene, "tray_4", grow=False)
+    assert not (solved.mask & ~region.mask).any()
+    assert_cells_verified(
+        planner, scene, region, _unlike(_from_scratch(planner, scene, "tray_4"), region)
+    )
+
+
 def test_answers_that_held_outlive_the_surroundings_they_were_computed_in(
     planner, paper_doc, monkeypatch
 ):

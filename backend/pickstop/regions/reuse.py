@@ -25,7 +25,10 @@ relative to the tray. Such a cell is feasible however its answer from scratch wo
 region after a move holds every cell the database solves from scratch, and perhaps more, each
 with a verified witness. Growth from solved cells seeds the open ones with their witnesses: a
 cell that kept another witness than scratch would pick may grow other neighbours, so at the
-region's edge a grown cell may differ either way (every one verified all the same).
+region's edge a grown cell may differ either way (every one verified all the same). A cell
+grown before tries the witness it was grown with first (:attr:`RefineMemo.grown`): where it
+still reaches the target (the same, relative to the cell) and verifies exactly in the new
+surroundings, no seed is refined for it.
 """
 
 from __future__ import annotations
@@ -53,7 +56,9 @@ MAX_ANSWERS = 20_000  # cell answers kept per memo
 MAX_CHECKS = 20_000  # exact checks kept per memo
 MAX_BYTES = 384 << 20  # about what all memos together may hold
 # about what one entry holds [bytes] (arrays and their Python objects, an 8-joint arm)
-BYTES_PER = (("results", 200), ("served_cells", 60), ("answers", 1100), ("checks", 900))
+BYTES_PER = (
+    ("results", 200), ("served_cells", 60), ("answers", 1100), ("checks", 900), ("grown", 200)
+)  # fmt: skip
 MAX_SURROUNDINGS = 8  # surroundings a memo's cell answers may refer to
 SAME = 1e-9  # [m] bounds this close are the same
 # Of this many remembered things a change reaches, every SAMPLE_STEP-th is tested first; if
@@ -375,6 +380,9 @@ class RefineMemo:
     # collided, the surroundings then, the box of its links and its base (relative [m])
     checks: dict[tuple[int, str, bytes], ExactCheck] = field(default_factory=dict)
     checks_reused: int = 0
+    regrown: int = 0  # parts of grown cells solved by the witness they were grown with before
+    # the witness (joint values, grasp) of each (part, cell key) last grown into the region
+    grown: dict[tuple[str, int], tuple[np.ndarray, int]] = field(default_factory=dict)
     _next: int = 0
     _change_memo: dict[tuple[int, int], list[Change]] = field(default_factory=dict)
     _newcomer_memo: dict[tuple[int, int], tuple[Solid, ...]] = field(default_factory=dict)
@@ -504,6 +512,17 @@ class RefineMemo:
                 g.around = now  # it holds there: a check in ``now`` has the same outcome
         self.checks_reused += int(ok.sum())
         return out
+
+    def remember_grown(
+        self, parts: list[str], cell_keys: np.ndarray, thetas: np.ndarray, grasps: np.ndarray
+    ) -> None:
+        """Keep the witnesses ``thetas: (M, P, dof)`` and grasps ``(M, P)`` of cells
+        ``cell_keys: (M,)`` grown into a region, per part ``parts: (P,)``."""
+        if len(self.grown) + len(cell_keys) * len(parts) > MAX_ENTRIES:
+            self.grown.clear()
+        for i, k in enumerate(cell_keys.tolist()):
+            for p, part in enumerate(parts):
+                self.grown[(part, k)] = (thetas[i, p].copy(), int(grasps[i, p]))
 
     def remember_check(self, key: tuple[int, str, bytes], check: ExactCheck) -> None:
         if len(self.checks) >= MAX_CHECKS:
@@ -686,7 +705,7 @@ class RefineMemo:
             idx = np.array(known)[ok]
             if len(idx):
                 thetas[idx] = np.stack([g for g in got if g is not None])
-                good = _reaches(solver, thetas[idx], Rs_target[idx], ps_target[idx])
+                good = reaches(solver, thetas[idx], Rs_target[idx], ps_target[idx])
                 success[idx[good]] = True
                 todo += idx[~good].tolist()  # the target moved more than noise: refine anew
             self.hits += len(known)
@@ -705,7 +724,7 @@ class RefineMemo:
         return thetas, success
 
 
-def _reaches(
+def reaches(
     solver: BatchSolver, thetas: np.ndarray, Rs_target: np.ndarray, ps_target: np.ndarray
 ) -> np.ndarray:
     """``(B,)`` True where ``thetas`` reach their targets within the IK tolerances."""

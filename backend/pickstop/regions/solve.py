@@ -36,7 +36,7 @@ from pickstop.regions.arm import (
 )
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import CellAnswer, ExactCheck, RefineMemo
+from pickstop.regions.reuse import CellAnswer, ExactCheck, RefineMemo, reaches
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
@@ -756,6 +756,61 @@ def seeded(
     return win, thetas
 
 
+def _grown_before(
+    planner: RegionKit,
+    world: ArmWorld,
+    targets: list[Targets],
+    cen: np.ndarray,
+    open_: np.ndarray,
+    got: np.ndarray,
+    th_new: np.ndarray,
+    g_new: np.ndarray,
+) -> None:
+    """For :func:`grow`'s open cells ``open_`` (indices into ``cen``), in place: each part of
+    a cell grown before (at this offset from the tray, with the tray elsewhere or other things
+    around it) whose witness then still reaches its grasp's target and verifies here now is
+    solved with it (``got``, ``th_new``, ``g_new``: ``(O, P)`` rows of ``open_``), before any
+    seed is refined. A witness is one configuration to check where the seeds are many to
+    refine, and the seeds themselves differ wherever a neighbour's witness does."""
+    memo, keys = targets[0].memo, targets[0].cell_keys
+    if memo is None or keys is None or not memo.grown:
+        return
+    rows, seeds, grasps, Rs, ps, parts = [], [], [], [], [], []
+    for j, tg in enumerate(targets):
+        for i, k in enumerate(keys[open_].tolist()):
+            hit = memo.grown.get((tg.grasps.part_id, k))
+            if hit is not None:
+                rows.append(i * len(targets) + j)
+                seeds.append(hit[0])
+                grasps.append(hit[1])
+                Rs.append(tg.Rs_base_tool[hit[1]])
+                ps.append(tg.ps_base_tool[open_[i], hit[1]])
+                parts.append(tg.grasps.part_id)
+    if not rows:
+        return
+    th = np.array(seeds)
+    reach = np.flatnonzero(reaches(planner.solver, th, np.array(Rs), np.array(ps)))
+    if not len(reach):
+        return
+    o_r = np.array(rows)[reach] // len(targets)
+    good = reach[
+        verify(
+            planner,
+            world,
+            th[reach],
+            cen[open_[o_r]],
+            None,
+            np.array(parts, dtype=object)[reach],
+            cell_keys=(memo, keys[open_[o_r]]),
+        )
+    ]
+    o, p = np.divmod(np.array(rows)[good], len(targets))
+    memo.regrown += len(good)
+    got[o, p] = True
+    th_new[o, p] = th[good]
+    g_new[o, p] = np.array(grasps)[good]
+
+
 _NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 1], [-1, -1]])
 
 
@@ -804,6 +859,7 @@ def grow(
         got = np.zeros((n_open, P), bool)
         th_new = np.zeros((n_open, P, thetas.shape[2]))
         g_new = np.zeros((n_open, P), int)
+        _grown_before(planner, world, targets, cen, open_, got, th_new, g_new)
         # The neighbours' own grasps first; then, where a part is still open, every other
         # grasp from the same seeds: a witness for one grasp often reaches another here (the
         # wrist turns) where its own grasp runs into a joint limit.
@@ -867,6 +923,11 @@ def grow(
         found[new] = True
         thetas[new] = th_new[alive]
         grasp[new] = g_new[alive]
+        grown, keys = targets[0].memo, targets[0].cell_keys
+        if grown is not None and keys is not None and len(new):
+            grown.remember_grown(
+                [tg.grasps.part_id for tg in targets], keys[new], th_new[alive], g_new[alive]
+            )
         fresh = np.zeros_like(found)
         fresh[new] = True
         added += len(new)
