@@ -148,10 +148,8 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int, hold: float = 0.0) -> 
     if stages:
         keys = [k for k in stages[0] if k != "total" and isinstance(stages[0][k], float)]
         mids = {k: statistics.median(s.get(k, 0.0) for s in stages) * 1e3 for k in keys}
-        print(
-            "  exact of translations by stage, medians: "
-            + ", ".join(f"{k} {v:.0f} ms" for k, v in mids.items() if v >= 0.5)
-        )
+        shown = ", ".join(f"{k} {v:.0f} ms" for k, v in mids.items() if v >= 0.5)
+        print(f"  exact of translations by stage, medians: {shown or 'each under 0.5 ms'}")
     print(f"  ({skipped} moves skipped: the moved layout is invalid or has no plan)")
 
 
