@@ -517,3 +517,30 @@ def test_open_cells_near_solved_ones_are_those_a_bucket_away(points):
         for i in range(len(cen))
     ]
     assert _near_found(cen, found, 0.05).tolist() == want
+
+
+def test_the_regions_kept_for_previews_stay_within_their_bound(paper_doc):
+    """A few poses per tray, and no more regions in all than the bound: the tray remembered
+    least recently goes first."""
+    from types import SimpleNamespace
+
+    from pickstop.regions.carry import LastRegions
+
+    last = LastRegions(size=5, per_tray=4)
+
+    def at(tray_id: str, dx: float):
+        doc = copy.deepcopy(paper_doc)
+        next(t for t in doc["trays"] if t["id"] == tray_id)["pose"]["x"] += dx
+        return parse_scene(doc)
+
+    fake = {
+        t: SimpleNamespace(tray_id=t, yaw=0.0, cells=np.zeros((1, 2))) for t in ("tray_1", "tray_2")
+    }
+    for k in range(6):
+        last.remember(at("tray_1", 0.01 * k), fake["tray_1"])
+    assert len(last) == 4  # the four newest poses of tray_1
+    last.remember(at("tray_1", 0.03), fake["tray_1"])  # a pose kept already: no second copy
+    assert len(last) == 4
+    for k in range(3):
+        last.remember(at("tray_2", 0.01 * k), fake["tray_2"])
+    assert len(last) == 3  # tray_1's four went to make room

@@ -104,18 +104,22 @@ class LastRegions:
     known elsewhere."""
 
     def __init__(self, size: int, per_tray: int = 4) -> None:
-        self.size = size  # keys kept
+        self.size = size  # regions kept in all
         self.per_tray = per_tray  # poses kept per key
         self._by_tray: dict[tuple[str, float, str], list[tuple[Tray, TrayRegion]]] = {}
+        self._count = 0  # regions kept
 
     def remember(self, scene: Scene, region: TrayRegion) -> None:
-        """Keep ``region``, computed in ``scene``, as its tray's newest."""
+        """Keep ``region``, computed in ``scene``, as its tray's newest; the trays remembered
+        least recently go while more than ``size`` regions are kept."""
         key = (region.tray_id, region.yaw, carry_key(scene, region.tray_id))
         tray = scene.tray(region.tray_id)
-        kept = [e for e in self._by_tray.pop(key, []) if e[0].pose != tray.pose]
-        self._by_tray[key] = [(tray, region), *kept][: self.per_tray]
-        if len(self._by_tray) > self.size:
-            self._by_tray.pop(next(iter(self._by_tray)))
+        was = self._by_tray.pop(key, [])
+        kept = [(tray, region), *(e for e in was if e[0].pose != tray.pose)][: self.per_tray]
+        self._by_tray[key] = kept
+        self._count += len(kept) - len(was)
+        while self._count > self.size and len(self._by_tray) > 1:
+            self._count -= len(self._by_tray.pop(next(iter(self._by_tray))))
 
     def carried(
         self, robot: RobotModel, scene: Scene, pairs: list[tuple[str, float]]
@@ -130,8 +134,13 @@ class LastRegions:
         carried = carried_regions(robot, scene, [k for _, k in known])
         return {p: r for (p, _), r in zip(known, carried, strict=True)}
 
+    def __len__(self) -> int:
+        """Regions kept."""
+        return self._count
+
     def clear(self) -> None:
         self._by_tray.clear()
+        self._count = 0
 
 
 TURN_LENGTH = 0.5  # [m per rad]: how far a turn of the tray counts against a translation

@@ -57,7 +57,7 @@ MAX_CHECKS = 20_000  # exact checks kept per memo
 MAX_BYTES = 384 << 20  # about what all memos together may hold
 # about what one entry holds [bytes] (arrays and their Python objects, an 8-joint arm)
 BYTES_PER = (
-    ("results", 200), ("served_cells", 60), ("answers", 1100), ("checks", 900), ("grown", 200)
+    ("results", 200), ("served_cells", 60), ("answers", 1100), ("checks", 900), ("grown", 320)
 )  # fmt: skip
 MAX_SURROUNDINGS = 8  # surroundings a memo's cell answers may refer to
 SAME = 1e-9  # [m] bounds this close are the same
