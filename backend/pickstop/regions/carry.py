@@ -70,23 +70,22 @@ def _carry(
     none = np.zeros(0, np.int64)
     if not len(region.cells):
         return none, none, none
-    src, res = region.grid, grid.res
+    src = region.grid
     turn = now.pose.yaw - was.pose.yaw
     c, s = math.cos(turn), math.sin(turn)
     rot = np.array([[c, s], [-s, c]])  # row vectors: v @ rot turns v by +turn
     xy = src.centres(region.cells[:, 1], region.cells[:, 0])
     ahead = (xy - [was.pose.x, was.pose.y]) @ rot + [now.pose.x, now.pose.y]
     pad = src.res  # a carried cell's centre lies within this of a cell it covers
-    lo = np.floor((ahead.min(0) - pad - [grid.x0, grid.y0]) / res).astype(np.int64)
-    hi = np.floor((ahead.max(0) + pad - [grid.x0, grid.y0]) / res).astype(np.int64)
+    corners = np.array([ahead.min(0) - pad, ahead.max(0) + pad])
+    lo, hi = np.stack(grid.cell_of(corners), 1)
     lo, hi = np.maximum(lo, 0), np.minimum(hi, [grid.nx - 1, grid.ny - 1])
     if np.any(hi < lo):
         return none, none, none
     gx, gy = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
     ix, iy = gx.ravel(), gy.ravel()
     back = (grid.centres(ix, iy) - [now.pose.x, now.pose.y]) @ rot.T + [was.pose.x, was.pose.y]
-    sx = np.floor((back[:, 0] - src.x0) / src.res).astype(np.int64)
-    sy = np.floor((back[:, 1] - src.y0) / src.res).astype(np.int64)
+    sx, sy = src.cell_of(back)
     inside = (sx >= 0) & (sx < src.nx) & (sy >= 0) & (sy < src.ny)
     row_of = np.full((src.ny, src.nx), -1, np.int64)
     row_of[region.cells[:, 0], region.cells[:, 1]] = np.arange(len(region.cells))

@@ -40,6 +40,13 @@ class CellGrid:
     def centres(self, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
         return np.stack([self.x0 + (ix + 0.5) * self.res, self.y0 + (iy + 0.5) * self.res], -1)
 
+    def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(ix, iy)`` of the cells that hold the points ``xy: (N, 2)`` [m], int64; the
+        grid's bounds are not checked (a point outside it gets an index outside it)."""
+        ix = np.floor((xy[:, 0] - self.x0) / self.res).astype(np.int64)
+        iy = np.floor((xy[:, 1] - self.y0) / self.res).astype(np.int64)
+        return ix, iy
+
     def cells_polygon(self, iy: np.ndarray, ix: np.ndarray) -> BaseGeometry:
         """Union of the cells' squares: polygons with holes, touching cells merged."""
         if len(ix) == 0:

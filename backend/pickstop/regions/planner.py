@@ -119,7 +119,8 @@ class RegionPlanner(RegionKit):
         ``scene`` (exact), else the region computed for the tray nearest to where it stands
         now, carried there rigidly and clipped to the cells where the base footprint fits (for
         a preview: nothing is checked but the footprint)."""
-        exact = {p: r for p in pairs if (r := self._cached(scene, *p)) is not None}
+        snaps = {t: snapshot(scene, t) for t in dict.fromkeys(t for t, _ in pairs)}
+        exact = {p: r for p in pairs if (r := self._cached(scene, *p, snaps[p[0]])) is not None}
         rest = [p for p in pairs if p not in exact]
         return {**exact, **self._last.carried(self.robot, scene, rest)} if rest else exact
 
