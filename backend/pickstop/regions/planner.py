@@ -106,8 +106,11 @@ class RegionPlanner(RegionKit):
         """The cached region of the tray still valid in ``scene`` (``snap``: its
         :func:`~pickstop.regions.validity.snapshot`, if made already), or None."""
         tray = scene.tray(tray_id)
+        entries = self.cache.get(own_key(self, scene, tray, yaw), [])
+        if not entries:
+            return None  # never computed with the tray here: nothing to snapshot for
         snap = snapshot(scene, tray.id) if snap is None else snap
-        for entry in self.cache.get(own_key(self, scene, tray, yaw), []):
+        for entry in entries:
             if still_valid(self, entry, snap):
                 return entry.region
         return None
@@ -119,8 +122,7 @@ class RegionPlanner(RegionKit):
         ``scene`` (exact), else the region computed for the tray nearest to where it stands
         now, carried there rigidly and clipped to the cells where the base footprint fits (for
         a preview: nothing is checked but the footprint)."""
-        snaps = {t: snapshot(scene, t) for t in dict.fromkeys(t for t, _ in pairs)}
-        exact = {p: r for p in pairs if (r := self._cached(scene, *p, snaps[p[0]])) is not None}
+        exact = {p: r for p in pairs if (r := self._cached(scene, *p)) is not None}
         rest = [p for p in pairs if p not in exact]
         return {**exact, **self._last.carried(self.robot, scene, rest)} if rest else exact
 
