@@ -140,7 +140,7 @@ def test_environment_screen_is_conservative(planner, tiago, seed):
 def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiago, seed):
     """The batched screen flags exactly the configurations where some covering sphere of a
     link touches a solid (the grasped part no obstacle for the hand's spheres), and records
-    the owners of exactly the solids those spheres touch."""
+    the owners of exactly the solids those spheres touch (every one each sphere touches)."""
     from types import SimpleNamespace
 
     from pickstop.regions.arm import owner_codes, points_to_world
@@ -149,7 +149,8 @@ def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiag
     from tests.regions.conftest import EXAMPLES
 
     scene = load_scene(EXAMPLES / "paper_experiment.json")
-    boxes = BoxArrays.of(scene_solids(scene))
+    solids = scene_solids(scene)
+    boxes = BoxArrays.of(solids)
     rng = np.random.default_rng(seed)
     n = 120
     th = rng.uniform(tiago.lower, tiago.upper, (n, tiago.dof))
@@ -165,16 +166,22 @@ def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiag
     leaves = points_to_world(
         frames, arm.link_joint[arm.leaf_link], arm.leaf_c, xy, yaw
     )  # (n, S, 3)
-    code = owner_codes(boxes, targets, n)
-    skip = np.where(arm.is_hand[arm.leaf_link][None, :], code[:, None], -1)  # (n, S)
-    touched: set[int] = set()
-    hit = spheres_hit(
-        boxes, leaves.reshape(-1, 3), np.tile(arm.leaf_r, n), touched, skip=skip.ravel()
-    )
-    expected = hit.reshape(n, -1).any(axis=1)
+    hit = np.zeros((n, len(arm.leaf_r)), bool)
+    touched = set()
+    for solid in solids:  # one at a time: every solid a sphere touches, not its first
+        one = BoxArrays.of([solid])
+        code = owner_codes(one, targets, n)
+        skip = np.where(arm.is_hand[arm.leaf_link][None, :], code[:, None], -1)  # (n, S)
+        mine = spheres_hit(
+            one, leaves.reshape(-1, 3), np.tile(arm.leaf_r, n), skip=skip.ravel()
+        ).reshape(n, -1)
+        if mine.any():
+            touched.add(solid.owner)
+        hit |= mine
+    expected = hit.any(axis=1)
     assert expected.any() and not expected.all()
     assert np.array_equal(flagged, expected)
-    assert env.hit_owners == {boxes.owners[k] for k in touched}
+    assert env.hit_owners == touched
 
 
 def test_top_down_grasp_targets_point_down(planner, paper_doc):

@@ -121,3 +121,26 @@ def test_a_hand_of_links_is_screened_by_its_own_links(pr2):
     assert below.sum() > 20  # at 0.3 m many configurations reach down that far
     hands = [n for t in th[below][:50] for n in exact.below(t, 0.3)]
     assert any(n.startswith("r_gripper") for n in hands)
+
+
+@pytest.mark.parametrize("name", ["tiago", "pr2"])
+def test_geometry_placements_are_pinocchios(name, request):
+    """Placements of the checked geometries, computed for all at once from the joints, are
+    where ``pin.updateGeometryPlacements`` puts them."""
+    import pinocchio as pin
+
+    from pickstop.robot.floor import Placements
+
+    robot = request.getfixturevalue(name)
+    floor = ExactFloor(robot)
+    placements = Placements(robot, floor.ids)
+    data = robot.model.createData()
+    gdata = pin.GeometryData(robot.geom_model)
+    for theta in random_thetas(robot, 20, seed=3):
+        q = robot.angles_to_q(theta)
+        pin.forwardKinematics(robot.model, data, q)
+        pin.updateGeometryPlacements(robot.model, data, robot.geom_model, gdata)
+        R, p = placements.of(data)
+        for k, i in enumerate(floor.ids):
+            assert np.allclose(R[k], gdata.oMg[i].rotation, atol=1e-12)
+            assert np.allclose(p[k], gdata.oMg[i].translation, atol=1e-12)

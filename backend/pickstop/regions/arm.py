@@ -10,6 +10,7 @@ for the hand, its own links or the boxes that stand in for them (:mod:`pickstop.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -19,15 +20,15 @@ import pinocchio as pin
 
 from pickstop import frames
 from pickstop.frames import rot2
+from pickstop.regions.arm_kernel import screen_links
 from pickstop.regions.envelope import Envelope
 from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
-from pickstop.scene.world import BoxArrays, Solid, _coal, collide
+from pickstop.scene.world import TOUCH, BoxArrays, Solid, _coal, collide
 
 SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
 BOUNDS_MEMO = 32  # solid lists whose bounding boxes ExactArm keeps
-LEAF_BATCH = 20_000  # covering spheres screened per call (bounds its (spheres, solids) table)
 
 
 def arm_geometry_ids(robot: RobotModel) -> list[int]:
@@ -39,7 +40,7 @@ def owner_codes(
     boxes: BoxArrays, targets: Sequence[str] | np.ndarray | str | None, n: int
 ) -> np.ndarray:
     """``(n,)`` per configuration, the index code of the owner its hand may touch (-1: none)."""
-    codes = {o: i for i, o in enumerate(dict.fromkeys(boxes.owners))}
+    codes = boxes.owner_index
     if targets is None:
         return np.full(n, -1)
     if isinstance(targets, str):
@@ -72,12 +73,12 @@ class ArmSpheres:
     leaf_r: np.ndarray  # (S,)
     floor: FloorSpheres  # the leaves, and the stand-in hand's hull points, per joint
 
-    @property
+    @functools.cached_property
     def leaf_start(self) -> np.ndarray:
         """``(L,)`` index of each link's first leaf (leaves are stored link by link)."""
         return np.searchsorted(self.leaf_link, np.arange(len(self.bound_r)))
 
-    @property
+    @functools.cached_property
     def leaf_count(self) -> np.ndarray:
         """``(L,)`` how many leaves cover each link."""
         return np.bincount(self.leaf_link, minlength=len(self.bound_r))
@@ -176,40 +177,43 @@ def screen_arm(
     obstacle for the hand links. floor: the clearance [m] every link and the hand keep above
     the floor (None: the floor is not checked).
     """
-    from pickstop.scene.world import spheres_hit
-
     B = base_xy.shape[0]
     if B == 0:
         return np.zeros(B, bool)
     flagged = np.zeros(B, bool) if floor is None else below_floor(spheres.floor, frames, floor)
     if len(boxes.centres) == 0:
         return flagged
-    bw = points_to_world(frames, spheres.link_joint, spheres.bound_c, base_xy, yaw)  # (B, L, 3)
-    L = len(spheres.bound_r)
     code = owner_codes(boxes, targets, B)  # (B,)
-    skip = np.where(spheres.is_hand[None, :], code[:, None], -1)  # (B, L)
-    hit_link = spheres_hit(
-        boxes, bw.reshape(-1, 3), np.tile(spheres.bound_r, B), skip=skip.ravel()
-    ).reshape(B, L)
-    cfg, lnk = np.nonzero(hit_link)
-    if len(cfg) == 0:
-        return flagged
-    # Every leaf of every flagged (configuration, link) pair, screened in one batch: the
-    # hand's links ride on the same joint, so they no longer cost one call each.
-    leaf, pair = leaf_rows(spheres, lnk)
-    rows = cfg[pair]
-    joint = spheres.link_joint[spheres.leaf_link[leaf]] - 1
-    hit_boxes: set[int] = set()
-    hit = np.zeros(len(leaf), bool)
-    leaf_skip = np.where(spheres.is_hand[spheres.leaf_link[leaf]], code[rows], -1)
-    by_joint = joint_major(frames)
-    for a in range(0, len(leaf), LEAF_BATCH):
-        sl = slice(a, a + LEAF_BATCH)
-        lw = leaves_to_world(by_joint, joint[sl], rows[sl], spheres.leaf_c[leaf[sl]], base_xy, yaw)
-        hit[sl] = spheres_hit(boxes, lw, spheres.leaf_r[leaf[sl]], hit_boxes, skip=leaf_skip[sl])
+    box_hit = np.zeros(len(boxes.centres), bool)
+    screen_links(
+        np.stack([R for R, _ in frames]),
+        np.stack([p for _, p in frames]),
+        spheres.link_joint - 1,
+        spheres.bound_c,
+        spheres.bound_r,
+        spheres.is_hand,
+        spheres.leaf_start,
+        spheres.leaf_count,
+        spheres.leaf_c,
+        spheres.leaf_r,
+        np.ascontiguousarray(base_xy, dtype=float),
+        math.cos(yaw),
+        math.sin(yaw),
+        boxes.centres,
+        boxes.R,
+        boxes.half,
+        boxes.is_cylinder,
+        boxes.radius,
+        boxes.lo,
+        boxes.hi,
+        boxes.owner_codes,
+        code,
+        TOUCH,
+        flagged,
+        box_hit,
+    )
     if envelope is not None:
-        envelope.hit_owners.update(boxes.owners[k] for k in hit_boxes)
-    flagged[rows[hit]] = True
+        envelope.hit_owners.update(boxes.owners[k] for k in np.flatnonzero(box_hit))
     return flagged
 
 
@@ -220,17 +224,6 @@ def joint_major(frames: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray
         np.ascontiguousarray(np.stack([R for R, _ in frames]).transpose(0, 3, 1, 2)),
         np.ascontiguousarray(np.stack([p for _, p in frames]).transpose(0, 2, 1)),
     )
-
-
-def leaf_rows(spheres: ArmSpheres, links: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every covering sphere of the links ``links: (K,)`` (indices): the leaves ``(N,)`` and
-    which of the K each belongs to ``(N,)``."""
-    per = spheres.leaf_count[links]
-    pair = np.repeat(np.arange(len(links)), per)
-    leaf = spheres.leaf_start[links][pair] + (
-        np.arange(len(pair)) - np.repeat(np.cumsum(per) - per, per)
-    )
-    return leaf, pair
 
 
 def leaves_to_world(
@@ -263,13 +256,12 @@ class ExactArm:
     def __init__(self, robot: RobotModel) -> None:
         self.robot = robot
         self.data = robot.model.createData()
-        self.gdata = pin.GeometryData(robot.geom_model)
         self.ids = arm_geometry_ids(robot)
         names = {g: lk.name for lk in arm_links(robot) for g in lk.geometry_ids}
         self.hand = np.array([is_hand_link(robot, names[i]) for i in self.ids], bool)
+        self.geometries = [robot.geom_model.geometryObjects[i].geometry for i in self.ids]
         centres, halves = [], []
-        for i in self.ids:
-            geom = robot.geom_model.geometryObjects[i].geometry
+        for geom in self.geometries:
             geom.computeLocalAABB()
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
             centres.append((lo + hi) / 2)
@@ -278,18 +270,22 @@ class ExactArm:
         self.local_c = np.array(centres).reshape(-1, 3)
         self.local_h = np.array(halves).reshape(-1, 3)
         self.floor = ExactFloor(robot)
+        assert self.floor.ids == self.ids  # one placement of the geometries serves both
+        # (G, 3, 3), (G, 3): where the geometries are after :meth:`place` (base frame)
+        self.R = np.zeros((len(self.ids), 3, 3))
+        self.p = np.zeros((len(self.ids), 3))
         self._bounds_memo: dict[tuple[Solid, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def below_floor(self, clearance: float) -> list[str]:
         """After :meth:`place`: the arm geometries, and the stand-in hand boxes
         (``hand:<k>``), reaching ``z <= clearance`` [m] (the floor is z = 0 of the base)."""
-        return self.floor.placed_below(self.data, self.gdata, clearance)
+        return self.floor.placed_below(self.data, self.R, self.p, clearance)
 
     def place(self, theta: np.ndarray) -> None:
         """Forward kinematics and geometry placements (base frame) of ``theta: (dof,)``."""
         q = self.robot.angles_to_q(theta)
         pin.forwardKinematics(self.robot.model, self.data, q)
-        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
+        self.R, self.p = self.floor.placements.of(self.data)
 
     def colliding(
         self,
@@ -313,13 +309,8 @@ class ExactArm:
         if not solids or not self.ids:
             return False
         R_world_base = frames.R_z(yaw)
-        Ts_base_geom = [self.gdata.oMg[i] for i in self.ids]
-        R = np.einsum(
-            "ij,gjk->gik", R_world_base, np.array([T.rotation for T in Ts_base_geom])
-        )  # (G, 3, 3) R_world_geom
-        p = np.array([T.translation for T in Ts_base_geom]) @ R_world_base.T + np.array(
-            [x, y, 0.0]
-        )  # (G, 3) p_world_geom
+        R = R_world_base @ self.R  # (G, 3, 3) R_world_geom
+        p = self.p @ R_world_base.T + np.array([x, y, 0.0])  # (G, 3) p_world_geom
         c = np.einsum("gij,gj->gi", R, self.local_c) + p
         h = np.einsum("gij,gj->gi", np.abs(R), self.local_h)
         lo, hi, owners = self._bounds(solids)
@@ -330,9 +321,8 @@ class ExactArm:
         if target is not None:
             near &= ~(self.hand[:, None] & (owners == target)[None])
         for k, j in zip(*np.nonzero(near), strict=True):
-            g = self.robot.geom_model.geometryObjects[self.ids[k]]
             gs, ts = _coal(solids[j])
-            if collide(g.geometry, coal.Transform3s(R[k], p[k]), gs, ts):
+            if collide(self.geometries[k], coal.Transform3s(R[k], p[k]), gs, ts):
                 return True
         return False
 

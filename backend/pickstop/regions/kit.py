@@ -19,16 +19,18 @@ import numpy as np
 
 from pickstop.reach.batch_ik import BatchSolver
 from pickstop.reach.database import ReachDatabase
-from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm
+from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm, screen_arm
 from pickstop.regions.reuse import ReuseCache
 from pickstop.robot.exact import ExactSelfCollision
 from pickstop.robot.hand import HandShape, hand_shape
+from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
 from pickstop.robot.screen import SphereModel
 from pickstop.scene.grasps import GraspSet, grasps_for_part, hand_space
 from pickstop.scene.model import Part, Scene, Tray
 from pickstop.scene.world import (
     AGREE_MARGIN,
+    BoxArrays,
     Solid,
     part_solid,
     pose_matrix,
@@ -86,6 +88,14 @@ class RegionKit:
         self.exact_self = ExactSelfCollision(self.robot, disabled)
         self.exact_arm = ExactArm(self.robot)
         self.reach_xy = self.db.reach_xy
+        self._warm_screen()
+
+    def _warm_screen(self) -> None:
+        """Screen one configuration against one box: the compiled screen loads (compiled once
+        per machine, then read from numba's cache) now, not in the first region."""
+        _, _, frames = fk_soa(self.solver.chain, np.zeros((self.robot.dof, 1)), frames=True)
+        box = BoxArrays.of([Solid.box(np.eye(4), np.ones(3), "warm-up")])
+        screen_arm(self.arm, box, frames, np.zeros((1, 2)), 0.0)
 
     def checkpoint(self) -> None:
         """Raise :class:`Interrupted` if the computation under way is to give way. Called

@@ -153,14 +153,34 @@ def _local_box(geometry: Any) -> tuple[np.ndarray, np.ndarray]:
     return (lo + hi) / 2, (hi - lo) / 2
 
 
+class Placements:
+    """Where geometries ``ids`` of a robot's collision model are, from its joints' placements:
+    ``oMg = oMi[parentJoint] * placement`` for all of them at once (as
+    ``pin.updateGeometryPlacements`` computes it, without a Python call per geometry)."""
+
+    def __init__(self, robot: RobotModel, ids: Sequence[int]) -> None:
+        objs = [robot.geom_model.geometryObjects[i] for i in ids]
+        self.parent = np.array([o.parentJoint for o in objs], dtype=np.int64)
+        local = np.array([o.placement.homogeneous for o in objs]).reshape(-1, 4, 4)
+        self.R_local = local[:, :3, :3]  # (G, 3, 3)
+        self.p_local = local[:, :3, 3]  # (G, 3)
+
+    def of(self, data: Any) -> tuple[np.ndarray, np.ndarray]:
+        """``R: (G, 3, 3)``, ``p: (G, 3)`` in the base frame, after ``pin.forwardKinematics``
+        into ``data``."""
+        M = np.array([m.homogeneous for m in data.oMi])[self.parent]  # (G, 4, 4)
+        R_joint, p_joint = M[:, :3, :3], M[:, :3, 3]
+        R = R_joint @ self.R_local
+        p = np.einsum("gij,gj->gi", R_joint, self.p_local) + p_joint
+        return R, p
+
+
 class ExactFloor:
     """Exact floor check (coal) of the checked links (:func:`arm_links`) and of the boxes
     standing in for the hand, if any; a geometry whose bounding box stays above the clearance
     is not handed to coal. One per thread."""
 
     def __init__(self, robot: RobotModel) -> None:
-        import pinocchio as pin
-
         from pickstop.robot.link_geometry import arm_links
 
         self.robot = robot
@@ -174,17 +194,15 @@ class ExactFloor:
         self.box_h = np.array([h for _, h in self.boxes]).reshape(-1, 3)
         self.stand_in = stand_in_hand(robot)
         self.stand_in_boxes = [_local_box(g) for g, _ in self.stand_in]
+        self.placements = Placements(robot, self.ids)
         self.data = robot.model.createData()
-        self.gdata = pin.GeometryData(gm)
 
-    def placed_below(self, data: Any, gdata: Any, clearance: float) -> list[str]:
-        """The geometries reaching ``z <= clearance`` [m] as placed in ``data``/``gdata``
-        (after ``pin.updateGeometryPlacements``, base frame); ``hand:<k>``: a stand-in box."""
-        Ms = [gdata.oMg[i] for i in self.ids]
+    def placed_below(self, data: Any, R: np.ndarray, p: np.ndarray, clearance: float) -> list[str]:
+        """The geometries reaching ``z <= clearance`` [m], placed at ``R: (G, 3, 3)``,
+        ``p: (G, 3)`` (:class:`Placements` of :attr:`ids`, base frame) after
+        ``pin.forwardKinematics`` into ``data``; ``hand:<k>``: a stand-in box."""
         out = []
-        if Ms:
-            R = np.array([M.rotation for M in Ms])  # (G, 3, 3)
-            p = np.array([M.translation for M in Ms])  # (G, 3)
+        if len(self.ids):
             # the lowest z of every local bounding box at once; only those low enough go to coal
             low = (
                 np.einsum("gj,gj->g", R[:, 2], self.box_c)
@@ -214,8 +232,7 @@ class ExactFloor:
 
         q = self.robot.angles_to_q(np.asarray(theta, dtype=float))
         pin.forwardKinematics(self.robot.model, self.data, q)
-        pin.updateGeometryPlacements(self.robot.model, self.data, self.robot.geom_model, self.gdata)
-        return self.placed_below(self.data, self.gdata, clearance)
+        return self.placed_below(self.data, *self.placements.of(self.data), clearance)
 
     def colliding(self, thetas: np.ndarray, clearance: float) -> np.ndarray:
         """``thetas: (N, dof)`` -> ``(N,)`` True where something reaches ``z <= clearance``."""

@@ -7,6 +7,7 @@ box, so a sphere that misses the box surely misses the mesh.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -253,6 +254,16 @@ class BoxArrays:
             hi=np.array([b[1] for b in bounds]),
         )
 
+    @functools.cached_property
+    def owner_index(self) -> dict[str, int]:
+        """Each owner's code: its index among the owners in order of first appearance."""
+        return {o: i for i, o in enumerate(dict.fromkeys(self.owners))}
+
+    @functools.cached_property
+    def owner_codes(self) -> np.ndarray:
+        """``(K,)`` int64: the code of each solid's owner (:attr:`owner_index`)."""
+        return np.array([self.owner_index[o] for o in self.owners], dtype=np.int64)
+
 
 def spheres_hit(
     boxes: BoxArrays,
@@ -275,9 +286,7 @@ def spheres_hit(
     # (boxes, spheres): one box's candidates are contiguous for the loop below
     near = np.ones((len(boxes.centres), len(centres)), bool)
     if skip is not None and (skip >= 0).any():
-        codes = {o: i for i, o in enumerate(dict.fromkeys(boxes.owners))}
-        box_code = np.array([codes[o] for o in boxes.owners])
-        near &= box_code[:, None] != skip[None, :]
+        near &= boxes.owner_codes[:, None] != skip[None, :]
     for a in range(3):
         lo_a = centres[:, a] - radii
         hi_a = centres[:, a] + radii
