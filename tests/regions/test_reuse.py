@@ -308,14 +308,12 @@ def test_where_a_sample_shows_everything_changed_the_rest_is_not_tested():
     is taken as it was."""
     from pickstop.regions import reuse
 
-    class Everything:  # finer boxes that all meet the change
+    class Everything:  # checks that all see the change
         def __init__(self, ids):
             self.owner = np.asarray(ids)
-            self.lo = np.zeros((len(ids), 3))
-            self.hi = np.ones((len(ids), 3))
 
-        def touched(self, sel, hits):
-            return np.ones(len(sel), bool)
+        def touched_by(self, changes, reached):
+            return np.unique(np.concatenate(reached))
 
     memo = reuse.RefineMemo()
     old = memo.around(_around([_box("nb", [0.0, 0.0, 0.0], [1.0, 1.0, 1.0])]))

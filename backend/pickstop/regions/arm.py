@@ -217,39 +217,6 @@ def screen_arm(
     return flagged
 
 
-def joint_major(frames: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`fk_soa` frames as joint-major copies ``R: (J, B, 3, 3)``, ``p: (J, B, 3)``, so
-    that a leaf's frame is one gather."""
-    return (
-        np.ascontiguousarray(np.stack([R for R, _ in frames]).transpose(0, 3, 1, 2)),
-        np.ascontiguousarray(np.stack([p for _, p in frames]).transpose(0, 2, 1)),
-    )
-
-
-def leaves_to_world(
-    frames: tuple[np.ndarray, np.ndarray],
-    joint: np.ndarray,
-    rows: np.ndarray,
-    local: np.ndarray,
-    base_xy: np.ndarray,
-    yaw: float,
-) -> np.ndarray:
-    """Points ``local: (P, 3)`` on joint index ``joint: (P,)`` (0-based) of configuration
-    ``rows: (P,)`` each -> (P, 3) in the world. frames: every joint frame of every
-    configuration, ``R: (J, B, 3, 3)`` and ``p: (J, B, 3)`` (base frame)."""
-    R, p = frames
-    Rl = R[joint, rows]  # (P, 3, 3)
-    pts = p[joint, rows] + Rl[:, :, 0] * local[:, 0, None]
-    pts += Rl[:, :, 1] * local[:, 1, None]
-    pts += Rl[:, :, 2] * local[:, 2, None]
-    c, s = np.cos(yaw), np.sin(yaw)
-    out = np.empty_like(pts)
-    out[:, 0] = c * pts[:, 0] - s * pts[:, 1] + base_xy[rows, 0]
-    out[:, 1] = s * pts[:, 0] + c * pts[:, 1] + base_xy[rows, 1]
-    out[:, 2] = pts[:, 2]
-    return out
-
-
 class ExactArm:
     """Exact arm-versus-solids checks with coal (one per thread)."""
 

@@ -162,3 +162,255 @@ def screen_links(
                     ):  # fmt: skip
                         flagged[b] = True
                         box_hit[k] = True
+
+
+@njit(cache=True, nogil=True)
+def joint_frames(
+    R_parent: np.ndarray,
+    p_parent: np.ndarray,
+    axis_index: np.ndarray,
+    axes: np.ndarray,
+    prismatic: np.ndarray,
+    theta: np.ndarray,
+    R: np.ndarray,
+    p: np.ndarray,
+) -> None:
+    """:func:`pickstop.robot.kinematics.fk_soa`'s joint frames of one configuration
+    ``theta: (n,)``, into ``R: (n, 3, 3)``, ``p: (n, 3)`` (base frame); the chain's arrays as
+    :class:`~pickstop.robot.kinematics.Chain` holds them."""
+    n = theta.shape[0]
+    Rc = R_parent[0].copy()
+    pc = p_parent[0].copy()
+    tmp = np.empty((3, 3))
+    for i in range(n):
+        if i > 0:
+            for r in range(3):
+                pc[r] += (
+                    Rc[r, 0] * p_parent[i, 0]
+                    + Rc[r, 1] * p_parent[i, 1]
+                    + Rc[r, 2] * p_parent[i, 2]
+                )
+            for r in range(3):
+                for c in range(3):
+                    tmp[r, c] = (
+                        Rc[r, 0] * R_parent[i, 0, c]
+                        + Rc[r, 1] * R_parent[i, 1, c]
+                        + Rc[r, 2] * R_parent[i, 2, c]
+                    )
+            Rc[:, :] = tmp
+        a = axis_index[i]
+        if prismatic[i]:
+            for r in range(3):
+                if a >= 0:
+                    pc[r] += Rc[r, a] * theta[i]
+                else:
+                    pc[r] += (
+                        Rc[r, 0] * axes[i, 0] + Rc[r, 1] * axes[i, 1] + Rc[r, 2] * axes[i, 2]
+                    ) * theta[i]
+        else:
+            cs, sn = np.cos(theta[i]), np.sin(theta[i])
+            if a >= 0:
+                u = (a + 1) % 3
+                v = (a + 2) % 3
+                for r in range(3):
+                    cu, cv = Rc[r, u], Rc[r, v]
+                    Rc[r, u] = cs * cu + sn * cv
+                    Rc[r, v] = cs * cv - sn * cu
+            else:  # Rodrigues: Rot = c I + s [k]x + (1 - c) k k^T
+                k0, k1, k2 = axes[i, 0], axes[i, 1], axes[i, 2]
+                rot = np.empty((3, 3))
+                K = np.array([[0.0, -k2, k1], [k2, 0.0, -k0], [-k1, k0, 0.0]])
+                for r in range(3):
+                    for c in range(3):
+                        rot[r, c] = (
+                            (cs if r == c else 0.0)
+                            + sn * K[r, c]
+                            + (1 - cs) * (axes[i, r] * axes[i, c])
+                        )
+                for r in range(3):
+                    for c in range(3):
+                        tmp[r, c] = (
+                            Rc[r, 0] * rot[0, c] + Rc[r, 1] * rot[1, c] + Rc[r, 2] * rot[2, c]
+                        )
+                Rc[:, :] = tmp
+        R[i] = Rc
+        p[i] = pc
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _change_hits(
+    h: int,
+    lo0: float,
+    lo1: float,
+    lo2: float,
+    hi0: float,
+    hi1: float,
+    hi2: float,
+    c_lo: np.ndarray,
+    c_hi: np.ndarray,
+    n_lo: np.ndarray,
+    n_hi: np.ndarray,
+    moved: np.ndarray,
+    same: float,
+) -> bool:
+    """:meth:`pickstop.regions.reuse.Change.hits` of change ``h`` for the box ``lo, hi``."""
+    lo = (lo0, lo1, lo2)
+    hi = (hi0, hi1, hi2)
+    m_old = True
+    for a in range(3):
+        if not (lo[a] <= c_hi[h, a] + same and c_lo[h, a] <= hi[a] + same):
+            m_old = False
+    if not moved[h]:
+        return m_old
+    m_new = True
+    for a in range(3):
+        if not (lo[a] <= n_hi[h, a] + same and n_lo[h, a] <= hi[a] + same):
+            m_new = False
+    if not (m_old or m_new):
+        return False
+    # Both clip the box to the same bounds, or both miss it: the same inside it.
+    a_empty = False
+    b_empty = False
+    alike = True
+    for a in range(3):
+        alo, ahi = max(lo[a], c_lo[h, a]), min(hi[a], c_hi[h, a])
+        blo, bhi = max(lo[a], n_lo[h, a]), min(hi[a], n_hi[h, a])
+        if alo > ahi + same:
+            a_empty = True
+        if blo > bhi + same:
+            b_empty = True
+        if not (abs(alo - blo) <= same and abs(ahi - bhi) <= same):
+            alike = False
+    return not ((a_empty and b_empty) or (not a_empty and not b_empty and alike))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _placed_box_hits(
+    h: int,
+    Rj: np.ndarray,
+    pj: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    bx: float,
+    by: float,
+    cos_yaw: float,
+    sin_yaw: float,
+    margin: float,
+    c_lo: np.ndarray,
+    c_hi: np.ndarray,
+    n_lo: np.ndarray,
+    n_hi: np.ndarray,
+    moved: np.ndarray,
+    same: float,
+) -> bool:
+    """Does change ``h`` hit the box ``lo, hi`` (3,) of a joint frame ``Rj, pj``, placed on
+    the base at ``(bx, by)`` and bounded in the world, padded by ``margin``?"""
+    m0, m1, m2 = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2
+    e0, e1, e2 = (hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, (hi[2] - lo[2]) / 2
+    px = Rj[0, 0] * m0 + Rj[0, 1] * m1 + Rj[0, 2] * m2 + pj[0]
+    py = Rj[1, 0] * m0 + Rj[1, 1] * m1 + Rj[1, 2] * m2 + pj[1]
+    pz = Rj[2, 0] * m0 + Rj[2, 1] * m1 + Rj[2, 2] * m2 + pj[2]
+    cx = cos_yaw * px - sin_yaw * py + bx
+    cy = sin_yaw * px + cos_yaw * py + by
+    # world axes: R_z(yaw) @ Rj
+    hx = hy = hz = margin
+    for c in range(3):
+        e = e0 if c == 0 else (e1 if c == 1 else e2)
+        w0 = cos_yaw * Rj[0, c] - sin_yaw * Rj[1, c]
+        w1 = sin_yaw * Rj[0, c] + cos_yaw * Rj[1, c]
+        hx += abs(w0) * e
+        hy += abs(w1) * e
+        hz += abs(Rj[2, c]) * e
+    return _change_hits(
+        h, cx - hx, cy - hy, pz - hz, cx + hx, cy + hy, pz + hz, c_lo, c_hi, n_lo, n_hi, moved,
+        same,
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True)
+def configs_touched(
+    thetas: np.ndarray,
+    xy: np.ndarray,
+    owner: np.ndarray,
+    cos_yaw: float,
+    sin_yaw: float,
+    R_parent: np.ndarray,
+    p_parent: np.ndarray,
+    axis_index: np.ndarray,
+    axes: np.ndarray,
+    prismatic: np.ndarray,
+    group_joint: np.ndarray,
+    group_lo: np.ndarray,
+    group_hi: np.ndarray,
+    group_start: np.ndarray,
+    group_links: np.ndarray,
+    link_lo: np.ndarray,
+    link_hi: np.ndarray,
+    leaf_start: np.ndarray,
+    leaf_count: np.ndarray,
+    leaf_c: np.ndarray,
+    leaf_r: np.ndarray,
+    margin: float,
+    c_lo: np.ndarray,
+    c_hi: np.ndarray,
+    n_lo: np.ndarray,
+    n_hi: np.ndarray,
+    moved: np.ndarray,
+    reach: np.ndarray,
+    same: float,
+    touched: np.ndarray,
+) -> None:
+    """In place: ``touched[a]`` set where a covering sphere of a configuration owned by ``a``
+    (``owner: (C,)``, 0..A-1) may meet a change that reaches ``a`` (``reach: (A, H)``).
+
+    Coarse to fine, as :class:`pickstop.regions.solve.CheckedLinks` tests: per joint group a
+    box around its spheres (``group_*``, joint frames, 0-based ``group_joint``), then the box of
+    each of its links (``group_links[group_start[g]:group_start[g + 1]]``), then each sphere,
+    every box padded by ``margin``; the changes as :class:`pickstop.regions.reuse.Change`
+    (``moved[h]``: an axis-aligned box that moved from ``c_*`` to ``n_*``). A configuration's
+    frames are computed only while its owner is not yet known to be touched."""
+    C, n = thetas.shape
+    H = c_lo.shape[0]
+    R = np.empty((n, 3, 3))
+    p = np.empty((n, 3))
+    for c in range(C):
+        a = owner[c]
+        if touched[a]:
+            continue
+        joint_frames(R_parent, p_parent, axis_index, axes, prismatic, thetas[c], R, p)
+        bx, by = xy[c, 0], xy[c, 1]
+        for h in range(H):
+            if not reach[a, h] or touched[a]:
+                continue
+            for g in range(group_joint.shape[0]):
+                j = group_joint[g]
+                if not _placed_box_hits(
+                    h, R[j], p[j], group_lo[g], group_hi[g], bx, by, cos_yaw, sin_yaw, margin,
+                    c_lo, c_hi, n_lo, n_hi, moved, same,
+                ):  # fmt: skip
+                    continue
+                for i in range(group_start[g], group_start[g + 1]):
+                    lk = group_links[i]
+                    if not _placed_box_hits(
+                        h, R[j], p[j], link_lo[lk], link_hi[lk], bx, by, cos_yaw, sin_yaw,
+                        margin, c_lo, c_hi, n_lo, n_hi, moved, same,
+                    ):  # fmt: skip
+                        continue
+                    for f in range(leaf_start[lk], leaf_start[lk] + leaf_count[lk]):
+                        lx, ly, lz = leaf_c[f, 0], leaf_c[f, 1], leaf_c[f, 2]
+                        px = R[j, 0, 0] * lx + R[j, 0, 1] * ly + R[j, 0, 2] * lz + p[j, 0]
+                        py = R[j, 1, 0] * lx + R[j, 1, 1] * ly + R[j, 1, 2] * lz + p[j, 1]
+                        pz = R[j, 2, 0] * lx + R[j, 2, 1] * ly + R[j, 2, 2] * lz + p[j, 2]
+                        wx = cos_yaw * px - sin_yaw * py + bx
+                        wy = sin_yaw * px + cos_yaw * py + by
+                        r = leaf_r[f] + margin
+                        if _change_hits(
+                            h, wx - r, wy - r, pz - r, wx + r, wy + r, pz + r, c_lo, c_hi,
+                            n_lo, n_hi, moved, same,
+                        ):  # fmt: skip
+                            touched[a] = True
+                            break
+                    if touched[a]:
+                        break
+                if touched[a]:
+                    break

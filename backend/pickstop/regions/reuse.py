@@ -305,23 +305,12 @@ def box_minus(
 
 
 class Checked(Protocol):
-    """Boxes (relative [m]) around what was checked for some cells' answers: coarse ones
-    ``lo, hi: (K, 3)`` and the answer id each belongs to, ``owner: (K,)``; finer boxes
-    within them on demand."""
+    """What some remembered things checked (configurations of the arm, each owned by the id of
+    the thing it belongs to), tested finely against changes on demand."""
 
-    @property
-    def lo(self) -> np.ndarray: ...
-
-    @property
-    def hi(self) -> np.ndarray: ...
-
-    @property
-    def owner(self) -> np.ndarray: ...
-
-    def touched(
-        self, sel: np.ndarray, hits: Callable[[np.ndarray, np.ndarray], np.ndarray]
-    ) -> np.ndarray:
-        """``(len(sel),)`` whether ``hits`` holds for a finer box within the boxes ``sel``."""
+    def touched_by(self, changes: list[Change], reached: list[np.ndarray]) -> np.ndarray:
+        """The ids of the owners whose checks may see a change: ``changes[h]`` for the ids
+        ``reached[h]`` alone."""
         ...
 
 
@@ -471,17 +460,9 @@ class RefineMemo:
     ) -> None:
         """:meth:`held`'s fine stage for ``part`` (indices into ``ix``), in place: each
         change against the finer boxes of the things it reached."""
-        links = checked(ix[part])
-        for c, hit in fine:
-            hit = np.intersect1d(hit, part)
-            if not len(hit):
-                continue
-            sel = np.flatnonzero(np.isin(links.owner, ix[hit]))
-            sel = sel[c.hits(links.lo[sel], links.hi[sel])]
-            sel = sel[held[np.searchsorted(ix, links.owner[sel])]]  # not yet stale
-            if len(sel):
-                bad = links.owner[sel[links.touched(sel, c.hits)]]
-                held[np.searchsorted(ix, bad)] = False
+        reached = [ix[np.intersect1d(hit, part)] for _, hit in fine]
+        bad = checked(ix[part]).touched_by([c for c, _ in fine], reached)
+        held[np.searchsorted(ix, bad)] = False
 
     def remembered_checks(
         self,

@@ -17,6 +17,7 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,16 +28,11 @@ from pickstop.frames import R_z
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import (
-    ArmSpheres,
-    joint_major,
-    leaves_to_world,
-    points_to_world,
-    screen_arm,
-)
+from pickstop.regions.arm import points_to_world, screen_arm
+from pickstop.regions.arm_kernel import configs_touched
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import CellAnswer, ExactCheck, RefineMemo, reaches
+from pickstop.regions.reuse import SAME, CellAnswer, Change, ExactCheck, RefineMemo, reaches
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
@@ -197,11 +193,11 @@ def _solve_cells(
         return _rounds(planner, world, tg, cen, *_gather(planner.db, tg, vicinity), rounds)[:3]
     tag, part = ("vicinity" if vicinity else "db"), tg.grasps.part_id
 
-    def checked(answers: list[CellAnswer], ids: list[int]) -> CheckedLinks:
+    def checked(answers: list[CellAnswer], ids: list[int]) -> CheckedConfigs:
         th = [np.concatenate([planner.db.thetas(a.rows), a.refined]) for a in answers]
         n = [len(t) for t in th]
-        xy = np.repeat([a.xy for a in answers], n, axis=0)
-        return CheckedLinks.of(
+        xy = np.repeat([a.xy for a in answers], n, axis=0).reshape(-1, 2)
+        return CheckedConfigs(
             planner, np.concatenate(th).reshape(-1, dof), xy, world.yaw, np.repeat(ids, n)
         )
 
@@ -321,19 +317,14 @@ def _answers(
 @dataclass(frozen=True)
 class CheckedLinks:
     """C configurations on their bases as the sphere screen sees them: per joint, a box
-    around the covering spheres of every link it carries (the hand's included), and, on
-    demand, a box around each of those spheres, padded by :data:`AGREE_MARGIN`. Whatever a
-    screen or an exact check of the arm against the scene looks at lies in the spheres."""
+    around the covering spheres of every link it carries (the hand's included), padded by
+    :data:`AGREE_MARGIN`. Whatever a screen or an exact check of the arm against the scene
+    looks at lies in the spheres."""
 
     lo: np.ndarray  # (C * J, 3) [m]
     hi: np.ndarray  # (C * J, 3)
-    owner: np.ndarray  # (C * J,) the id of the cell answer each box belongs to
-    config: np.ndarray  # (C * J,)
+    owner: np.ndarray  # (C * J,) the id of the thing each box belongs to
     group: np.ndarray  # (C * J,) which joint's group of spheres
-    frames: tuple[np.ndarray, np.ndarray]  # joint-major (arm.joint_major)
-    xy: np.ndarray  # (C, 2) the bases [m]
-    yaw: float
-    arm: ArmSpheres  # its joint_groups are the J groups
 
     @classmethod
     def of(
@@ -354,50 +345,68 @@ class CheckedLinks:
             (c - half).reshape(-1, 3),
             (c + half).reshape(-1, 3),
             np.repeat(owner, J),
-            np.repeat(np.arange(C), J),
             np.tile(np.arange(J), C),
-            joint_major(frames),
-            xy,
-            yaw,
-            arm,
         )
 
-    def touched(
-        self, sel: np.ndarray, hits: Callable[[np.ndarray, np.ndarray], np.ndarray]
-    ) -> np.ndarray:
-        """``(len(sel),)`` True where ``hits`` (boxes ``lo, hi: (N, 3)`` -> ``(N,)`` bool)
-        holds for a covering sphere within the boxes ``sel`` (indices): the links of each
-        box's group are tested first, then the spheres of the links hit."""
-        arm = self.arm
-        out = np.zeros(len(sel), bool)
-        # the links of each selected group
-        links_of = arm.joint_groups.links
-        per = np.array([len(k) for k in links_of])[self.group[sel]]
-        pair = np.repeat(np.arange(len(sel)), per)
-        if not len(pair):
-            return out
-        link = np.concatenate([links_of[g] for g in self.group[sel]])
-        rows = self.config[sel][pair]
-        lo_l, hi_l = (b[link] for b in arm.link_boxes)
-        joint = arm.link_joint[link] - 1
-        c = leaves_to_world(self.frames, joint, rows, (lo_l + hi_l) / 2, self.xy, self.yaw)
-        Rw = np.einsum("ij,njk->nik", R_z(self.yaw), self.frames[0][joint, rows])
-        half = np.einsum("nik,nk->ni", np.abs(Rw), (hi_l - lo_l) / 2) + AGREE_MARGIN
-        hit = np.flatnonzero(hits(c - half, c + half))
-        if not len(hit):
-            return out
-        # the covering spheres of the links hit
-        n = arm.leaf_count[link[hit]]
-        sub = np.repeat(hit, n)
-        leaf = arm.leaf_start[link[hit]].repeat(n) + (
-            np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+
+@dataclass(frozen=True)
+class CheckedConfigs:
+    """What some remembered things checked (:meth:`~pickstop.regions.reuse.RefineMemo.held`):
+    C configurations ``thetas: (C, dof)`` on bases ``xy: (C, 2)`` (relative to the tray [m])
+    at ``yaw``, each owned by the thing ``owner: (C,)`` (an id)."""
+
+    planner: RegionKit
+    thetas: np.ndarray
+    xy: np.ndarray
+    yaw: float
+    owner: np.ndarray
+
+    def touched_by(self, changes: list[Change], reached: list[np.ndarray]) -> np.ndarray:
+        """The ids of the owners some covering sphere of whose configurations, padded by
+        :data:`AGREE_MARGIN`, may see a change: ``changes[h]`` for the owners
+        ``reached[h]`` (ids) alone. Tested coarse to fine, compiled
+        (:func:`~pickstop.regions.arm_kernel.configs_touched`)."""
+        ids, inv = np.unique(self.owner, return_inverse=True)
+        reach = np.stack([np.isin(ids, r) for r in reached], 1)  # (A, H)
+        keep = reach[inv].any(1)
+        if not keep.any():
+            return ids[:0]
+        arm, chain = self.planner.arm, self.planner.solver.chain
+        groups = arm.joint_groups
+        nan = np.full(3, np.nan)
+        touched = np.zeros(len(ids), bool)
+        configs_touched(
+            np.ascontiguousarray(self.thetas[keep], dtype=float),
+            np.ascontiguousarray(self.xy[keep], dtype=float),
+            inv[keep].astype(np.int64),
+            math.cos(self.yaw),
+            math.sin(self.yaw),
+            chain.R_parent_joint,
+            chain.p_parent_joint,
+            chain.axis_index.astype(np.int64),
+            chain.axes,
+            chain.prismatic,
+            (groups.joints - 1).astype(np.int64),
+            groups.lo,
+            groups.hi,
+            np.cumsum([0] + [len(k) for k in groups.links]).astype(np.int64),
+            np.concatenate(groups.links).astype(np.int64),
+            *arm.link_boxes,
+            arm.leaf_start,
+            arm.leaf_count,
+            arm.leaf_c,
+            arm.leaf_r,
+            AGREE_MARGIN,
+            np.array([c.lo for c in changes], float).reshape(-1, 3),
+            np.array([c.hi for c in changes], float).reshape(-1, 3),
+            np.array([nan if c.new_lo is None else c.new_lo for c in changes]).reshape(-1, 3),
+            np.array([nan if c.new_hi is None else c.new_hi for c in changes]).reshape(-1, 3),
+            np.array([c.new_lo is not None for c in changes], bool),
+            reach,
+            SAME,
+            touched,
         )
-        cl = leaves_to_world(
-            self.frames, joint[sub], rows[sub], arm.leaf_c[leaf], self.xy, self.yaw
-        )
-        r = (arm.leaf_r[leaf] + AGREE_MARGIN)[:, None]
-        out[pair[sub[hits(cl - r, cl + r)]]] = True
-        return out
+        return ids[touched]
 
 
 def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
@@ -679,7 +688,7 @@ class _ExactChecks:
         got = memo.remembered_checks(
             [out.keys[j] for j in order],
             world.around,
-            lambda rows, ids: CheckedLinks.of(
+            lambda rows, ids: CheckedConfigs(
                 planner, thetas[np.array(order)[rows]].reshape(-1, dof), xy[rows], world.yaw, ids
             ),
         )

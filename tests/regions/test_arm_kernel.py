@@ -1,0 +1,107 @@
+"""The compiled kernels against the numpy computations they stand for."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pickstop.frames import R_z
+from pickstop.regions.arm import ArmSpheres
+from pickstop.regions.arm_kernel import joint_frames
+from pickstop.regions.reuse import Change
+from pickstop.regions.solve import CheckedConfigs
+from pickstop.robot.kinematics import Chain, fk_soa
+from pickstop.scene.world import AGREE_MARGIN
+from tests.utils import random_thetas
+
+
+@pytest.fixture(scope="module")
+def tiago_kit(tiago):
+    return SimpleNamespace(
+        arm=ArmSpheres.of(tiago), solver=SimpleNamespace(chain=Chain.from_robot(tiago))
+    )
+
+
+@pytest.mark.parametrize("name", ["tiago", "pr2"])
+def test_joint_frames_are_the_vectorised_fks(name, request):
+    robot = request.getfixturevalue(name)
+    chain = Chain.from_robot(robot)
+    thetas = random_thetas(robot, 50, seed=5)
+    _, _, frames = fk_soa(chain, np.ascontiguousarray(thetas.T), frames=True)
+    R = np.empty((robot.dof, 3, 3))
+    p = np.empty((robot.dof, 3))
+    for b, theta in enumerate(thetas):
+        joint_frames(
+            chain.R_parent_joint, chain.p_parent_joint, chain.axis_index.astype(np.int64),
+            chain.axes, chain.prismatic, theta, R, p,
+        )  # fmt: skip
+        for j, (Rj, pj) in enumerate(frames):
+            assert np.allclose(R[j], Rj[:, :, b], atol=1e-12)
+            assert np.allclose(p[j], pj[:, b], atol=1e-12)
+
+
+def _touched_reference(kit, thetas, xy, yaw, owner, changes, reached):
+    """Owners some padded covering sphere of whose configurations a change reaching them
+    hits, tested coarse to fine with numpy and :meth:`Change.hits`."""
+    arm, chain = kit.arm, kit.solver.chain
+    groups = arm.joint_groups
+    link_lo, link_hi = arm.link_boxes
+    _, _, frames = fk_soa(chain, np.ascontiguousarray(thetas.T), frames=True)
+    Rz = R_z(yaw)
+
+    def world_box(Rj, pj, lo, hi, base):
+        c = Rz @ (Rj @ ((lo + hi) / 2) + pj) + np.array([base[0], base[1], 0.0])
+        half = np.abs(Rz @ Rj) @ ((hi - lo) / 2) + AGREE_MARGIN
+        return (c - half)[None], (c + half)[None]
+
+    out = set()
+    for b in range(len(thetas)):
+        for change, ids in zip(changes, reached, strict=True):
+            if owner[b] not in ids or owner[b] in out:
+                continue
+            for g, j in enumerate(groups.joints):
+                Rj, pj = frames[j - 1][0][:, :, b], frames[j - 1][1][:, b]
+                if not change.hits(*world_box(Rj, pj, groups.lo[g], groups.hi[g], xy[b]))[0]:
+                    continue
+                for lk in groups.links[g]:
+                    box = world_box(Rj, pj, link_lo[lk], link_hi[lk], xy[b])
+                    if not change.hits(*box)[0]:
+                        continue
+                    leaves = np.flatnonzero(arm.leaf_link == lk)
+                    base = np.array([*xy[b], 0.0])
+                    cl = (Rz @ (Rj @ arm.leaf_c[leaves].T + pj[:, None])).T + base
+                    r = (arm.leaf_r[leaves] + AGREE_MARGIN)[:, None]
+                    if change.hits(cl - r, cl + r).any():
+                        out.add(int(owner[b]))
+    return out
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_configurations_touched_by_changes_are_the_numpy_tests(tiago, tiago_kit, seed):
+    """The compiled fine test finds exactly the owners the numpy boxes and spheres find, for
+    boxes that fill (or left) a place and axis-aligned boxes that moved."""
+    rng = np.random.default_rng(seed)
+    C, owners = 80, 20
+    thetas = random_thetas(tiago, C, seed=seed % 1000)
+    xy = rng.uniform(-0.3, 0.3, (C, 2))
+    yaw = float(rng.uniform(-np.pi, np.pi))
+    owner = rng.integers(0, owners, C) * 3 + 7  # any ids
+    changes = []
+    for k in range(4):
+        lo = np.array([*rng.uniform(-1.2, 0.8, 2), rng.uniform(0.0, 1.2)])
+        hi = lo + rng.uniform(0.1, 0.6, 3)
+        if k % 2:
+            d = np.array([rng.uniform(0.02, 0.3), 0.0, 0.0])
+            changes.append(Change(lo, hi, lo + d, hi + d))
+        else:
+            changes.append(Change(lo, hi))
+    reached = [np.unique(rng.choice(owner, owners // 2)) for _ in changes]
+    got = CheckedConfigs(tiago_kit, thetas, xy, yaw, owner).touched_by(changes, reached)
+    want = _touched_reference(tiago_kit, thetas, xy, yaw, owner, changes, reached)
+    assert set(got.tolist()) == want
+    assert 0 < len(want) < len(set(owner.tolist()))  # some, not all
