@@ -100,8 +100,12 @@ def test_configurations_touched_by_changes_are_the_numpy_tests(tiago, tiago_kit,
             changes.append(Change(lo, hi, lo + d, hi + d))
         else:
             changes.append(Change(lo, hi))
-    reached = [np.unique(rng.choice(owner, owners // 2)) for _ in changes]
+    # the base's column: every configuration's torso stands in it
+    changes.append(Change(np.array([-0.5, -0.5, 0.0]), np.array([0.5, 0.5, 0.8])))
+    ids = np.unique(owner)
+    some = ids[: 3 * len(ids) // 4]  # the rest is reached by no change
+    reached = [np.unique(rng.choice(some, owners // 2)) for _ in changes]
     got = CheckedConfigs(tiago_kit, thetas, xy, yaw, owner).touched_by(changes, reached)
     want = _touched_reference(tiago_kit, thetas, xy, yaw, owner, changes, reached)
     assert set(got.tolist()) == want
-    assert 0 < len(want) < len(set(owner.tolist()))  # some, not all
+    assert want and not set(ids[len(some) :].tolist()) & want

@@ -135,6 +135,35 @@ def test_environment_screen_is_conservative(planner, tiago, seed):
     assert flagged.sum() >= colliding.sum()
 
 
+@settings(max_examples=3, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_exact_check_of_the_sphere_pairs_alone_is_the_whole_exact_check(planner, tiago, seed):
+    """coal on the (link, solid) pairs whose covering spheres meet, alone, finds exactly the
+    collisions coal finds on every pair whose bounding boxes overlap, the hand's target no
+    obstacle and the floor checked."""
+    from pickstop.scene.load import load_scene
+    from tests.regions.conftest import EXAMPLES
+
+    scene = load_scene(EXAMPLES / "paper_experiment.json")
+    solids = scene_solids(scene)
+    boxes = BoxArrays.of(solids)
+    rng = np.random.default_rng(seed)
+    n = 200
+    th = rng.uniform(tiago.lower, tiago.upper, (n, tiago.dof))
+    xy = np.stack([rng.uniform(0.5, 2.2, n), rng.uniform(0.6, 1.1, n)], 1)
+    yaw = float(rng.uniform(0, 2 * np.pi))
+    parts = [p.id for t in scene.trays for p in t.parts]
+    every, pairs = ExactArm(tiago), ExactArm(tiago, planner.arm)
+    hits = []
+    for i in range(n):
+        target = parts[i % len(parts)] if i % 3 else None
+        args = (th[i], xy[i, 0], xy[i, 1], yaw, solids, target, 0.01)
+        want = every.colliding(*args)
+        assert pairs.colliding(*args, boxes=boxes) == want, i
+        hits.append(want)
+    assert any(hits) and not all(hits)
+
+
 @settings(max_examples=4, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiago, seed):

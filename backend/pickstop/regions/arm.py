@@ -20,7 +20,7 @@ import pinocchio as pin
 
 from pickstop import frames
 from pickstop.frames import rot2
-from pickstop.regions.arm_kernel import screen_links
+from pickstop.regions.arm_kernel import link_contacts, screen_links
 from pickstop.regions.envelope import Envelope
 from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.link_geometry import arm_links, is_hand_link
@@ -220,10 +220,17 @@ def screen_arm(
 class ExactArm:
     """Exact arm-versus-solids checks with coal (one per thread)."""
 
-    def __init__(self, robot: RobotModel) -> None:
+    def __init__(self, robot: RobotModel, spheres: ArmSpheres | None = None) -> None:
+        """spheres: the arm's covering spheres; with them, :meth:`colliding` hands coal only
+        the geometries of links whose spheres meet a solid (given the solids' boxes)."""
         self.robot = robot
         self.data = robot.model.createData()
         self.ids = arm_geometry_ids(robot)
+        self.spheres = spheres
+        pos = {g: k for k, g in enumerate(self.ids)}
+        # per covering-sphere link (ArmSpheres' order), its geometries' indices among ids
+        self.link_geoms = [[pos[g] for g in lk.geometry_ids] for lk in arm_links(robot)]
+        assert spheres is None or len(spheres.bound_r) == len(self.link_geoms)
         names = {g: lk.name for lk in arm_links(robot) for g in lk.geometry_ids}
         self.hand = np.array([is_hand_link(robot, names[i]) for i in self.ids], bool)
         self.geometries = [robot.geom_model.geometryObjects[i].geometry for i in self.ids]
@@ -241,6 +248,7 @@ class ExactArm:
         # (G, 3, 3), (G, 3): where the geometries are after :meth:`place` (base frame)
         self.R = np.zeros((len(self.ids), 3, 3))
         self.p = np.zeros((len(self.ids), 3))
+        self.M = np.zeros((robot.model.njoints, 4, 4))  # and the joints
         self._bounds_memo: dict[tuple[Solid, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def below_floor(self, clearance: float) -> list[str]:
@@ -252,7 +260,8 @@ class ExactArm:
         """Forward kinematics and geometry placements (base frame) of ``theta: (dof,)``."""
         q = self.robot.angles_to_q(theta)
         pin.forwardKinematics(self.robot.model, self.data, q)
-        self.R, self.p = self.floor.placements.of(self.data)
+        self.M = self.floor.placements.joints(self.data)  # (njoints, 4, 4)
+        self.R, self.p = self.floor.placements.of(self.data, self.M)
 
     def colliding(
         self,
@@ -263,18 +272,24 @@ class ExactArm:
         solids: list[Solid],
         target: str | None = None,
         floor: float | None = None,
+        boxes: BoxArrays | None = None,
     ) -> bool:
         """Does the arm at ``theta`` on a base at ``(x, y, yaw)`` touch any of ``solids``, or
         come within ``floor`` [m] of the floor (None: the floor is not checked)?
 
         target: the part being grasped, no obstacle for the hand links. Only the (geometry,
-        solid) pairs whose world bounding boxes overlap go to coal.
+        solid) pairs whose world bounding boxes overlap go to coal; given ``boxes`` (the
+        solids as :class:`BoxArrays`, in order) and the covering spheres, only the geometries
+        of each link whose covering spheres meet a solid's box, against that solid: the
+        spheres hold the link, so no other pair can touch.
         """
         self.place(theta)
         if floor is not None and self.below_floor(floor):
             return True
         if not solids or not self.ids:
             return False
+        if boxes is not None and self.spheres is not None:
+            return self._sphere_pairs_collide(x, y, yaw, solids, target, boxes)
         R_world_base = frames.R_z(yaw)
         R = R_world_base @ self.R  # (G, 3, 3) R_world_geom
         p = self.p @ R_world_base.T + np.array([x, y, 0.0])  # (G, 3) p_world_geom
@@ -291,6 +306,37 @@ class ExactArm:
             gs, ts = _coal(solids[j])
             if collide(self.geometries[k], coal.Transform3s(R[k], p[k]), gs, ts):
                 return True
+        return False
+
+    def _sphere_pairs_collide(
+        self, x: float, y: float, yaw: float, solids: list[Solid], target: str | None,
+        boxes: BoxArrays,
+    ) -> bool:  # fmt: skip
+        """After :meth:`place`: coal for the (link geometry, solid) pairs whose covering
+        spheres meet (:func:`~pickstop.regions.arm_kernel.link_contacts`)."""
+        sp = self.spheres
+        assert sp is not None and len(boxes.owners) == len(solids)
+        L, K = len(sp.bound_r), len(solids)
+        out_link = np.empty(L * K, np.int64)
+        out_box = np.empty(L * K, np.int64)
+        n = link_contacts(
+            self.M, sp.link_joint, sp.bound_c, sp.bound_r, sp.is_hand, sp.leaf_start,
+            sp.leaf_count, sp.leaf_c, sp.leaf_r, float(x), float(y), math.cos(yaw),
+            math.sin(yaw), boxes.centres, boxes.R, boxes.half, boxes.is_cylinder, boxes.radius,
+            boxes.lo, boxes.hi, boxes.owner_codes,
+            -1 if target is None else boxes.owner_index.get(target, -1), TOUCH, out_link, out_box,
+        )  # fmt: skip
+        if n == 0:
+            return False
+        R_world_base = frames.R_z(yaw)
+        shift = np.array([x, y, 0.0])
+        for lk, k in zip(out_link[:n].tolist(), out_box[:n].tolist(), strict=True):
+            gs, ts = _coal(solids[k])
+            for g in self.link_geoms[lk]:
+                R = R_world_base @ self.R[g]
+                p = R_world_base @ self.p[g] + shift
+                if collide(self.geometries[g], coal.Transform3s(R, p), gs, ts):
+                    return True
         return False
 
     def _bounds(self, solids: list[Solid]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -414,3 +414,99 @@ def configs_touched(
                         break
                 if touched[a]:
                     break
+
+
+@njit(cache=True, nogil=True)
+def link_contacts(
+    M: np.ndarray,
+    link_joint: np.ndarray,
+    bound_c: np.ndarray,
+    bound_r: np.ndarray,
+    is_hand: np.ndarray,
+    leaf_start: np.ndarray,
+    leaf_count: np.ndarray,
+    leaf_c: np.ndarray,
+    leaf_r: np.ndarray,
+    bx: float,
+    by: float,
+    cos_yaw: float,
+    sin_yaw: float,
+    box_c: np.ndarray,
+    box_R: np.ndarray,
+    box_half: np.ndarray,
+    box_cyl: np.ndarray,
+    box_rad: np.ndarray,
+    box_lo: np.ndarray,
+    box_hi: np.ndarray,
+    box_code: np.ndarray,
+    code: int,
+    touch: float,
+    out_link: np.ndarray,
+    out_box: np.ndarray,
+) -> int:
+    """Every (link, solid) pair of one configuration where a covering sphere of the link
+    meets the solid, as :func:`screen_links` tests them; returns how many, written to
+    ``out_link``, ``out_box`` (each at least ``L * K`` long).
+
+    M: ``(n + 1, 4, 4)`` the joints' placements in the base frame (index = joint id, as
+    ``link_joint``); the base at ``(bx, by)``; ``code``: the owner the hand may touch."""
+    L = bound_r.shape[0]
+    K = box_lo.shape[0]
+    near = np.empty(K, np.int64)
+    found = np.zeros(K, np.bool_)
+    count = 0
+    for lk in range(L):
+        j = link_joint[lk]
+        skip = code if is_hand[lk] else -1
+        lx, ly, lz = bound_c[lk, 0], bound_c[lk, 1], bound_c[lk, 2]
+        px = M[j, 0, 0] * lx + M[j, 0, 1] * ly + M[j, 0, 2] * lz + M[j, 0, 3]
+        py = M[j, 1, 0] * lx + M[j, 1, 1] * ly + M[j, 1, 2] * lz + M[j, 1, 3]
+        pz = M[j, 2, 0] * lx + M[j, 2, 1] * ly + M[j, 2, 2] * lz + M[j, 2, 3]
+        wx = cos_yaw * px - sin_yaw * py + bx
+        wy = sin_yaw * px + cos_yaw * py + by
+        r = bound_r[lk] + BOUNDS_PAD
+        n = 0
+        meets = False
+        for k in range(K):
+            if (
+                box_code[k] != skip
+                and wx + r > box_lo[k, 0]
+                and wx - r < box_hi[k, 0]
+                and wy + r > box_lo[k, 1]
+                and wy - r < box_hi[k, 1]
+                and pz + r > box_lo[k, 2]
+                and pz - r < box_hi[k, 2]
+            ):
+                near[n] = k
+                n += 1
+                if not meets:
+                    meets = _sphere_meets(
+                        wx, wy, pz, bound_r[lk], k, box_c, box_R, box_half, box_cyl, box_rad,
+                        box_lo, box_hi, touch,
+                    )  # fmt: skip
+        if not meets:
+            continue
+        left = n
+        for f in range(leaf_start[lk], leaf_start[lk] + leaf_count[lk]):
+            lx, ly, lz = leaf_c[f, 0], leaf_c[f, 1], leaf_c[f, 2]
+            px = M[j, 0, 0] * lx + M[j, 0, 1] * ly + M[j, 0, 2] * lz + M[j, 0, 3]
+            py = M[j, 1, 0] * lx + M[j, 1, 1] * ly + M[j, 1, 2] * lz + M[j, 1, 3]
+            pz = M[j, 2, 0] * lx + M[j, 2, 1] * ly + M[j, 2, 2] * lz + M[j, 2, 3]
+            wx = cos_yaw * px - sin_yaw * py + bx
+            wy = sin_yaw * px + cos_yaw * py + by
+            for i in range(n):
+                k = near[i]
+                if not found[k] and _sphere_meets(
+                    wx, wy, pz, leaf_r[f], k, box_c, box_R, box_half, box_cyl, box_rad,
+                    box_lo, box_hi, touch,
+                ):  # fmt: skip
+                    found[k] = True
+                    out_link[count] = lk
+                    out_box[count] = k
+                    count += 1
+                    left -= 1
+            if left == 0:
+                break
+        for i in range(n):
+            found[near[i]] = False
+    return count

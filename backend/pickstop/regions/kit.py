@@ -86,16 +86,26 @@ class RegionKit:
         )
         disabled, self.self_spheres = self_collision(self.robot, self.cache_dir)
         self.exact_self = ExactSelfCollision(self.robot, disabled)
-        self.exact_arm = ExactArm(self.robot)
+        self.exact_arm = ExactArm(self.robot, self.arm)
         self.reach_xy = self.db.reach_xy
-        self._warm_screen()
+        self._warm_kernels()
 
-    def _warm_screen(self) -> None:
-        """Screen one configuration against one box: the compiled screen loads (compiled once
-        per machine, then read from numba's cache) now, not in the first region."""
-        _, _, frames = fk_soa(self.solver.chain, np.zeros((self.robot.dof, 1)), frames=True)
-        box = BoxArrays.of([Solid.box(np.eye(4), np.ones(3), "warm-up")])
-        screen_arm(self.arm, box, frames, np.zeros((1, 2)), 0.0)
+    def _warm_kernels(self) -> None:
+        """Run each compiled kernel once on one configuration and one box: they load now
+        (compiled once per machine, then read from numba's cache), not in the first region."""
+        from pickstop.regions.reuse import Change
+        from pickstop.regions.solve import CheckedConfigs
+
+        theta = np.zeros((1, self.robot.dof))
+        _, _, frames = fk_soa(self.solver.chain, theta.T.copy(), frames=True)
+        solids = [Solid.box(np.eye(4), np.ones(3), "warm-up")]
+        boxes = BoxArrays.of(solids)
+        screen_arm(self.arm, boxes, frames, np.zeros((1, 2)), 0.0)
+        self.exact_arm.colliding(theta[0], 0.0, 0.0, 0.0, solids, boxes=boxes)
+        change = Change(-np.ones(3), np.ones(3))
+        CheckedConfigs(self, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int)).touched_by(
+            [change], [np.zeros(1, int)]
+        )
 
     def checkpoint(self) -> None:
         """Raise :class:`Interrupted` if the computation under way is to give way. Called

@@ -257,7 +257,9 @@ def free_of_newcomers(
         )
     for j in np.flatnonzero(hit).tolist():
         x, y = base_xy[j]
-        hit[j] = planner.exact_arm.colliding(thetas[j], x, y, world.yaw, list(solids), target)
+        hit[j] = planner.exact_arm.colliding(
+            thetas[j], x, y, world.yaw, list(solids), target, boxes=boxes
+        )
     return ~hit
 
 
@@ -639,8 +641,9 @@ def verify(
             bad = checks.known.get(j)  # type: ignore[assignment]
             if bad is None:
                 bad = p.exact_arm.colliding(
-                    thetas[j], x, y, world.yaw, world.solids, target_of(j), world.floor
-                )
+                    thetas[j], x, y, world.yaw, world.solids, target_of(j), world.floor,
+                    world.boxes,
+                )  # fmt: skip
                 checks.remember(j, bad)
         good[j] = not bad
         if not bad and o is not None:

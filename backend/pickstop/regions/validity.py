@@ -96,12 +96,12 @@ def witnesses_clear(planner: RegionKit, region: TrayRegion, solids: list[Solid])
         return True
     th = region.thetas.reshape(K * P, dof)[near]
     _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(th.T), frames=True)
-    flagged = np.flatnonzero(
-        screen_arm(planner.arm, BoxArrays.of(solids), frames, xy[near], region.yaw)
-    )
+    boxes = BoxArrays.of(solids)
+    flagged = np.flatnonzero(screen_arm(planner.arm, boxes, frames, xy[near], region.yaw))
     x, y = xy[near, 0], xy[near, 1]
     return not any(
-        planner.exact_arm.colliding(th[j], x[j], y[j], region.yaw, solids) for j in flagged
+        planner.exact_arm.colliding(th[j], x[j], y[j], region.yaw, solids, boxes=boxes)
+        for j in flagged
     )
 
 

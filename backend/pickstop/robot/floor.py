@@ -165,10 +165,16 @@ class Placements:
         self.R_local = local[:, :3, :3]  # (G, 3, 3)
         self.p_local = local[:, :3, 3]  # (G, 3)
 
-    def of(self, data: Any) -> tuple[np.ndarray, np.ndarray]:
+    @staticmethod
+    def joints(data: Any) -> np.ndarray:
+        """``(njoints, 4, 4)`` every joint's placement in the base frame, after
+        ``pin.forwardKinematics`` into ``data``."""
+        return np.array([m.homogeneous for m in data.oMi])
+
+    def of(self, data: Any, joints: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``R: (G, 3, 3)``, ``p: (G, 3)`` in the base frame, after ``pin.forwardKinematics``
-        into ``data``."""
-        M = np.array([m.homogeneous for m in data.oMi])[self.parent]  # (G, 4, 4)
+        into ``data`` (or from its :meth:`joints`)."""
+        M = (self.joints(data) if joints is None else joints)[self.parent]  # (G, 4, 4)
         R_joint, p_joint = M[:, :3, :3], M[:, :3, 3]
         R = R_joint @ self.R_local
         p = np.einsum("gij,gj->gi", R_joint, self.p_local) + p_joint
