@@ -232,3 +232,30 @@ def test_result_is_frozen(tiago):
     r = refine(tiago, theta, *target_of(tiago, theta))
     with pytest.raises(AttributeError):
         r.success = False  # type: ignore[misc]
+
+
+def test_compiled_error_is_the_batch_error_near_a_half_turn_too():
+    """The compiled IK's 6D error and angle are the numpy batch's, for rotations of every
+    angle, those within a few degrees of a half turn (the quaternion path) included."""
+    from pickstop.reach.batch_ik import _errors
+    from pickstop.reach.ik_kernel import _error
+    from pickstop.reach.so3 import quats_to_matrices
+
+    rng = np.random.default_rng(4)
+    n = 400
+    axis = rng.normal(size=(n, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    angle = np.concatenate([rng.uniform(0, np.pi, n // 2), np.pi - rng.uniform(0, 0.1, n // 2)])
+    q = np.concatenate([np.cos(angle / 2)[:, None], axis * np.sin(angle / 2)[:, None]], 1)
+    Rt = quats_to_matrices(q)
+    R = quats_to_matrices(rng.normal(size=(n, 4)))
+    Rt = Rt @ R  # targets at those angles from the current rotations
+    p, pt = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    want_e, want_a = _errors(
+        R.transpose(1, 2, 0).copy(), p.T.copy(), Rt.transpose(1, 2, 0).copy(), pt.T.copy()
+    )
+    assert (want_a > 3.0).sum() > n // 4
+    e = np.empty(6)
+    for i in range(n):
+        a = _error(R[i], p[i], Rt[i], pt[i], e)
+        assert abs(a - want_a[i]) < 1e-9 and np.allclose(e, want_e[:, i], atol=1e-9)

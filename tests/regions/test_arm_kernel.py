@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 
 from pickstop.frames import R_z
 from pickstop.regions.arm import ArmSpheres
-from pickstop.regions.arm_kernel import joint_frames
 from pickstop.regions.reuse import Change
 from pickstop.regions.solve import CheckedConfigs
+from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.kinematics import Chain, fk_soa
 from pickstop.scene.world import AGREE_MARGIN
 from tests.utils import random_thetas

@@ -1,4 +1,6 @@
-"""Damped least squares IK for many targets at once (numpy, the same FK as the build).
+"""Damped least squares IK for many targets at once (the same FK as the build): the
+iterations compiled row by row (:mod:`pickstop.reach.ik_kernel`), the result judged on the
+numpy FK.
 
 Used where thousands of problems are solved together: refining database candidates of every
 base cell of a region, the single-seed baseline and the multi-start oracle. The one-target
@@ -12,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickstop.reach.ik import POS_TOL, ROT_TOL
+from pickstop.reach.ik_kernel import refine_rows
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.robot.kinematics import Chain, fk_soa, jacobian_soa
+from pickstop.robot.kinematics import Chain, fk_soa
 from pickstop.robot.model import RobotModel
 
 
@@ -71,13 +74,6 @@ def _errors(
     return e, angle
 
 
-def _dls_step(J: np.ndarray, e: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """``J^T (J J^T + lam I)^-1 e`` for ``J: (A, 6, n)``, ``e: (A, 6, 1)``, ``lam: (A,)``."""
-    JJt = np.matmul(J, J.transpose(0, 2, 1))
-    JJt[:, range(6), range(6)] += lam[:, None]
-    return np.matmul(J.transpose(0, 2, 1), np.linalg.solve(JJt, e))[:, :, 0]
-
-
 def refine_batch(
     solver: BatchSolver,
     thetas0: np.ndarray,
@@ -104,66 +100,18 @@ def refine_batch(
     th = np.array(thetas0, dtype=np.float64)
     B, n = th.shape
     assert n == solver.chain.dof and Rs_target.shape == (B, 3, 3) and ps_target.shape == (B, 3)
+    iters = np.zeros(B, np.int64)
+    chain = solver.chain
+    refine_rows(
+        chain.R_parent_joint, chain.p_parent_joint, chain.axis_index.astype(np.int64),
+        chain.axes, chain.prismatic, chain.R_joint_tool, chain.p_joint_tool, solver.lower,
+        solver.upper, solver.continuous, th, np.ascontiguousarray(Rs_target, dtype=float),
+        np.ascontiguousarray(ps_target, dtype=float), pos_tol, rot_tol, max_iter, damping,
+        max_step, np.array([k for k, _ in give_up], np.int64),
+        np.array([err for _, err in give_up], float), iters,
+    )  # fmt: skip
     Rs_t = np.ascontiguousarray(Rs_target.transpose(1, 2, 0))  # (3, 3, B)
     ps_t = np.ascontiguousarray(ps_target.T)  # (3, B)
-    lam = np.full(B, damping)
-    iters = np.zeros(B, np.int64)
-    R, p, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
-    e, ang = _errors(R, p, Rs_t, ps_t)
-    cost = np.einsum("ib,ib->b", e, e)
-    done = (np.linalg.norm(e[:3], axis=0) < pos_tol * 0.5) & (ang < rot_tol * 0.5)
-    span = solver.upper - solver.lower
-    for it in range(max_iter):
-        for k, err in give_up:
-            if it == k:
-                done |= np.linalg.norm(e[:3], axis=0) + 0.1 * ang > err
-        act = np.flatnonzero(~done)
-        if len(act) == 0:
-            break
-        iters[act] += 1
-        fr = [(Rj[:, :, act], pj[:, act]) for Rj, pj in frames]
-        J = jacobian_soa(solver.chain, fr, p[:, act]).transpose(2, 0, 1)  # (A, 6, n)
-        ea = e[:, act].T[:, :, None]
-        step = _dls_step(J, ea, lam[act])
-        # Joints pinned at a limit and pushed outwards leave the step; solve for the rest.
-        ta = th[act]
-        blocked = ((ta <= solver.lower + 1e-9) & (step < 0)) | (
-            (ta >= solver.upper - 1e-9) & (step > 0)
-        )
-        blocked &= ~solver.continuous
-        rows = np.flatnonzero(blocked.any(axis=1))
-        if len(rows):
-            Jb = J[rows] * ~blocked[rows][:, None, :]
-            step[rows] = _dls_step(Jb, ea[rows], lam[act][rows])
-        big = np.abs(step).max(axis=1)
-        step *= np.minimum(1.0, max_step / np.maximum(big, 1e-12))[:, None]
-        trial = th[act] + step
-        cont = solver.continuous
-        if cont.any():
-            trial[:, cont] = solver.lower[cont] + np.mod(
-                trial[:, cont] - solver.lower[cont], span[cont]
-            )
-        trial = np.clip(trial, solver.lower, solver.upper)
-        Rn, pn, frn = fk_soa(solver.chain, np.ascontiguousarray(trial.T), frames=True)
-        en, angn = _errors(Rn, pn, Rs_t[:, :, act], ps_t[:, act])
-        cn = np.einsum("ib,ib->b", en, en)
-        better = cn < cost[act]
-        acc = act[better]
-        th[acc] = trial[better]
-        cost[acc] = cn[better]
-        e[:, acc] = en[:, better]
-        ang[acc] = angn[better]
-        p[:, acc] = pn[:, better]
-        R[:, :, acc] = Rn[:, :, better]
-        for (Rj, pj), (Rk, pk) in zip(frames, frn, strict=True):
-            Rj[:, :, acc] = Rk[:, :, better]
-            pj[:, acc] = pk[:, better]
-        lam[acc] = np.maximum(lam[acc] * 0.3, damping)
-        lam[act[~better]] *= 10.0
-        done[acc] = (np.linalg.norm(e[:3, acc], axis=0) < pos_tol * 0.5) & (
-            ang[acc] < rot_tol * 0.5
-        )
-        done[act[~better]] |= lam[act[~better]] > 1e3  # stalled
     Rf, pf, _ = fk_soa(solver.chain, np.ascontiguousarray(th.T))
     ef, angf = _errors(Rf, pf, Rs_t, ps_t)
     pos_err = np.linalg.norm(ef[:3], axis=0)

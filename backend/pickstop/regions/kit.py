@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pickstop.reach.batch_ik import BatchSolver
+from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import ReachDatabase
 from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm, screen_arm
 from pickstop.regions.reuse import ReuseCache
@@ -106,6 +106,7 @@ class RegionKit:
         CheckedConfigs(self, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int)).touched_by(
             [change], [np.zeros(1, int)]
         )
+        refine_batch(self.solver, theta, np.eye(3)[None], np.zeros((1, 3)), give_up=((1, 1.0),))
 
     def checkpoint(self) -> None:
         """Raise :class:`Interrupted` if the computation under way is to give way. Called
