@@ -39,6 +39,8 @@ def pr2():
 @pytest.fixture(scope="session")
 def region_db(tmp_path_factory, tiago):
     from pickstop.reach.build import BuildParams
+    from pickstop.regions.kit import RegionKit
+    from pickstop.settings import cache_dir
     from pickstop.store.reach_build import build
     from pickstop.store.reach_catalog import open_database
 
@@ -47,7 +49,11 @@ def region_db(tmp_path_factory, tiago):
     row = build(
         tiago, BuildParams(samples=2_000_000, chunk_size=250_000, seed=11), folder, workers=2
     )
-    return folder, open_database(folder, tiago, row["id"])
+    db = open_database(folder, tiago, row["id"])
+    # A planner built here compiles the numba kernels into their on-disk cache (once per
+    # checkout), before the services and workers the tests start load them from it.
+    RegionKit(tiago, db, cache_dir=cache_dir(folder))
+    return folder, db
 
 
 @pytest.fixture(scope="session")

@@ -1,4 +1,4 @@
-"""The arm against the scene: conservative spheres (vectorised screen) and exact coal checks.
+"""The arm against the scene: conservative spheres (a compiled screen) and exact coal checks.
 
 Links are every collision link of the reduced model that moves with the arm (joints 1..n),
 the hand's own links included at their pre-grasp joint values. The part being grasped is no

@@ -15,9 +15,19 @@ def test_limits_are_published(client, api_settings):
 
 
 def test_health_lists_the_loaded_planner(client, region_db):
-    body = client.get("/api/v1/health").json()
-    assert body["status"] == "ok"
-    assert {"robot": "tiago", "database": region_db[1].id} in body["loaded"]
+    """The planner process loads in the background (health never waits for it): once it has,
+    health lists its planner."""
+    import time
+
+    want = {"robot": "tiago", "database": region_db[1].id}
+    end = time.monotonic() + 180
+    while True:
+        body = client.get("/api/v1/health").json()
+        assert body["status"] == "ok"
+        if want in body["loaded"] or time.monotonic() > end:
+            break
+        time.sleep(0.2)
+    assert want in body["loaded"]
 
 
 def test_openapi_is_served(client):
