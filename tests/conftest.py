@@ -39,7 +39,7 @@ def pr2():
 @pytest.fixture(scope="session")
 def region_db(tmp_path_factory, tiago):
     from pickstop.reach.build import BuildParams
-    from pickstop.regions.kit import RegionKit
+    from pickstop.regions.planner import RegionPlanner
     from pickstop.settings import cache_dir
     from pickstop.store.reach_build import build
     from pickstop.store.reach_catalog import open_database
@@ -52,7 +52,7 @@ def region_db(tmp_path_factory, tiago):
     db = open_database(folder, tiago, row["id"])
     # A planner built here compiles the numba kernels into their on-disk cache (once per
     # checkout), before the services and workers the tests start load them from it.
-    RegionKit(tiago, db, cache_dir=cache_dir(folder))
+    RegionPlanner(tiago, db, cache_dir=cache_dir(folder)).close()
     return folder, db
 
 

@@ -17,20 +17,18 @@ from pathlib import Path
 
 import numpy as np
 
-from pickstop.reach.batch_ik import BatchSolver, refine_batch
+from pickstop.reach.batch_ik import BatchSolver
 from pickstop.reach.database import ReachDatabase
-from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm, screen_arm
+from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm
 from pickstop.regions.reuse import ReuseCache
 from pickstop.robot.exact import ExactSelfCollision
 from pickstop.robot.hand import HandShape, hand_shape
-from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.model import RobotModel
 from pickstop.robot.screen import SphereModel
 from pickstop.scene.grasps import GraspSet, grasps_for_part, hand_space
 from pickstop.scene.model import Part, Scene, Tray
 from pickstop.scene.world import (
     AGREE_MARGIN,
-    BoxArrays,
     Solid,
     part_solid,
     pose_matrix,
@@ -88,25 +86,6 @@ class RegionKit:
         self.exact_self = ExactSelfCollision(self.robot, disabled)
         self.exact_arm = ExactArm(self.robot, self.arm)
         self.reach_xy = self.db.reach_xy
-        self._warm_kernels()
-
-    def _warm_kernels(self) -> None:
-        """Run each compiled kernel once on one configuration and one box: they load now
-        (compiled once per machine, then read from numba's cache), not in the first region."""
-        from pickstop.regions.reuse import Change
-        from pickstop.regions.solve import CheckedConfigs
-
-        theta = np.zeros((1, self.robot.dof))
-        _, _, frames = fk_soa(self.solver.chain, theta.T.copy(), frames=True)
-        solids = [Solid.box(np.eye(4), np.ones(3), "warm-up")]
-        boxes = BoxArrays.of(solids)
-        screen_arm(self.arm, boxes, frames, np.zeros((1, 2)), 0.0)
-        self.exact_arm.colliding(theta[0], 0.0, 0.0, 0.0, solids, boxes=boxes)
-        change = Change(-np.ones(3), np.ones(3))
-        CheckedConfigs(self, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int)).touched_by(
-            [change], [np.zeros(1, int)]
-        )
-        refine_batch(self.solver, theta, np.eye(3)[None], np.zeros((1, 3)), give_up=((1, 1.0),))
 
     def checkpoint(self) -> None:
         """Raise :class:`Interrupted` if the computation under way is to give way. Called

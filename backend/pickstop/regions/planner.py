@@ -16,6 +16,7 @@ from pickstop.regions.carry import LastRegions
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import compute_tray_region
+from pickstop.regions.solve import warm_kernels
 from pickstop.regions.validity import CacheEntry, Snapshot, own_key, snapshot, still_valid
 from pickstop.regions.workers import RegionWorkers
 from pickstop.scene.model import Scene
@@ -41,6 +42,7 @@ class RegionPlanner(RegionKit):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        warm_kernels(self)
         self._last = LastRegions(4 * self.cache_size)
 
     def tray_region(self, scene: Scene, tray_id: str, yaw: float | None = None) -> TrayRegion:

@@ -948,3 +948,19 @@ def grow(
 
 #: Changes whenever the algorithm's answer may change (part of a cached region's key).
 VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 10]
+
+
+def warm_kernels(kit: RegionKit) -> None:
+    """Run each compiled kernel once on one configuration and one box: they load now
+    (compiled once per checkout, then read from numba's cache), not in the first region."""
+    theta = np.zeros((1, kit.robot.dof))
+    _, _, frames = fk_soa(kit.solver.chain, theta.T.copy(), frames=True)
+    solids = [Solid.box(np.eye(4), np.ones(3), "warm-up")]
+    boxes = BoxArrays.of(solids)
+    screen_arm(kit.arm, boxes, frames, np.zeros((1, 2)), 0.0)
+    kit.exact_arm.colliding(theta[0], 0.0, 0.0, 0.0, solids, boxes=boxes)
+    change = Change(-np.ones(3), np.ones(3))
+    CheckedConfigs(kit, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int)).touched_by(
+        [change], [np.zeros(1, int)]
+    )
+    refine_batch(kit.solver, theta, np.eye(3)[None], np.zeros((1, 3)), give_up=((1, 1.0),))
