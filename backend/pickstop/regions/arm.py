@@ -108,6 +108,19 @@ class ArmSpheres:
             np.array([(self.leaf_c[k] + self.leaf_r[k, None]).max(0) for k in leaves]),
         )
 
+    @functools.cached_property
+    def group_joint(self) -> np.ndarray:
+        """``(J,)`` int64: the 0-based joint of each of :attr:`joint_groups`."""
+        return (self.joint_groups.joints - 1).astype(np.int64)
+
+    @functools.cached_property
+    def link_group(self) -> np.ndarray:
+        """``(L,)`` int64: which of :attr:`joint_groups` each link is in (-1: it has no leaves)."""
+        out = np.full(len(self.bound_r), -1, np.int64)
+        for g, links in enumerate(self.joint_groups.links):
+            out[links] = g
+        return out
+
     @classmethod
     def of(cls, robot: RobotModel, excess: float = SPHERE_EXCESS) -> ArmSpheres:
         from pickstop.robot.link_geometry import LinkShape
@@ -209,6 +222,10 @@ def screen_arm(
         boxes.owner_codes,
         code,
         TOUCH,
+        spheres.group_joint,
+        spheres.joint_groups.lo,
+        spheres.joint_groups.hi,
+        spheres.link_group,
         flagged,
         box_hit,
     )

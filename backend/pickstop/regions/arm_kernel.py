@@ -87,6 +87,10 @@ def screen_links(
     box_code: np.ndarray,
     code: np.ndarray,
     touch: float,
+    group_joint: np.ndarray,
+    group_lo: np.ndarray,
+    group_hi: np.ndarray,
+    link_group: np.ndarray,
     flagged: np.ndarray,
     box_hit: np.ndarray,
 ) -> None:
@@ -98,14 +102,52 @@ def screen_links(
     link_joint: ``(L,)`` 0-based joint of each link; leaves of link l are
     ``leaf_start[l] : leaf_start[l] + leaf_count[l]``; base_xy ``(B, 2)``; the solids as
     :class:`~pickstop.scene.world.BoxArrays`, with ``box_code[k]`` their owner's code and
-    ``code[b]`` the owner configuration b's hand may touch (-1: none)."""
+    ``code[b]`` the owner configuration b's hand may touch (-1: none). Groups: a box
+    ``group_lo, group_hi`` around the leaves of the links ``link_group == g`` in the frame of
+    joint ``group_joint[g]`` (0-based): a solid clear of the box's world bounds meets none of
+    them, and their links are tested against the others alone."""
     B = base_xy.shape[0]
     L = bound_r.shape[0]
     K = box_lo.shape[0]
+    G = group_joint.shape[0]
     near = np.empty(K, np.int64)  # the solids a link's bounding sphere meets, in order
+    g_near = np.empty((G, K), np.int64)  # the solids each group's bounds meet, in order
+    g_count = np.zeros(G, np.int64)
     for b in range(B):
         bx, by = base_xy[b, 0], base_xy[b, 1]
+        for g in range(G):
+            j = group_joint[g]
+            m0 = (group_lo[g, 0] + group_hi[g, 0]) / 2
+            m1 = (group_lo[g, 1] + group_hi[g, 1]) / 2
+            m2 = (group_lo[g, 2] + group_hi[g, 2]) / 2
+            px = R[j, 0, 0, b] * m0 + R[j, 0, 1, b] * m1 + R[j, 0, 2, b] * m2 + p[j, 0, b]
+            py = R[j, 1, 0, b] * m0 + R[j, 1, 1, b] * m1 + R[j, 1, 2, b] * m2 + p[j, 1, b]
+            pz = R[j, 2, 0, b] * m0 + R[j, 2, 1, b] * m1 + R[j, 2, 2, b] * m2 + p[j, 2, b]
+            cx = cos_yaw * px - sin_yaw * py + bx
+            cy = sin_yaw * px + cos_yaw * py + by
+            hx = hy = hz = BOUNDS_PAD
+            for c in range(3):
+                e = (group_hi[g, c] - group_lo[g, c]) / 2
+                hx += abs(cos_yaw * R[j, 0, c, b] - sin_yaw * R[j, 1, c, b]) * e
+                hy += abs(sin_yaw * R[j, 0, c, b] + cos_yaw * R[j, 1, c, b]) * e
+                hz += abs(R[j, 2, c, b]) * e
+            n = 0
+            for k in range(K):
+                if (
+                    cx + hx > box_lo[k, 0]
+                    and cx - hx < box_hi[k, 0]
+                    and cy + hy > box_lo[k, 1]
+                    and cy - hy < box_hi[k, 1]
+                    and pz + hz > box_lo[k, 2]
+                    and pz - hz < box_hi[k, 2]
+                ):
+                    g_near[g, n] = k
+                    n += 1
+            g_count[g] = n
         for lk in range(L):
+            g = link_group[lk]
+            if g < 0 or g_count[g] == 0:  # no leaves, or none near a solid
+                continue
             j = link_joint[lk]
             skip = code[b] if is_hand[lk] else -1
             # the bounding sphere in the world
@@ -120,7 +162,8 @@ def screen_links(
             r = bound_r[lk] + BOUNDS_PAD
             n = 0
             meets = False
-            for k in range(K):
+            for i in range(g_count[g]):
+                k = g_near[g, i]
                 if (
                     box_code[k] != skip
                     and wx + r > box_lo[k, 0]
