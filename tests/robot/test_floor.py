@@ -144,3 +144,22 @@ def test_geometry_placements_are_pinocchios(name, request):
         for k, i in enumerate(floor.ids):
             assert np.allclose(R[k], gdata.oMg[i].rotation, atol=1e-12)
             assert np.allclose(p[k], gdata.oMg[i].translation, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["tiago", "pr2"])
+def test_exact_arm_places_its_geometries_where_pinocchio_does(name, request):
+    """The exact check's placements, from the chain's compiled FK, are pinocchio's."""
+    import pinocchio as pin
+
+    robot = request.getfixturevalue(name)
+    exact = ExactArm(robot)
+    data = robot.model.createData()
+    gdata = pin.GeometryData(robot.geom_model)
+    for theta in random_thetas(robot, 20, seed=8):
+        exact.place(theta)
+        pin.forwardKinematics(robot.model, data, robot.angles_to_q(theta))
+        pin.updateGeometryPlacements(robot.model, data, robot.geom_model, gdata)
+        for k, i in enumerate(exact.ids):
+            assert np.allclose(exact.R[k], gdata.oMg[i].rotation, atol=1e-12)
+            assert np.allclose(exact.p[k], gdata.oMg[i].translation, atol=1e-12)
+        assert np.allclose(exact.M[robot.dof], data.oMi[robot.dof].homogeneous, atol=1e-12)

@@ -22,7 +22,9 @@ from pickstop import frames
 from pickstop.frames import rot2
 from pickstop.regions.arm_kernel import link_contacts, screen_links
 from pickstop.regions.envelope import Envelope
+from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
+from pickstop.robot.kinematics import Chain
 from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
 from pickstop.scene.world import TOUCH, BoxArrays, Solid, _coal, collide
@@ -265,19 +267,37 @@ class ExactArm:
         # (G, 3, 3), (G, 3): where the geometries are after :meth:`place` (base frame)
         self.R = np.zeros((len(self.ids), 3, 3))
         self.p = np.zeros((len(self.ids), 3))
-        self.M = np.zeros((robot.model.njoints, 4, 4))  # and the joints
+        self.M = np.tile(np.eye(4), (robot.model.njoints, 1, 1))  # and the joints
+        # the chain's FK stands for pinocchio's where the model's joints are the chain's
+        self._chain = Chain.from_robot(robot) if robot.model.njoints == robot.dof + 1 else None
+        self._axis_index = np.zeros(0, np.int64)
+        if self._chain is not None:
+            self._axis_index = self._chain.axis_index.astype(np.int64)
+        self._Rj = np.zeros((robot.dof, 3, 3))
+        self._pj = np.zeros((robot.dof, 3))
         self._bounds_memo: dict[tuple[Solid, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def below_floor(self, clearance: float) -> list[str]:
         """After :meth:`place`: the arm geometries, and the stand-in hand boxes
         (``hand:<k>``), reaching ``z <= clearance`` [m] (the floor is z = 0 of the base)."""
-        return self.floor.placed_below(self.data, self.R, self.p, clearance)
+        return self.floor.placed_below(self.M, self.R, self.p, clearance)
 
     def place(self, theta: np.ndarray) -> None:
-        """Forward kinematics and geometry placements (base frame) of ``theta: (dof,)``."""
-        q = self.robot.angles_to_q(theta)
-        pin.forwardKinematics(self.robot.model, self.data, q)
-        self.M = self.floor.placements.joints(self.data)  # (njoints, 4, 4)
+        """Forward kinematics and geometry placements (base frame) of ``theta: (dof,)``: the
+        chain's own FK, compiled (the one the screens and the IK use, tested against
+        pinocchio's), or pinocchio's where the model has joints beyond the chain."""
+        if self._chain is None:
+            q = self.robot.angles_to_q(theta)
+            pin.forwardKinematics(self.robot.model, self.data, q)
+            self.M = self.floor.placements.joints(self.data)  # (njoints, 4, 4)
+        else:
+            c = self._chain
+            joint_frames(
+                c.R_parent_joint, c.p_parent_joint, self._axis_index, c.axes, c.prismatic,
+                np.ascontiguousarray(theta, dtype=float), self._Rj, self._pj,
+            )  # fmt: skip
+            self.M[1:, :3, :3] = self._Rj
+            self.M[1:, :3, 3] = self._pj
         self.R, self.p = self.floor.placements.of(self.data, self.M)
 
     def colliding(

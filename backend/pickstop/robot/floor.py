@@ -203,10 +203,13 @@ class ExactFloor:
         self.placements = Placements(robot, self.ids)
         self.data = robot.model.createData()
 
-    def placed_below(self, data: Any, R: np.ndarray, p: np.ndarray, clearance: float) -> list[str]:
+    def placed_below(
+        self, joints: np.ndarray, R: np.ndarray, p: np.ndarray, clearance: float
+    ) -> list[str]:
         """The geometries reaching ``z <= clearance`` [m], placed at ``R: (G, 3, 3)``,
-        ``p: (G, 3)`` (:class:`Placements` of :attr:`ids`, base frame) after
-        ``pin.forwardKinematics`` into ``data``; ``hand:<k>``: a stand-in box."""
+        ``p: (G, 3)`` (:class:`Placements` of :attr:`ids`, base frame), the joints at
+        ``joints: (njoints, 4, 4)`` (:meth:`Placements.joints`); ``hand:<k>``: a stand-in
+        box."""
         out = []
         if len(self.ids):
             # the lowest z of every local bounding box at once; only those low enough go to coal
@@ -221,7 +224,7 @@ class ExactFloor:
                 if geometry_below(self.geoms[k][1], transform(R[k], p[k]), clearance)
             ]
         if self.stand_in:
-            T_base_joint = data.oMi[self.robot.dof].homogeneous
+            T_base_joint = joints[self.robot.dof]
             for k, ((geom, T_joint_geom), box) in enumerate(
                 zip(self.stand_in, self.stand_in_boxes, strict=True)
             ):
@@ -238,7 +241,8 @@ class ExactFloor:
 
         q = self.robot.angles_to_q(np.asarray(theta, dtype=float))
         pin.forwardKinematics(self.robot.model, self.data, q)
-        return self.placed_below(self.data, *self.placements.of(self.data), clearance)
+        M = self.placements.joints(self.data)
+        return self.placed_below(M, *self.placements.of(self.data, M), clearance)
 
     def colliding(self, thetas: np.ndarray, clearance: float) -> np.ndarray:
         """``thetas: (N, dof)`` -> ``(N,)`` True where something reaches ``z <= clearance``."""
