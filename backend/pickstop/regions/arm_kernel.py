@@ -1,12 +1,17 @@
-"""The arm's sphere screen against the scene's solids, compiled (numba).
-
-:func:`pickstop.regions.arm.screen_arm` in one pass per configuration: each link's bounding
-sphere placed in the world from its joint's frame and tested against every solid it may meet
-(its bounds first, then the exact sphere-box or sphere-cylinder distance); where it meets one,
-each of the link's covering spheres (leaves) the same way, every solid a leaf meets recorded.
-The tests of :func:`pickstop.scene.world.spheres_hit` on the spheres of
-:func:`pickstop.regions.arm.points_to_world`, without their temporaries: a screen of a few
+"""The arm's covering spheres against the scene, compiled (numba): where a screen of a few
 hundred configurations was mostly numpy calls.
+
+- :func:`screen_links`, :func:`pickstop.regions.arm.screen_arm` in one pass per
+  configuration: each joint group's bounds, then each link's bounding sphere placed in the
+  world from its joint's frame and tested against the solids it may meet (bounds first, then
+  the exact sphere-box or sphere-cylinder distance); where it meets one, each of the link's
+  covering spheres (leaves) the same way, every solid a leaf meets recorded. The tests of
+  :func:`pickstop.scene.world.spheres_hit` on the spheres of
+  :func:`pickstop.regions.arm.points_to_world`, without their temporaries.
+- :func:`link_contacts`: the (link, solid) pairs of one configuration whose spheres meet,
+  all that :class:`pickstop.regions.arm.ExactArm` hands coal.
+- :func:`configs_touched`: whether remembered configurations may see a change
+  (:meth:`pickstop.regions.reuse.RefineMemo.held`), coarse to fine.
 """
 
 from __future__ import annotations
