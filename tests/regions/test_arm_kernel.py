@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from pickstop.frames import R_z
 from pickstop.regions.arm import ArmSpheres
-from pickstop.regions.reuse import Change
+from pickstop.regions.reuse import Change, ChangeSet
 from pickstop.regions.solve import CheckedConfigs
 from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.kinematics import Chain, fk_soa
@@ -109,3 +109,53 @@ def test_configurations_touched_by_changes_are_the_numpy_tests(tiago, tiago_kit,
     want = _touched_reference(tiago_kit, thetas, xy, yaw, owner, changes, reached)
     assert set(got.tolist()) == want
     assert want and not set(ids[len(some) :].tolist()) & want
+
+
+def _hit_reference(changes, lo, hi, g_lo=None, g_hi=None):
+    """:meth:`RefineMemo.held`'s coarse stage with numpy: each change against each box, then
+    against the finer boxes of the boxes it hit."""
+    out = np.zeros((len(changes), len(lo)), bool)
+    for h, c in enumerate(changes):
+        hit = np.flatnonzero(c.hits(lo, hi))
+        if len(hit) and g_lo is not None:
+            J = g_lo.shape[1]
+            sub_lo, sub_hi = g_lo[hit].reshape(-1, 3), g_hi[hit].reshape(-1, 3)
+            hit = hit[c.hits(sub_lo, sub_hi).reshape(-1, J).any(1)]
+        out[h, hit] = True
+    return out
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_boxes_hit_by_changes_are_the_numpy_tests(seed):
+    """The compiled coarse stage marks exactly the boxes :meth:`Change.hits` marks, with and
+    without finer boxes, for boxes that fill a place and boxes that moved, including moves
+    along a box (clipped alike: no change inside it) and boxes that just touch."""
+    rng = np.random.default_rng(seed)
+    n, J = 300, 4
+    g_lo = rng.uniform(-1.0, 1.0, (n, J, 3)).round(2)  # on a 1 cm lattice: touching happens
+    g_hi = g_lo + rng.uniform(0.0, 0.4, (n, J, 3)).round(2)
+    lo, hi = g_lo.min(1), g_hi.max(1)
+    changes = []
+    for k in range(6):
+        c_lo = rng.uniform(-1.0, 1.0, 3).round(2)
+        c_hi = c_lo + rng.uniform(0.05, 0.8, 3).round(2)
+        if k % 3 == 0:
+            changes.append(Change(c_lo, c_hi))
+        else:
+            d = np.zeros(3)
+            d[k % 3] = rng.choice([-1, 1]) * rng.uniform(0.01, 0.5)
+            if k == 5:  # a long slab slid along its length: alike inside most boxes
+                c_lo[0], c_hi[0] = -5.0, 5.0
+                d = np.array([0.3, 0.0, 0.0])
+            changes.append(Change(c_lo, c_hi, c_lo + d, c_hi + d))
+    cs = ChangeSet.of(changes)
+    want = _hit_reference(changes, lo, hi, g_lo, g_hi)
+    assert np.array_equal(cs.hit(lo, hi, (g_lo, g_hi)), want)
+    assert np.array_equal(cs.hit(lo, hi), _hit_reference(changes, lo, hi))
+    assert want.any() and not want.all()
+    fixed = ChangeSet.boxes(np.array([c.lo for c in changes]), np.array([c.hi for c in changes]))
+    assert np.array_equal(
+        fixed.hit(lo, hi), _hit_reference([Change(c.lo, c.hi) for c in changes], lo, hi)
+    )
+    assert ChangeSet.of([]).hit(lo, hi).shape == (0, n)

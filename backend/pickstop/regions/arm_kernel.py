@@ -10,7 +10,8 @@ hundred configurations was mostly numpy calls.
   :func:`pickstop.regions.arm.points_to_world`, without their temporaries.
 - :func:`link_contacts`: the (link, solid) pairs of one configuration whose spheres meet,
   all that :class:`pickstop.regions.arm.ExactArm` hands coal.
-- :func:`configs_touched`: whether remembered configurations may see a change
+- :func:`boxes_hit`: which remembered things' boxes a change may reach, and
+  :func:`configs_touched`: whether their configurations may see it
   (:meth:`pickstop.regions.reuse.RefineMemo.held`), coarse to fine.
 """
 
@@ -259,6 +260,45 @@ def _change_hits(
         if not (abs(alo - blo) <= same and abs(ahi - bhi) <= same):
             alike = False
     return not ((a_empty and b_empty) or (not a_empty and not b_empty and alike))
+
+
+@njit(cache=True, nogil=True)
+def boxes_hit(
+    lo: np.ndarray,
+    hi: np.ndarray,
+    g_lo: np.ndarray,
+    g_hi: np.ndarray,
+    c_lo: np.ndarray,
+    c_hi: np.ndarray,
+    n_lo: np.ndarray,
+    n_hi: np.ndarray,
+    moved: np.ndarray,
+    same: float,
+    out: np.ndarray,
+) -> None:
+    """In place: ``out[h, i]`` set where change ``h`` (as in :func:`configs_touched`) hits
+    the box ``lo[i], hi[i]`` (``(n, 3)``) and, where there are finer boxes ``g_*: (n, J, 3)``
+    (J > 0), one of box ``i``'s too: the coarse stage of
+    :meth:`pickstop.regions.reuse.RefineMemo.held`, every change against every box at once."""
+    n = lo.shape[0]
+    J = g_lo.shape[1]
+    for i in range(n):
+        for h in range(c_lo.shape[0]):
+            if not _change_hits(
+                h, lo[i, 0], lo[i, 1], lo[i, 2], hi[i, 0], hi[i, 1], hi[i, 2], c_lo, c_hi,
+                n_lo, n_hi, moved, same,
+            ):  # fmt: skip
+                continue
+            if J == 0:
+                out[h, i] = True
+                continue
+            for j in range(J):
+                if _change_hits(
+                    h, g_lo[i, j, 0], g_lo[i, j, 1], g_lo[i, j, 2], g_hi[i, j, 0],
+                    g_hi[i, j, 1], g_hi[i, j, 2], c_lo, c_hi, n_lo, n_hi, moved, same,
+                ):  # fmt: skip
+                    out[h, i] = True
+                    break
 
 
 @njit(cache=True, nogil=True, inline="always")

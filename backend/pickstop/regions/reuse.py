@@ -45,6 +45,7 @@ import numpy as np
 
 from pickstop.reach.batch_ik import BatchSolver, _errors, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
+from pickstop.regions.arm_kernel import boxes_hit
 from pickstop.robot.kinematics import fk_soa
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Tray
@@ -148,7 +149,7 @@ class Surroundings:
         """Owners of the solids whose bounds meet any of the boxes ``lo, hi: (K, 3)``."""
         if not len(lo) or not len(self.lo):
             return set()
-        meet = _meets(lo[:, None], hi[:, None], self.lo[None], self.hi[None]).any(0)
+        meet = ChangeSet.boxes(self.lo, self.hi).hit(lo, hi).any(1)
         return {self.solids[k].owner for k in np.flatnonzero(meet)}
 
 
@@ -193,6 +194,61 @@ class Change:
                 np.abs(a_hi - b_hi) <= SAME, axis=1
             )
         out[k] = ~((a_empty & b_empty) | (~a_empty & ~b_empty & same))
+        return out
+
+
+@dataclass(frozen=True)
+class ChangeSet:
+    """Changes as the compiled kernels take them: ``c_lo, c_hi: (H, 3)`` the boxes, and
+    where ``moved[h]``, the box it moved to ``n_lo, n_hi`` (NaN elsewhere)."""
+
+    changes: tuple[Change, ...]
+    c_lo: np.ndarray
+    c_hi: np.ndarray
+    n_lo: np.ndarray
+    n_hi: np.ndarray
+    moved: np.ndarray
+
+    @classmethod
+    def of(cls, changes: list[Change] | tuple[Change, ...]) -> ChangeSet:
+        nan = np.full(3, np.nan)
+        return cls(
+            tuple(changes),
+            np.array([c.lo for c in changes], float).reshape(-1, 3),
+            np.array([c.hi for c in changes], float).reshape(-1, 3),
+            np.array([nan if c.new_lo is None else c.new_lo for c in changes]).reshape(-1, 3),
+            np.array([nan if c.new_hi is None else c.new_hi for c in changes]).reshape(-1, 3),
+            np.array([c.new_lo is not None for c in changes], bool),
+        )
+
+    @classmethod
+    def boxes(cls, lo: np.ndarray, hi: np.ndarray) -> ChangeSet:
+        """Boxes ``lo, hi: (H, 3)`` that fill a place (a :class:`Change` each)."""
+        lo = np.ascontiguousarray(lo, float).reshape(-1, 3)
+        hi = np.ascontiguousarray(hi, float).reshape(-1, 3)
+        nan = np.full_like(lo, np.nan)
+        return cls((), lo, hi, nan, nan, np.zeros(len(lo), bool))
+
+    def hit(
+        self,
+        lo: np.ndarray,
+        hi: np.ndarray,
+        groups: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> np.ndarray:
+        """``(H, n)`` where change ``h`` may see the box ``lo[i], hi[i]`` (``(n, 3)``), as
+        :meth:`Change.hits` says, and (with ``groups``: finer boxes ``(n, J, 3)`` inside each)
+        one of the finer boxes of box ``i`` too; compiled
+        (:func:`~pickstop.regions.arm_kernel.boxes_hit`)."""
+        n = len(lo)
+        out = np.zeros((len(self.c_lo), n), bool)
+        if not n or not len(self.c_lo):
+            return out
+        g_lo, g_hi = (np.zeros((n, 0, 3)),) * 2 if groups is None else groups
+        boxes_hit(
+            np.ascontiguousarray(lo, float), np.ascontiguousarray(hi, float),
+            np.ascontiguousarray(g_lo, float), np.ascontiguousarray(g_hi, float),
+            self.c_lo, self.c_hi, self.n_lo, self.n_hi, self.moved, SAME, out,
+        )  # fmt: skip
         return out
 
 
@@ -373,8 +429,9 @@ class RefineMemo:
     # the witness (joint values, grasp) of each (part, cell key) last grown into the region
     grown: dict[tuple[str, int], tuple[np.ndarray, int]] = field(default_factory=dict)
     _next: int = 0
-    _change_memo: dict[tuple[int, int], list[Change]] = field(default_factory=dict)
+    _change_memo: dict[tuple[int, int], ChangeSet] = field(default_factory=dict)
     _newcomer_memo: dict[tuple[int, int], tuple[Solid, ...]] = field(default_factory=dict)
+    _newcomer_box_memo: dict[tuple[int, int], ChangeSet] = field(default_factory=dict)
 
     def approx_bytes(self) -> int:
         """About how much memory the memo holds [bytes] (:data:`BYTES_PER` entry)."""
@@ -422,17 +479,9 @@ class RefineMemo:
                 out[ix] = True
                 continue
             held = np.ones(len(ix), bool)
-            fine: list[tuple[Change, np.ndarray]] = []
-            for c in self._changes(k, now):
-                hit = np.flatnonzero(c.hits(lo[ix], hi[ix]))
-                if len(hit) and groups is not None:
-                    g_lo, g_hi = groups[0][ix[hit]], groups[1][ix[hit]]
-                    J = g_lo.shape[1]
-                    hit = hit[
-                        c.hits(g_lo.reshape(-1, 3), g_hi.reshape(-1, 3)).reshape(-1, J).any(1)
-                    ]
-                if len(hit):
-                    fine.append((c, hit))
+            cs = self._changes(k, now)
+            hit = cs.hit(lo[ix], hi[ix], None if groups is None else (groups[0][ix], groups[1][ix]))
+            fine = [(c, np.flatnonzero(h)) for c, h in zip(cs.changes, hit, strict=True) if h.any()]
             if fine:
                 near = np.unique(np.concatenate([h for _, h in fine]))
                 if len(near) >= SAMPLE_FROM:
@@ -510,13 +559,15 @@ class RefineMemo:
             self.checks.clear()
         self.checks[key] = check
 
-    def _changes(self, old: int, now: int) -> list[Change]:
+    def _changes(self, old: int, now: int) -> ChangeSet:
         key = (old, now)
         hit = self._change_memo.get(key)
         if hit is None:
             if len(self._change_memo) > 4 * MAX_SURROUNDINGS:
                 self._change_memo.clear()
-            hit = self._change_memo[key] = changes(self.surroundings[old], self.surroundings[now])
+            hit = self._change_memo[key] = ChangeSet.of(
+                changes(self.surroundings[old], self.surroundings[now])
+            )
         return hit
 
     def newcomers(self, old: int, now: int) -> tuple[Solid, ...]:
@@ -533,6 +584,19 @@ class RefineMemo:
                 self._newcomer_memo.clear()
             hit = self._newcomer_memo[key] = _newcomers(
                 self.surroundings[old], self.surroundings[now]
+            )
+        return hit
+
+    def newcomer_boxes(self, old: int, now: int) -> ChangeSet:
+        """The bounds of :meth:`newcomers` ``(old, now)``, each a box that fills a place."""
+        key = (old, now)
+        hit = self._newcomer_box_memo.get(key)
+        if hit is None:
+            if len(self._newcomer_box_memo) > 4 * MAX_SURROUNDINGS:
+                self._newcomer_box_memo.clear()
+            bounds = [s.aabb() for s in self.newcomers(old, now)]
+            hit = self._newcomer_box_memo[key] = ChangeSet.boxes(
+                np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
             )
         return hit
 
@@ -580,13 +644,20 @@ class RefineMemo:
             at = np.array(rows)
             ok[at] = True
             if new:
-                # Only a witness whose links' boxes meet a newcomer's bounds can touch it.
-                bounds = [s.aabb() for s in new]
-                n_lo = np.array([b[0] for b in bounds])[None, None]
-                n_hi = np.array([b[1] for b in bounds])[None, None]
-                g_lo = np.array([a.groups_lo for a in mine_k])[:, :, None]
-                g_hi = np.array([a.groups_hi for a in mine_k])[:, :, None]
-                near = np.flatnonzero(_meets(g_lo, g_hi, n_lo, n_hi).any(axis=(1, 2)))
+                # Only a witness whose links' boxes meet a newcomer's bounds can touch it
+                # (the answer's box holds its links' boxes: tested first).
+                near = np.flatnonzero(
+                    self.newcomer_boxes(k, now)
+                    .hit(
+                        np.array([a.lo for a in mine_k]),
+                        np.array([a.hi for a in mine_k]),
+                        (
+                            np.array([a.groups_lo for a in mine_k]),
+                            np.array([a.groups_hi for a in mine_k]),
+                        ),
+                    )
+                    .any(0)
+                )
                 if len(near):
                     thetas = np.stack([mine_k[j].theta for j in near.tolist()])
                     ok[at[near]] = free_of(at[near], thetas, new)

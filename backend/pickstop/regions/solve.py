@@ -32,7 +32,15 @@ from pickstop.regions.arm import points_to_world, screen_arm
 from pickstop.regions.arm_kernel import configs_touched
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import SAME, CellAnswer, Change, ExactCheck, RefineMemo, reaches
+from pickstop.regions.reuse import (
+    SAME,
+    CellAnswer,
+    Change,
+    ChangeSet,
+    ExactCheck,
+    RefineMemo,
+    reaches,
+)
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
@@ -375,8 +383,8 @@ class CheckedConfigs:
             return ids[:0]
         arm, chain = self.planner.arm, self.planner.solver.chain
         groups = arm.joint_groups
-        nan = np.full(3, np.nan)
         touched = np.zeros(len(ids), bool)
+        cs = ChangeSet.of(changes)
         configs_touched(
             np.ascontiguousarray(self.thetas[keep], dtype=float),
             np.ascontiguousarray(self.xy[keep], dtype=float),
@@ -399,11 +407,11 @@ class CheckedConfigs:
             arm.leaf_c,
             arm.leaf_r,
             AGREE_MARGIN,
-            np.array([c.lo for c in changes], float).reshape(-1, 3),
-            np.array([c.hi for c in changes], float).reshape(-1, 3),
-            np.array([nan if c.new_lo is None else c.new_lo for c in changes]).reshape(-1, 3),
-            np.array([nan if c.new_hi is None else c.new_hi for c in changes]).reshape(-1, 3),
-            np.array([c.new_lo is not None for c in changes], bool),
+            cs.c_lo,
+            cs.c_hi,
+            cs.n_lo,
+            cs.n_hi,
+            cs.moved,
             reach,
             SAME,
             touched,
@@ -960,6 +968,7 @@ def warm_kernels(kit: RegionKit) -> None:
     screen_arm(kit.arm, boxes, frames, np.zeros((1, 2)), 0.0)
     kit.exact_arm.colliding(theta[0], 0.0, 0.0, 0.0, solids, boxes=boxes)
     change = Change(-np.ones(3), np.ones(3))
+    ChangeSet.of([change]).hit(np.zeros((1, 3)), np.ones((1, 3)))
     CheckedConfigs(kit, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int)).touched_by(
         [change], [np.zeros(1, int)]
     )
