@@ -205,60 +205,119 @@ def screen_links(
                 pz = R[j, 2, 0, b] * lx + R[j, 2, 1, b] * ly + R[j, 2, 2, b] * lz + p[j, 2, b]
                 wx = cos_yaw * px - sin_yaw * py + bx
                 wy = sin_yaw * px + cos_yaw * py + by
+                r = leaf_r[f]
                 for i in range(n):
                     k = near[i]
-                    if _sphere_meets(
-                        wx, wy, pz, leaf_r[f], k, box_c, box_R, box_half, box_cyl, box_rad,
-                        box_lo, box_hi, touch,
+                    # the bounds here first: a call with the solids' arrays costs more
+                    if (
+                        wx + r > box_lo[k, 0]
+                        and wx - r < box_hi[k, 0]
+                        and wy + r > box_lo[k, 1]
+                        and wy - r < box_hi[k, 1]
+                        and pz + r > box_lo[k, 2]
+                        and pz - r < box_hi[k, 2]
+                        and _sphere_meets(
+                            wx, wy, pz, r, k, box_c, box_R, box_half, box_cyl, box_rad,
+                            box_lo, box_hi, touch,
+                        )
                     ):  # fmt: skip
                         flagged[b] = True
                         box_hit[k] = True
 
 
+#: One :class:`pickstop.regions.reuse.Change` as the kernels pass it, by value (an array
+#: argument costs its reference count on every call): the box it was in (lo 0-2, hi 3-5), the
+#: box it moved to (6-11, NaN if it did not move) and 1.0 if it moved (12).
+ChangeRow = tuple[
+    float, float, float, float, float, float, float, float, float, float, float, float, float
+]
+
+
 @njit(cache=True, nogil=True, inline="always")
-def _change_hits(
+def _change_row(
+    c_lo: np.ndarray,
+    c_hi: np.ndarray,
+    n_lo: np.ndarray,
+    n_hi: np.ndarray,
+    moved: np.ndarray,
     h: int,
+) -> ChangeRow:
+    """Change ``h`` of the arrays as a :data:`ChangeRow`."""
+    return (
+        c_lo[h, 0], c_lo[h, 1], c_lo[h, 2], c_hi[h, 0], c_hi[h, 1], c_hi[h, 2],
+        n_lo[h, 0], n_lo[h, 1], n_lo[h, 2], n_hi[h, 0], n_hi[h, 1], n_hi[h, 2],
+        1.0 if moved[h] else 0.0,
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _box_meets(
     lo0: float,
     lo1: float,
     lo2: float,
     hi0: float,
     hi1: float,
     hi2: float,
-    c_lo: np.ndarray,
-    c_hi: np.ndarray,
-    n_lo: np.ndarray,
-    n_hi: np.ndarray,
-    moved: np.ndarray,
+    b_lo0: float,
+    b_lo1: float,
+    b_lo2: float,
+    b_hi0: float,
+    b_hi1: float,
+    b_hi2: float,
     same: float,
 ) -> bool:
-    """:meth:`pickstop.regions.reuse.Change.hits` of change ``h`` for the box ``lo, hi``."""
-    lo = (lo0, lo1, lo2)
-    hi = (hi0, hi1, hi2)
-    m_old = True
-    for a in range(3):
-        if not (lo[a] <= c_hi[h, a] + same and c_lo[h, a] <= hi[a] + same):
-            m_old = False
-    if not moved[h]:
+    """Do the boxes ``lo, hi`` and ``b_lo, b_hi`` touch or overlap (within ``same``)?"""
+    return (
+        lo0 <= b_hi0 + same
+        and b_lo0 <= hi0 + same
+        and lo1 <= b_hi1 + same
+        and b_lo1 <= hi1 + same
+        and lo2 <= b_hi2 + same
+        and b_lo2 <= hi2 + same
+    )
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _clip_axis(
+    lo: float, hi: float, a_lo: float, a_hi: float, b_lo: float, b_hi: float, same: float
+) -> tuple[bool, bool, bool]:
+    """On one axis, the interval ``lo, hi`` clipped to ``a`` and to ``b``: whether each clip
+    is empty, and whether the two are the same."""
+    alo, ahi = max(lo, a_lo), min(hi, a_hi)
+    blo, bhi = max(lo, b_lo), min(hi, b_hi)
+    return alo > ahi + same, blo > bhi + same, abs(alo - blo) <= same and abs(ahi - bhi) <= same
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _change_hits(
+    ch: ChangeRow,
+    lo0: float,
+    lo1: float,
+    lo2: float,
+    hi0: float,
+    hi1: float,
+    hi2: float,
+    same: float,
+) -> bool:
+    """:meth:`pickstop.regions.reuse.Change.hits` of the change ``ch`` for the box
+    ``lo, hi``."""
+    m_old = _box_meets(lo0, lo1, lo2, hi0, hi1, hi2, ch[0], ch[1], ch[2], ch[3], ch[4], ch[5], same)
+    if ch[12] == 0.0:
         return m_old
-    m_new = True
-    for a in range(3):
-        if not (lo[a] <= n_hi[h, a] + same and n_lo[h, a] <= hi[a] + same):
-            m_new = False
-    if not (m_old or m_new):
+    if not (
+        m_old
+        or _box_meets(
+            lo0, lo1, lo2, hi0, hi1, hi2, ch[6], ch[7], ch[8], ch[9], ch[10], ch[11], same
+        )
+    ):
         return False
     # Both clip the box to the same bounds, or both miss it: the same inside it.
-    a_empty = False
-    b_empty = False
-    alike = True
-    for a in range(3):
-        alo, ahi = max(lo[a], c_lo[h, a]), min(hi[a], c_hi[h, a])
-        blo, bhi = max(lo[a], n_lo[h, a]), min(hi[a], n_hi[h, a])
-        if alo > ahi + same:
-            a_empty = True
-        if blo > bhi + same:
-            b_empty = True
-        if not (abs(alo - blo) <= same and abs(ahi - bhi) <= same):
-            alike = False
+    e0, f0, s0 = _clip_axis(lo0, hi0, ch[0], ch[3], ch[6], ch[9], same)
+    e1, f1, s1 = _clip_axis(lo1, hi1, ch[1], ch[4], ch[7], ch[10], same)
+    e2, f2, s2 = _clip_axis(lo2, hi2, ch[2], ch[5], ch[8], ch[11], same)
+    a_empty = e0 or e1 or e2
+    b_empty = f0 or f1 or f2
+    alike = s0 and s1 and s2
     return not ((a_empty and b_empty) or (not a_empty and not b_empty and alike))
 
 
@@ -282,20 +341,20 @@ def boxes_hit(
     :meth:`pickstop.regions.reuse.RefineMemo.held`, every change against every box at once."""
     n = lo.shape[0]
     J = g_lo.shape[1]
-    for i in range(n):
-        for h in range(c_lo.shape[0]):
+    for h in range(c_lo.shape[0]):
+        ch = _change_row(c_lo, c_hi, n_lo, n_hi, moved, h)
+        for i in range(n):
             if not _change_hits(
-                h, lo[i, 0], lo[i, 1], lo[i, 2], hi[i, 0], hi[i, 1], hi[i, 2], c_lo, c_hi,
-                n_lo, n_hi, moved, same,
-            ):  # fmt: skip
+                ch, lo[i, 0], lo[i, 1], lo[i, 2], hi[i, 0], hi[i, 1], hi[i, 2], same
+            ):
                 continue
             if J == 0:
                 out[h, i] = True
                 continue
             for j in range(J):
                 if _change_hits(
-                    h, g_lo[i, j, 0], g_lo[i, j, 1], g_lo[i, j, 2], g_hi[i, j, 0],
-                    g_hi[i, j, 1], g_hi[i, j, 2], c_lo, c_hi, n_lo, n_hi, moved, same,
+                    ch, g_lo[i, j, 0], g_lo[i, j, 1], g_lo[i, j, 2], g_hi[i, j, 0],
+                    g_hi[i, j, 1], g_hi[i, j, 2], same,
                 ):  # fmt: skip
                     out[h, i] = True
                     break
@@ -303,7 +362,7 @@ def boxes_hit(
 
 @njit(cache=True, nogil=True, inline="always")
 def _placed_box_hits(
-    h: int,
+    ch: ChangeRow,
     Rj: np.ndarray,
     pj: np.ndarray,
     lo: np.ndarray,
@@ -313,15 +372,10 @@ def _placed_box_hits(
     cos_yaw: float,
     sin_yaw: float,
     margin: float,
-    c_lo: np.ndarray,
-    c_hi: np.ndarray,
-    n_lo: np.ndarray,
-    n_hi: np.ndarray,
-    moved: np.ndarray,
     same: float,
 ) -> bool:
-    """Does change ``h`` hit the box ``lo, hi`` (3,) of a joint frame ``Rj, pj``, placed on
-    the base at ``(bx, by)`` and bounded in the world, padded by ``margin``?"""
+    """Does the change ``ch`` hit the box ``lo, hi`` (3,) of a joint frame ``Rj, pj``, placed
+    on the base at ``(bx, by)`` and bounded in the world, padded by ``margin``?"""
     m0, m1, m2 = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2
     e0, e1, e2 = (hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, (hi[2] - lo[2]) / 2
     px = Rj[0, 0] * m0 + Rj[0, 1] * m1 + Rj[0, 2] * m2 + pj[0]
@@ -338,10 +392,7 @@ def _placed_box_hits(
         hx += abs(w0) * e
         hy += abs(w1) * e
         hz += abs(Rj[2, c]) * e
-    return _change_hits(
-        h, cx - hx, cy - hy, pz - hz, cx + hx, cy + hy, pz + hz, c_lo, c_hi, n_lo, n_hi, moved,
-        same,
-    )  # fmt: skip
+    return _change_hits(ch, cx - hx, cy - hy, pz - hz, cx + hx, cy + hy, pz + hz, same)
 
 
 @njit(cache=True, nogil=True)
@@ -399,18 +450,19 @@ def configs_touched(
         for h in range(H):
             if not reach[a, h] or touched[a]:
                 continue
+            ch = _change_row(c_lo, c_hi, n_lo, n_hi, moved, h)
             for g in range(group_joint.shape[0]):
                 j = group_joint[g]
                 if not _placed_box_hits(
-                    h, R[j], p[j], group_lo[g], group_hi[g], bx, by, cos_yaw, sin_yaw, margin,
-                    c_lo, c_hi, n_lo, n_hi, moved, same,
+                    ch, R[j], p[j], group_lo[g], group_hi[g], bx, by, cos_yaw, sin_yaw, margin,
+                    same,
                 ):  # fmt: skip
                     continue
                 for i in range(group_start[g], group_start[g + 1]):
                     lk = group_links[i]
                     if not _placed_box_hits(
-                        h, R[j], p[j], link_lo[lk], link_hi[lk], bx, by, cos_yaw, sin_yaw,
-                        margin, c_lo, c_hi, n_lo, n_hi, moved, same,
+                        ch, R[j], p[j], link_lo[lk], link_hi[lk], bx, by, cos_yaw, sin_yaw,
+                        margin, same,
                     ):  # fmt: skip
                         continue
                     for f in range(leaf_start[lk], leaf_start[lk] + leaf_count[lk]):
@@ -421,10 +473,7 @@ def configs_touched(
                         wx = cos_yaw * px - sin_yaw * py + bx
                         wy = sin_yaw * px + cos_yaw * py + by
                         r = leaf_r[f] + margin
-                        if _change_hits(
-                            h, wx - r, wy - r, pz - r, wx + r, wy + r, pz + r, c_lo, c_hi,
-                            n_lo, n_hi, moved, same,
-                        ):  # fmt: skip
+                        if _change_hits(ch, wx - r, wy - r, pz - r, wx + r, wy + r, pz + r, same):
                             touched[a] = True
                             break
                     if touched[a]:
@@ -511,11 +560,21 @@ def link_contacts(
             pz = M[j, 2, 0] * lx + M[j, 2, 1] * ly + M[j, 2, 2] * lz + M[j, 2, 3]
             wx = cos_yaw * px - sin_yaw * py + bx
             wy = sin_yaw * px + cos_yaw * py + by
+            r = leaf_r[f]
             for i in range(n):
                 k = near[i]
-                if not found[k] and _sphere_meets(
-                    wx, wy, pz, leaf_r[f], k, box_c, box_R, box_half, box_cyl, box_rad,
-                    box_lo, box_hi, touch,
+                if (
+                    not found[k]
+                    and wx + r > box_lo[k, 0]
+                    and wx - r < box_hi[k, 0]
+                    and wy + r > box_lo[k, 1]
+                    and wy - r < box_hi[k, 1]
+                    and pz + r > box_lo[k, 2]
+                    and pz - r < box_hi[k, 2]
+                    and _sphere_meets(
+                        wx, wy, pz, r, k, box_c, box_R, box_half, box_cyl, box_rad, box_lo,
+                        box_hi, touch,
+                    )
                 ):  # fmt: skip
                     found[k] = True
                     out_link[count] = lk
