@@ -5,6 +5,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -14,7 +15,7 @@ from pickstop.regions.arm import ArmSpheres
 from pickstop.regions.reuse import Change, ChangeSet
 from pickstop.regions.solve import CheckedConfigs
 from pickstop.robot.fk_kernel import joint_frames
-from pickstop.robot.kinematics import Chain, fk_soa
+from pickstop.robot.kinematics import FEW, Chain, fk_soa
 from pickstop.scene.world import AGREE_MARGIN
 from tests.utils import random_thetas
 
@@ -27,21 +28,30 @@ def tiago_kit(tiago):
 
 
 @pytest.mark.parametrize("name", ["tiago", "pr2"])
-def test_joint_frames_are_the_vectorised_fks(name, request):
+def test_joint_frames_are_pinocchios(name, request):
+    """The compiled FK of one configuration, and :func:`fk_soa` of a few (compiled) and of
+    many (numpy), place every joint where pinocchio does."""
     robot = request.getfixturevalue(name)
     chain = Chain.from_robot(robot)
-    thetas = random_thetas(robot, 50, seed=5)
-    _, _, frames = fk_soa(chain, np.ascontiguousarray(thetas.T), frames=True)
+    assert robot.model.njoints - 1 == robot.dof  # joint i of the chain is pinocchio's i + 1
+    thetas = random_thetas(robot, FEW + 50, seed=5)
+    data = robot.model.createData()
+    few = fk_soa(chain, np.ascontiguousarray(thetas[:50].T), frames=True)[2]
+    many = fk_soa(chain, np.ascontiguousarray(thetas.T), frames=True)[2]
     R = np.empty((robot.dof, 3, 3))
     p = np.empty((robot.dof, 3))
-    for b, theta in enumerate(thetas):
+    for b, theta in enumerate(thetas[:50]):
+        pin.forwardKinematics(robot.model, data, robot.angles_to_q(theta))
         joint_frames(
-            chain.R_parent_joint, chain.p_parent_joint, chain.axis_index.astype(np.int64),
-            chain.axes, chain.prismatic, theta, R, p,
+            chain.R_parent_joint, chain.p_parent_joint, chain.axis_index, chain.axes,
+            chain.prismatic, theta, R, p,
         )  # fmt: skip
-        for j, (Rj, pj) in enumerate(frames):
-            assert np.allclose(R[j], Rj[:, :, b], atol=1e-12)
-            assert np.allclose(p[j], pj[:, b], atol=1e-12)
+        for j in range(robot.dof):
+            M = data.oMi[j + 1]
+            for Rj, pj in ((R[j], p[j]), (few[j][0][:, :, b], few[j][1][:, b]),
+                           (many[j][0][:, :, b], many[j][1][:, b])):  # fmt: skip
+                assert np.allclose(Rj, M.rotation, atol=1e-12)
+                assert np.allclose(pj, M.translation, atol=1e-12)
 
 
 def _touched_reference(kit, thetas, xy, yaw, owner, changes, reached):

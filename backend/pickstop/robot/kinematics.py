@@ -1,4 +1,5 @@
-"""Vectorised forward kinematics of the arm chain over many configurations (numpy).
+"""Forward kinematics of the arm chain over many configurations (compiled for a few, numpy for
+many), its Jacobian and manipulability.
 
 A :class:`Chain` is plain arrays extracted once from the reduced pinocchio model, so it pickles
 cheaply into worker processes. ``reference_fk`` (pinocchio, one call per configuration) is the
@@ -12,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from pickstop.robot.fk_kernel import chain_fk
 from pickstop.robot.model import RobotModel
 
 
@@ -47,19 +49,22 @@ class Chain:
             [int(np.argmax(a)) if np.count_nonzero(a) == 1 and a.max() == 1.0 else -1 for a in axes]
         )
         tool = m.frames[robot.tool_frame_id].placement
-        return cls(
-            R_parent_joint=Rs,
-            p_parent_joint=ps,
+        return cls(  # C order, as the compiled kernels take them
+            R_parent_joint=np.ascontiguousarray(Rs),
+            p_parent_joint=np.ascontiguousarray(ps),
             axes=axes,
-            axis_index=idx,
+            axis_index=idx.astype(np.int64),
             prismatic=np.array([j.kind == "prismatic" for j in robot.joints]),
-            R_joint_tool=np.array(tool.rotation),
-            p_joint_tool=np.array(tool.translation),
+            R_joint_tool=np.ascontiguousarray(tool.rotation),
+            p_joint_tool=np.ascontiguousarray(tool.translation),
         )
 
 
-_OTHER_AXES = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
 BLOCK = 4096  # configurations per block: keeps the working set in cache
+FEW = 1024  # configurations up to which one compiled pass beats numpy (measured: 2-30x below)
+
+
+_OTHER_AXES = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
 
 
 def _rotate_soa(R: np.ndarray, axis_index: int, axis: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -79,17 +84,11 @@ def _rotate_soa(R: np.ndarray, axis_index: int, axis: np.ndarray, theta: np.ndar
     return np.einsum("ikn,kjn->ijn", R, Rot)
 
 
-def fk_soa(
-    chain: Chain, th: np.ndarray, frames: bool = False
+def _fk_numpy(
+    chain: Chain, th: np.ndarray, frames: bool
 ) -> tuple[np.ndarray, np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
-    """FK in structure-of-arrays layout, the hot path.
-
-    th: (n, B) joint values [rad or m], one column per configuration.
-    Returns ``R_base_tool: (3, 3, B)``, ``p_base_tool: (3, B)`` [m] and, if ``frames``, the list
-    of every joint frame after its motion as ``(R: (3, 3, B), p: (3, B))``.
-    """
+    """:func:`fk_soa` of many configurations: numpy, joint by joint over the whole batch."""
     n, B = th.shape
-    assert n == chain.dof, (th.shape, chain.dof)
     R = np.repeat(chain.R_parent_joint[0][:, :, None], B, axis=2)
     p = np.repeat(chain.p_parent_joint[0][:, None], B, axis=1)
     out: list[tuple[np.ndarray, np.ndarray]] = []
@@ -107,6 +106,42 @@ def fk_soa(
     p_tool = p + np.einsum("k,ikn->in", chain.p_joint_tool, R)
     R_tool = np.einsum("ikn,kj->ijn", R, chain.R_joint_tool)
     return R_tool, p_tool, out
+
+
+def fk_soa(
+    chain: Chain, th: np.ndarray, frames: bool = False
+) -> tuple[np.ndarray, np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+    """FK in structure-of-arrays layout, the hot path: a batch of up to :data:`FEW`
+    configurations compiled (:func:`~pickstop.robot.fk_kernel.chain_fk`, where numpy's calls
+    would cost more than the arithmetic), more with numpy, joint by joint.
+
+    th: (n, B) joint values [rad or m], one column per configuration.
+    Returns ``R_base_tool: (3, 3, B)``, ``p_base_tool: (3, B)`` [m] and, if ``frames``, the list
+    of every joint frame after its motion as ``(R: (3, 3, B), p: (3, B))``.
+    """
+    n, B = th.shape
+    assert n == chain.dof, (th.shape, chain.dof)
+    if B > FEW:
+        return _fk_numpy(chain, th, frames)
+    R_tool = np.empty((3, 3, B))
+    p_tool = np.empty((3, B))
+    R_frames = np.empty((n if frames else 0, 3, 3, B))
+    p_frames = np.empty((n if frames else 0, 3, B))
+    chain_fk(
+        chain.R_parent_joint,
+        chain.p_parent_joint,
+        chain.axis_index,
+        chain.axes,
+        chain.prismatic,
+        chain.R_joint_tool,
+        chain.p_joint_tool,
+        np.ascontiguousarray(th, dtype=np.float64),
+        R_tool,
+        p_tool,
+        R_frames,
+        p_frames,
+    )
+    return R_tool, p_tool, [(R_frames[i], p_frames[i]) for i in range(len(R_frames))]
 
 
 def fk(chain: Chain, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
