@@ -202,12 +202,17 @@ def _solve_cells(
     tag, part = ("vicinity" if vicinity else "db"), tg.grasps.part_id
 
     def checked(answers: list[CellAnswer], ids: list[int]) -> CheckedConfigs:
-        th = [np.concatenate([planner.db.thetas(a.rows), a.refined]) for a in answers]
-        n = [len(t) for t in th]
-        xy = np.repeat([a.xy for a in answers], n, axis=0).reshape(-1, 2)
-        return CheckedConfigs(
-            planner, np.concatenate(th).reshape(-1, dof), xy, world.yaw, np.repeat(ids, n)
-        )
+        # each answer's database rows, then its refinements (one lookup for all the rows)
+        n_rows = [len(a.rows) for a in answers]
+        n_ref = [len(a.refined) for a in answers]
+        rows = np.concatenate([a.rows for a in answers]) if answers else np.zeros(0, np.int32)
+        th = np.concatenate(
+            [planner.db.thetas(rows).reshape(-1, dof), *(a.refined for a in answers)]
+        ).reshape(-1, dof)
+        xy = np.array([a.xy for a in answers]).reshape(-1, 2)
+        xy = np.concatenate([np.repeat(xy, n_rows, axis=0), np.repeat(xy, n_ref, axis=0)])
+        owner = np.concatenate([np.repeat(ids, n_rows), np.repeat(ids, n_ref)])
+        return CheckedConfigs(planner, th, xy, world.yaw, owner)
 
     def free_of(idx: np.ndarray, thetas: np.ndarray, solids: tuple[Solid, ...]) -> np.ndarray:
         xy = cen[idx] - np.asarray(world.tray_xy)
@@ -377,7 +382,10 @@ class CheckedConfigs:
         ``reached[h]`` (ids) alone. Tested coarse to fine, compiled
         (:func:`~pickstop.regions.arm_kernel.configs_touched`)."""
         ids, inv = np.unique(self.owner, return_inverse=True)
-        reach = np.stack([np.isin(ids, r) for r in reached], 1)  # (A, H)
+        reach = np.zeros((len(ids), len(reached)), bool)  # (A, H)
+        for h, r in enumerate(reached):
+            pos = np.minimum(np.searchsorted(ids, r), len(ids) - 1)
+            reach[pos[ids[pos] == r], h] = True
         keep = reach[inv].any(1)
         if not keep.any():
             return ids[:0]

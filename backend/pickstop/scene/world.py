@@ -78,10 +78,17 @@ class Solid:
         return self.kind == "box" and bool(np.allclose(A, np.round(A), atol=1e-12))
 
     def aabb(self) -> tuple[np.ndarray, np.ndarray]:
-        R = self.T_world_solid[:3, :3]
-        ext = np.abs(R) @ self.half
-        c = self.T_world_solid[:3, 3]
-        return c - ext, c + ext
+        """World bounds ``(lo, hi)`` [m], computed once (read-only: a solid does not move)."""
+        hit = self.__dict__.get("_aabb")
+        if hit is None:
+            R = self.T_world_solid[:3, :3]
+            ext = np.abs(R) @ self.half
+            c = self.T_world_solid[:3, 3]
+            lo, hi = c - ext, c + ext
+            lo.setflags(write=False)
+            hi.setflags(write=False)
+            hit = self.__dict__["_aabb"] = (lo, hi)
+        return hit
 
 
 def shape_solid(
