@@ -7,11 +7,20 @@ import copy
 import coal
 import numpy as np
 import pinocchio as pin
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from pickstop.regions.footprint import footprint_free, upper_body
+from pickstop.frames import R_z
+from pickstop.regions.footprint import (
+    blocked_by,
+    floor_outline,
+    footprint_free,
+    upper_body,
+)
 from pickstop.robot.link_geometry import collision_links
 from pickstop.scene.load import parse_scene
-from pickstop.scene.world import _coal, collide, scene_solids
+from pickstop.scene.world import Solid, _coal, collide, scene_solids
 
 
 def _fixed_body_hits(robot, solids, x: float, y: float, yaw: float) -> bool:
@@ -108,3 +117,54 @@ def test_a_board_over_free_cells_invalidates_the_cached_region(planner, paper_do
     assert not any(_fixed_body_hits(planner.robot, board, x, y, over.yaw) for x, y in xy)
     # Taken away again, the first region is valid again.
     assert planner.tray_region(scene, "tray_1") is region
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_blocked_positions_are_those_where_the_body_touches(tiago, seed):
+    """Tilted boxes low and high around the base: a position is blocked exactly where the
+    footprint (TIAGo's: a convex polygon) at the yaw meets a low box's floor outline, or an
+    upper-body box meets a high one's while their heights overlap. The same again with one
+    box moved: its pieces alone are made anew."""
+    rng = np.random.default_rng(seed)
+    fp = tiago.footprint
+    assert fp.radius is None  # the convex polygon's exact Minkowski difference
+    body = upper_body(tiago)
+    yaw = float(rng.uniform(-np.pi, np.pi))
+    R = R_z(yaw)[:2, :2]
+    solids = []
+    for k in range(6):
+        T = np.eye(4)
+        T[:3, :3] = R_z(float(rng.uniform(0, np.pi)))
+        z = rng.uniform(0.0, 0.2) if k % 2 else rng.uniform(0.6, 1.0)
+        T[:3, 3] = [*rng.uniform(-1.0, 1.0, 2), z]
+        solids.append(Solid.box(T, rng.uniform([0.1, 0.1, 0.05], [0.8, 0.8, 0.4]), f"s{k}"))
+    xy = rng.uniform(-1.4, 1.4, (300, 2))
+    foot = np.asarray(fp.polygon) @ R.T
+    rects = [
+        (np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]) @ R.T, lo, hi)
+        for lo, hi in body.boxes
+    ]
+
+    def want(solids):
+        low = np.zeros(len(xy), bool)
+        high = np.zeros(len(xy), bool)
+        for s in solids:
+            lo, hi = s.aabb()
+            outline = shapely.Polygon(floor_outline(s))
+            for i, c in enumerate(xy):
+                if lo[2] < fp.height and shapely.Polygon(foot + c).intersects(outline):
+                    low[i] = True
+                for rect, blo, bhi in rects:
+                    if blo[2] < hi[2] and bhi[2] > lo[2]:
+                        high[i] |= shapely.Polygon(rect + c).intersects(outline)
+        return low, high
+
+    for _ in range(2):
+        low, high = want(solids)
+        assert np.array_equal(blocked_by(tiago, solids, xy, yaw, upper=False), low)
+        assert np.array_equal(blocked_by(tiago, solids, xy, yaw, footprint=False), high)
+        assert low.any() and high.any() and not (low | high).all()
+        T = solids[1].T_world_solid.copy()
+        T[:2, 3] += rng.uniform(-0.3, 0.3, 2)
+        solids[1] = Solid.box(T, 2 * solids[1].half, "s1")

@@ -102,13 +102,10 @@ def footprint_check(
     solids = scene_solids(scene) if solids is None else solids
     ok &= ~blocked_by(robot, solids, centres, yaw, upper=False)
     idx = np.flatnonzero(ok)
-    idx = idx[blocked_by(robot, solids, centres[idx], yaw, footprint=False)]
-    ok[idx] = False
-    owners = set()
-    for solid in solids if len(idx) else []:
-        if blocked_by(robot, [solid], centres[idx], yaw, footprint=False, keep=False).any():
-            owners.add(solid.owner)
-    return ok, owners
+    upper = _blocked_region(robot, solids, yaw, footprint=False, upper=True)
+    at, piece = upper.query(x[idx], y[idx])
+    ok[idx[at]] = False
+    return ok, {upper.owners[k] for k in piece.tolist()}
 
 
 def blocked_by(
@@ -126,20 +123,55 @@ def blocked_by(
     so that it does not push out the regions of whole scenes)."""
     fp = robot.footprint
     x, y = centres[:, 0], centres[:, 1]
-    out = np.zeros(len(x), bool)
-    region, concave = _blocked_region(robot, solids, yaw, footprint, upper, keep)
-    if region is not None:
-        out |= _inside(region, x, y)
-    if concave is not None:
+    blocked = _blocked_region(robot, solids, yaw, footprint, upper, keep)
+    out = blocked.inside(x, y)
+    if blocked.concave is not None:
         # A concave footprint: exact test per position near an obstacle.
         rot = np.asarray(fp.polygon) @ rot2(yaw).T
-        near = np.flatnonzero(shapely.contains_xy(concave.buffer(fp.bounding_radius), x, y))
+        near = np.flatnonzero(shapely.contains_xy(blocked.concave.buffer(fp.bounding_radius), x, y))
         for i in near:
-            out[i] = shapely.Polygon(rot + centres[i]).intersects(concave)
+            out[i] = shapely.Polygon(rot + centres[i]).intersects(blocked.concave)
     return out
 
 
 BLOCKED_MEMO = 64  # blocked regions kept per robot (solids x yaw x which body)
+PIECES_MEMO = 4096  # blocked pieces kept per robot (solid x yaw x which body)
+
+
+@dataclass(frozen=True)
+class Blocked:
+    """Where the base at one yaw may not stand for some solids: convex pieces of base
+    positions (closed; one or a few per solid, found through an STR tree), and for a concave
+    footprint the union of the outlines that reach below its height, tested per position."""
+
+    pieces: tuple[BaseGeometry, ...]
+    owners: tuple[str, ...]  # of the solid each piece is of
+    concave: BaseGeometry | None
+    tree: shapely.STRtree | None
+
+    @classmethod
+    def of(cls, pieces: list[tuple[BaseGeometry, str]], concave: BaseGeometry | None) -> Blocked:
+        geoms = [g for g, _ in pieces]
+        return cls(
+            tuple(geoms),
+            tuple(o for _, o in pieces),
+            concave,
+            shapely.STRtree(geoms) if geoms else None,
+        )
+
+    def query(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each (position, piece) where the base position ``(x[i], y[i])`` lies in the piece
+        (its edge included): two ``(H,)`` int arrays."""
+        if self.tree is None or not len(x):
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        at, piece = self.tree.query(shapely.points(x, y), predicate="intersects")
+        return at, piece
+
+    def inside(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """``(M,)`` True where a base position ``(x, y)`` lies in a piece."""
+        out = np.zeros(len(x), bool)
+        out[self.query(x, y)[0]] = True
+        return out
 
 
 def _blocked_region(
@@ -149,11 +181,11 @@ def _blocked_region(
     footprint: bool,
     upper: bool,
     keep: bool = True,
-) -> tuple[BaseGeometry | None, BaseGeometry | None]:
-    """Where the base at ``yaw`` may not stand for ``solids``: the region of base positions
-    that touch one (None: none), and for a concave footprint the union of the outlines that
-    reach below its height, tested per position. Made once per solids, yaw and body parts
-    (kept in the robot's ``memo``): a point's test is then one lookup."""
+) -> Blocked:
+    """Where the base at ``yaw`` may not stand for ``solids`` (:class:`Blocked`), made once
+    per solids, yaw and body parts and kept in the robot's ``memo`` (a point's test is then a
+    lookup), from pieces kept per solid (a layout that moves one tray makes that tray's
+    pieces alone anew)."""
     key = (_solids_key(solids), float(yaw), footprint, upper)
     memo = robot.memo.setdefault("blocked_regions", OrderedDict())
     hit = memo.get(key)
@@ -161,43 +193,59 @@ def _blocked_region(
         memo.move_to_end(key)
         return hit
     fp = robot.footprint
-    parts: list[BaseGeometry] = []
+    pieces: list[tuple[BaseGeometry | None, str]] = []
     concave = None
-    low = [shapely.Polygon(floor_outline(s)) for s in solids if s.aabb()[0][2] < fp.height]
+    low = [s for s in solids if s.aabb()[0][2] < fp.height]
     if footprint and low:
-        union = shapely.union_all(low)
-        if fp.radius is not None:
-            # Polygon buffers lie inside the true rounded one by the sagitta: grow to cover it.
-            grow = fp.radius / math.cos(math.pi / (4 * QUAD_SEGS)) + 1e-6
-            parts.append(union.buffer(grow, quad_segs=QUAD_SEGS))
+        convex = fp.radius is not None
+        if not convex:
+            outline = shapely.Polygon(np.asarray(fp.polygon) @ rot2(yaw).T)
+            convex = outline.equals(outline.convex_hull)
+        if convex:
+            pieces += [(_piece(robot, s, yaw, "footprint"), s.owner) for s in low]
         else:
-            rot = np.asarray(fp.polygon) @ rot2(yaw).T
-            outline = shapely.Polygon(rot)
-            if outline.equals(outline.convex_hull):
-                # Convex footprint and convex outlines: the positions where they meet are the
-                # Minkowski difference, the hull of the vertex differences (exact).
-                parts += [
-                    shapely.MultiPoint(
-                        (floor_outline(sol)[:-1, None, :] - rot[None, :, :]).reshape(-1, 2)
-                    ).convex_hull
-                    for sol in solids
-                    if sol.aabb()[0][2] < fp.height
-                ]
-            else:
-                concave = union
+            concave = shapely.union_all([shapely.Polygon(floor_outline(s)) for s in low])
     if upper:
         body = upper_body(robot)
         high = (
             [s for s in solids if s.aabb()[0][2] >= fp.height] if body.within_footprint else solids
         )
-        region = _upper_blocked(body, high, yaw)
-        if region is not None:
-            parts.append(region)
-    out = (shapely.union_all(parts) if parts else None, concave)
+        pieces += [(_piece(robot, s, yaw, "upper"), s.owner) for s in high]
+    out = Blocked.of([(g, o) for g, o in pieces if g is not None], concave)
     if not keep:
         return out
     memo[key] = out
     while len(memo) > BLOCKED_MEMO:
+        memo.popitem(last=False)
+    return out
+
+
+def _piece(robot: RobotModel, solid: Solid, yaw: float, body: str) -> BaseGeometry | None:
+    """The base positions at ``yaw`` where the ``body`` ("footprint": a circle, or a convex
+    polygon; or "upper") touches ``solid`` (None: nowhere), kept in the robot's ``memo``.
+
+    A circle's are the solid's floor outline buffered by its radius (grown by the sagitta, so
+    that the polygon covers the true rounded buffer); a convex polygon's, the Minkowski
+    difference, the hull of the vertex differences (exact); the upper body's, those of each
+    of its boxes that overlaps the solid in height (:func:`_upper_blocked`)."""
+    key = (_solids_key([solid]), float(yaw), body)
+    memo = robot.memo.setdefault("blocked_pieces", OrderedDict())
+    if key in memo:
+        memo.move_to_end(key)
+        return memo[key]
+    fp = robot.footprint
+    out: BaseGeometry | None
+    if body == "upper":
+        out = _upper_blocked(upper_body(robot), [solid], yaw)
+    elif fp.radius is not None:
+        grow = fp.radius / math.cos(math.pi / (4 * QUAD_SEGS)) + 1e-6
+        out = shapely.Polygon(floor_outline(solid)).buffer(grow, quad_segs=QUAD_SEGS)
+    else:
+        rot = np.asarray(fp.polygon) @ rot2(yaw).T
+        diff = (floor_outline(solid)[:-1, None, :] - rot[None, :, :]).reshape(-1, 2)
+        out = shapely.MultiPoint(diff).convex_hull
+    memo[key] = out
+    while len(memo) > PIECES_MEMO:
         memo.popitem(last=False)
     return out
 
@@ -210,10 +258,6 @@ def _solids_key(solids: list[Solid]) -> str:
         h.update(np.ascontiguousarray(s.T_world_solid, float).tobytes())
         h.update(np.ascontiguousarray(s.half, float).tobytes())
     return h.hexdigest()
-
-
-def _inside(geom: BaseGeometry, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    return shapely.contains_xy(geom, x, y) | shapely.intersects_xy(geom.boundary, x, y)
 
 
 def _upper_blocked(body: UpperBody, solids: list[Solid], yaw: float) -> BaseGeometry | None:
