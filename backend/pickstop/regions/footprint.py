@@ -141,31 +141,44 @@ PIECES_MEMO = 4096  # blocked pieces kept per robot (solid x yaw x which body)
 @dataclass(frozen=True)
 class Blocked:
     """Where the base at one yaw may not stand for some solids: convex pieces of base
-    positions (closed; one or a few per solid, found through an STR tree), and for a concave
+    positions (closed; one or a few per solid, each with its bounds), and for a concave
     footprint the union of the outlines that reach below its height, tested per position."""
 
     pieces: tuple[BaseGeometry, ...]
     owners: tuple[str, ...]  # of the solid each piece is of
     concave: BaseGeometry | None
-    tree: shapely.STRtree | None
+    bounds: np.ndarray  # (P, 4) [m] each piece's (xmin, ymin, xmax, ymax)
 
     @classmethod
     def of(cls, pieces: list[tuple[BaseGeometry, str]], concave: BaseGeometry | None) -> Blocked:
         geoms = [g for g, _ in pieces]
-        return cls(
-            tuple(geoms),
-            tuple(o for _, o in pieces),
-            concave,
-            shapely.STRtree(geoms) if geoms else None,
-        )
+        bounds = shapely.bounds(geoms).reshape(-1, 4) if geoms else np.zeros((0, 4))
+        return cls(tuple(geoms), tuple(o for _, o in pieces), concave, bounds)
 
     def query(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each (position, piece) where the base position ``(x[i], y[i])`` lies in the piece
-        (its edge included): two ``(H,)`` int arrays."""
-        if self.tree is None or not len(x):
+        (its edge included): two ``(H,)`` int arrays. The positions are sorted by x once; a
+        piece tests exactly only those within its bounds (O(P log M) besides the hits)."""
+        if not self.pieces or not len(x):
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        at, piece = self.tree.query(shapely.points(x, y), predicate="intersects")
-        return at, piece
+        order = np.argsort(x, kind="stable")
+        xs = x[order]
+        first = np.searchsorted(xs, self.bounds[:, 0], side="left")
+        last = np.searchsorted(xs, self.bounds[:, 2], side="right")
+        at: list[np.ndarray] = []
+        piece: list[np.ndarray] = []
+        for k in np.flatnonzero(last > first).tolist():
+            cand = order[first[k] : last[k]]
+            yc = y[cand]
+            cand = cand[(yc >= self.bounds[k, 1]) & (yc <= self.bounds[k, 3])]
+            if len(cand):
+                cand = cand[shapely.intersects_xy(self.pieces[k], x[cand], y[cand])]
+            if len(cand):
+                at.append(cand)
+                piece.append(np.full(len(cand), k, np.int64))
+        if not at:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return np.concatenate(at).astype(np.int64), np.concatenate(piece)
 
     def inside(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """``(M,)`` True where a base position ``(x, y)`` lies in a piece."""
