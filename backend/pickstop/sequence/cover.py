@@ -5,11 +5,18 @@ required tray exactly once, only by a chosen stop that lies in its region, every
 serving at least one) and the route start -> chosen stops -> goal as a circuit whose unchosen
 stops are skipped by self-loops. Lexicographic optimum: first the fewest stops, then, with the
 count fixed, the shortest route (or the least predicted time).
+
+A small model (a live edit's: a few trays, a few dozen candidates) is solved exactly by
+enumeration instead (:func:`_by_enumeration`): every set of candidates of a size, kept where
+each of its stops can serve a tray of its own and all of them serve every tray, each with its
+best visiting order, on the same integer costs as the CP-SAT model. It is bounded by
+:data:`ENUMERATION` (sets times visiting orders times stops), beyond which CP-SAT solves it.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 import time
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -24,6 +31,10 @@ SCALE = 1000  # costs are integers: millimetres or milliseconds
 #: optimal faster than eight (which only contend for the cores on a model this small), and
 #: one worker is deterministic, so the same inputs always give the same stops.
 ONE_WORKER = 32
+#: Route evaluations (candidate sets x visiting orders x stops) up to which a model is solved
+#: by enumeration rather than CP-SAT; a few milliseconds of numpy at most.
+ENUMERATION = 400_000
+UNREACHABLE = 1 << 40  # the integer cost of a missing leg: any route using one is out
 
 
 class InfeasiblePlanError(PickStopError):
@@ -51,6 +62,7 @@ def select_stops(
     stop_cost: float = 0.0,
     time_limit: float = 20.0,
     workers: int | None = None,
+    enumeration: int = ENUMERATION,
 ) -> Selection:
     """Pick stops among candidates.
 
@@ -59,6 +71,7 @@ def select_stops(
     objective: "stops" minimises the number of stops, then the route cost; "time" minimises
     route cost + ``stop_cost`` per stop directly.
     workers: CP-SAT search workers (default: one up to :data:`ONE_WORKER` candidates, else 8).
+    enumeration: the largest model (route evaluations) solved by enumeration (0: CP-SAT).
     """
     t0 = time.perf_counter()
     N = len(trays_of)
@@ -70,6 +83,13 @@ def select_stops(
         raise InfeasiblePlanError(
             f"no candidate stop serves tray(s) {', '.join(missing)}", field="trays"
         )
+    icost = np.where(np.isfinite(cost), np.round(cost * SCALE), -1).astype(np.int64)
+    stop_unit = round(stop_cost * SCALE) if objective == "time" else None
+    found = _by_enumeration(trays_of, req, icost, stop_unit, enumeration)
+    if found is not None:
+        order, serves = found
+        return Selection(order, serves, _cost(cost, order, objective, stop_cost), True,
+                         time.perf_counter() - t0)  # fmt: skip
     model = cp_model.CpModel()
     x = [model.new_bool_var(f"x{c}") for c in range(N)]
     y = {(c, t): model.new_bool_var(f"y{c}_{t}") for t in req for c in servable[t]}
@@ -84,7 +104,6 @@ def select_stops(
         else:
             model.add(x[c] == 0)
     # Route: a circuit through start (0), goal (1) and the chosen stops, closed by goal->start.
-    icost = np.where(np.isfinite(cost), np.round(cost * SCALE), -1).astype(np.int64)
     arcs: list[tuple[int, int, Any]] = [(1, 0, model.new_constant(1))]
     arc_lits: list[tuple[int, int, cp_model.IntVar]] = []
     for i in range(N + 2):
@@ -139,11 +158,109 @@ def select_stops(
         if node >= 2:
             order.append(node - 2)
     serves = {t: c for (c, t), v in y.items() if solver.value(v)}
+    total = _cost(cost, tuple(order), objective, stop_cost)
+    return Selection(tuple(order), serves, total, optimal, time.perf_counter() - t0, pruned)
+
+
+def _cost(
+    cost: np.ndarray, order: tuple[int, ...], objective: Literal["stops", "time"], stop_cost: float
+) -> float:
+    """The route cost of visiting ``order`` (candidates) from start to goal, with the stops'
+    own cost for the time objective."""
     nodes = [0, *(c + 2 for c in order), 1]
     total = float(sum(cost[a, b] for a, b in itertools.pairwise(nodes)))
-    if objective == "time":
-        total += stop_cost * len(order)
-    return Selection(tuple(order), serves, total, optimal, time.perf_counter() - t0, pruned)
+    return total + stop_cost * len(order) if objective == "time" else total
+
+
+def _by_enumeration(
+    trays_of: list[frozenset[str]],
+    req: list[str],
+    icost: np.ndarray,
+    stop_unit: int | None,
+    limit: int,
+) -> tuple[tuple[int, ...], dict[str, int]] | None:
+    """The CP-SAT model's optimum by enumeration: ``(order, serves)``, or None if the model
+    is beyond ``limit`` route evaluations (or has no plan: CP-SAT then says why).
+
+    ``icost``: the model's integer leg costs (-1: no leg); ``stop_unit``: the integer cost
+    of a stop for the time objective, None for the fewest stops then the shortest route. A
+    set of k candidates is a plan if Hall's condition holds for it (every j of its stops
+    cover at least j required trays: each can serve one of its own, exactly as the model's
+    every-tray-once, every-stop-at-least-one) and together they cover every tray. Sets of
+    each size are enumerated in lexicographic order, visiting orders in lexicographic order
+    too, and the first best is taken: the same inputs always give the same stops."""
+    N, T = len(trays_of), len(req)
+    if T > 62 or N == 0:
+        return None
+    bit = {t: 1 << i for i, t in enumerate(req)}
+    masks = np.array([sum(bit[t] for t in ts if t in bit) for ts in trays_of], np.int64)
+    full = (1 << T) - 1
+    c = np.where(icost < 0, UNREACHABLE, icost)
+    budget = limit
+    best: tuple[int, np.ndarray] | None = None  # (objective, order)
+    for k in range(1, min(N, T) + 1):
+        if best is not None and (stop_unit is None or stop_unit * k >= best[0]):
+            break  # fewest stops found, or a larger set costs more in stops alone
+        budget -= math.comb(N, k) * k
+        if budget < 0:
+            return None
+        sets = np.array(list(itertools.combinations(range(N), k)), np.int64).reshape(-1, k)
+        sets = sets[np.bitwise_or.reduce(masks[sets], axis=1) == full]
+        sets = sets[_hall(masks[sets])]
+        if not len(sets):
+            continue
+        budget -= len(sets) * math.factorial(k) * (k + 1)
+        if budget < 0:
+            return None
+        perms = np.array(list(itertools.permutations(range(k))), np.int64)
+        nodes = sets[:, perms] + 2  # (S, P, k) every visiting order of every set
+        total = c[0, nodes[..., 0]] + c[nodes[..., -1], 1] + (stop_unit or 0) * k
+        for i in range(k - 1):
+            total += c[nodes[..., i], nodes[..., i + 1]]
+        s, p = divmod(int(np.argmin(total)), len(perms))
+        if total[s, p] < UNREACHABLE and (best is None or total[s, p] < best[0]):
+            best = (int(total[s, p]), nodes[s, p] - 2)
+    if best is None:
+        return None
+    order = tuple(int(v) for v in best[1])
+    return order, _serves(trays_of, req, order)
+
+
+def _hall(m: np.ndarray) -> np.ndarray:
+    """``(S,)`` True where the stops of each set (their tray masks ``m: (S, k)``) can each
+    serve a tray of its own: every j of them cover at least j trays."""
+    S, k = m.shape
+    ok = np.ones(S, bool)
+    for sub in range(1, 1 << k):
+        cols = [i for i in range(k) if sub >> i & 1]
+        if len(cols) == 1:
+            ok &= m[:, cols[0]] != 0
+        else:
+            ok &= np.bitwise_count(np.bitwise_or.reduce(m[:, cols], axis=1)) >= len(cols)
+    return ok
+
+
+def _serves(
+    trays_of: list[frozenset[str]], req: list[str], order: tuple[int, ...]
+) -> dict[str, int]:
+    """Which stop of ``order`` serves each tray: first a tray of its own for every stop (a
+    matching, by augmenting paths), then each other tray by the first stop on the route that
+    can."""
+    own: dict[str, int] = {}  # tray -> stop
+
+    def augment(c: int, seen: set[str]) -> bool:
+        for t in req:
+            if t in trays_of[c] and t not in seen:
+                seen.add(t)
+                if t not in own or augment(own[t], seen):
+                    own[t] = c
+                    return True
+        return False
+
+    for c in order:
+        if not augment(c, set()):
+            raise AssertionError("the enumerated set breaks Hall's condition")
+    return {t: own.get(t, next(c for c in order if t in trays_of[c])) for t in req}
 
 
 def _check(status: Any, req: list[str]) -> None:
