@@ -55,6 +55,42 @@ def test_unreachable_point_is_infinite():
     ),
     seed=st.integers(0, 1000),
 )
+def test_distances_are_those_of_the_whole_visibility_graph(boxes, seed):
+    # Reference: every leg between points and corners tested anew, Floyd-Warshall over them.
+    fmap = FloorMap.build((0, 0, 10, 10), [box(x, y, x + w, y + h) for x, y, w, h in boxes], 0.25)
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(0.3, 9.7, (8, 2))
+    pts = np.concatenate([pts, pts[:1], fmap.corners[:1]])  # a point twice, one on a corner
+    nodes = np.concatenate([pts, fmap.corners])
+    n = len(nodes)
+    i, j = np.triu_indices(n, 1)
+    ok = fmap.leg_ok(nodes[i], nodes[j])
+    d = np.full((n, n), np.inf)
+    np.fill_diagonal(d, 0.0)
+    d[i[ok], j[ok]] = d[j[ok], i[ok]] = np.linalg.norm(nodes[i[ok]] - nodes[j[ok]], axis=1)
+    for k in range(n):
+        d = np.minimum(d, d[:, k : k + 1] + d[k : k + 1, :])
+    p = shortest_paths(fmap, pts)
+    Q = len(pts)
+    assert np.array_equal(np.isinf(p.dist), np.isinf(d[:Q, :Q]))
+    fin = np.isfinite(p.dist)
+    assert np.allclose(p.dist[fin], d[:Q, :Q][fin], atol=1e-9)
+    for a, b in itertools.combinations(range(Q), 2):
+        if fin[a, b]:
+            line = p.polyline(a, b)
+            assert np.allclose(line[[0, -1]], pts[[a, b]])
+            assert np.linalg.norm(np.diff(line, axis=0), axis=1).sum() == pytest.approx(p.dist[a, b])
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    boxes=st.lists(
+        st.tuples(st.floats(1, 8), st.floats(1, 8), st.floats(0.1, 1.5), st.floats(0.1, 1.5)),
+        min_size=1,
+        max_size=5,
+    ),
+    seed=st.integers(0, 1000),
+)
 def test_paths_never_cross_inflated_obstacles(boxes, seed):
     obstacles = [box(x, y, x + w, y + h) for x, y, w, h in boxes]
     radius = 0.25

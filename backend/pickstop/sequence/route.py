@@ -15,7 +15,6 @@ it at that yaw is clear (:class:`Docking`, computed exactly by the caller).
 
 from __future__ import annotations
 
-import heapq
 import itertools
 import math
 from collections.abc import Callable
@@ -26,6 +25,8 @@ import numpy as np
 import shapely
 import shapely.ops
 from shapely.geometry import LineString, Point
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
 from shapely.geometry.base import BaseGeometry
 
 from pickstop.sequence.cover import InfeasiblePlanError
@@ -140,13 +141,32 @@ class FloorMap:
         keep = [i for i in range(len(pts)) if not (gaps[i, :i] <= 1e-3).any()]  # one of each
         return pts[keep]
 
+    @cached_property
+    def _blocked_core(self) -> BaseGeometry:
+        core = self.blocked.buffer(-1e-5) if not self.blocked.is_empty else self.blocked
+        shapely.prepare(core)
+        return core
+
+    @cached_property
+    def _floor_tol(self) -> BaseGeometry:
+        floor = self.free.union(self.blocked).buffer(1e-6)
+        shapely.prepare(floor)
+        return floor
+
     def leg_ok(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Which legs ``a[i] -> b[i]`` stay in the free floor (touching corners allowed)."""
         lines = shapely.linestrings(np.stack([a, b], axis=1))
-        core = self.blocked.buffer(-1e-5) if not self.blocked.is_empty else self.blocked
+        core = self._blocked_core
         ok = ~shapely.intersects(lines, core) if not core.is_empty else np.ones(len(a), bool)
-        floor = self.free.union(self.blocked).buffer(1e-6)
-        return ok & shapely.covers(floor, lines)
+        return ok & shapely.covers(self._floor_tol, lines)
+
+    @cached_property
+    def corner_legs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The legs between corners that stay in the free floor, ``(i, j)`` (i < j): the same
+        for every query of this map, so made once."""
+        i, j = np.triu_indices(len(self.corners), 1)
+        ok = self.leg_ok(self.corners[i], self.corners[j])
+        return i[ok], j[ok]
 
 
 @dataclass(frozen=True)
@@ -261,43 +281,46 @@ def shortest_paths(
         dock_edges += [(a, b, yaw) for (a, b), bl in zip(mine, blocked, strict=True) if not bl]
 
     nodes = np.concatenate([points, fmap.corners, np.array(stage_pts, float).reshape(-1, 2)])
-    n = len(nodes)
+    n, V = len(nodes), len(fmap.corners)
+    # Legs: between corners as the map keeps them, and from each query or staging point not
+    # docked to every node after it that is not docked either.
     visible = np.setdiff1d(np.arange(n), docked)
     vi, vj = np.triu_indices(len(visible), 1)
     ii, jj = visible[vi], visible[vj]
+    own = (ii < Q) | (ii >= Q + V) | (jj < Q) | (jj >= Q + V)
+    ii, jj = ii[own], jj[own]
     ok = fmap.leg_ok(nodes[ii], nodes[jj])
-    ii, jj = ii[ok], jj[ok]
-    w = np.linalg.norm(nodes[ii] - nodes[jj], axis=1)
-    adj: list[list[tuple[int, float]]] = [[] for _ in range(n)]
-    for a, b, d in zip(ii.tolist(), jj.tolist(), w.tolist(), strict=True):
-        adj[a].append((b, d))
-        adj[b].append((a, d))
+    ci, cj = fmap.corner_legs
+    ii = np.concatenate([ii[ok], ci + Q])
+    jj = np.concatenate([jj[ok], cj + Q])
     held: dict[tuple[int, int], float] = {}
     for a, b, yaw in dock_edges:
-        d = float(np.linalg.norm(nodes[a] - nodes[b]))
-        adj[a].append((b, d))
-        adj[b].append((a, d))
         held[a, b] = held[b, a] = yaw
-    dist = np.full((Q, Q), np.inf)
-    prevs = []
-    for s in range(Q):
-        d = np.full(n, np.inf)
-        prev = np.full(n, -1)
-        d[s] = 0.0
-        heap = [(0.0, s)]
-        while heap:
-            du, u = heapq.heappop(heap)
-            if du > d[u]:
-                continue
-            for v, wv in adj[u]:
-                nd = du + wv
-                if nd < d[v] - 1e-12:
-                    d[v] = nd
-                    prev[v] = u
-                    heapq.heappush(heap, (nd, v))
-        dist[s] = d[:Q]
-        prevs.append(prev)
+    if dock_edges:
+        ii = np.concatenate([ii, [a for a, _, _ in dock_edges]]).astype(np.int64)
+        jj = np.concatenate([jj, [b for _, b, _ in dock_edges]]).astype(np.int64)
+    dist, prevs = _dijkstra(nodes, ii, jj, Q)
     return Paths(points, dist, prevs, nodes, held, undocked)
+
+
+def _dijkstra(
+    nodes: np.ndarray, ii: np.ndarray, jj: np.ndarray, Q: int
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Shortest paths from each of the first ``Q`` of ``nodes: (n, 2)`` along the undirected
+    straight legs ``ii[k] - jj[k]``: distances ``(Q, Q)`` [m] between them, and from each the
+    previous node of every node on its tree (-1: none)."""
+    n = len(nodes)
+    a, b = np.minimum(ii, jj), np.maximum(ii, jj)
+    keep = a != b
+    a, b = a[keep], b[keep]
+    pair = np.unique(a * n + b)  # a leg found twice is one edge
+    a, b = pair // n, pair % n
+    w = np.linalg.norm(nodes[a] - nodes[b], axis=1)  # zero-length legs stay edges
+    graph = csr_matrix((w, (a, b)), shape=(n, n))
+    d, prev = dijkstra(graph, directed=False, indices=np.arange(Q), return_predecessors=True)
+    d = np.asarray(d).reshape(Q, n)
+    prev = np.where(prev < 0, -1, prev).reshape(Q, n)
+    return d[:, :Q].copy(), [prev[s] for s in range(Q)]
 
 
 def polyline_clear(fmap: FloorMap, line: np.ndarray) -> bool:
