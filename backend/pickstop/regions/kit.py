@@ -69,6 +69,10 @@ class RegionKit:
         default_factory=dict, init=False, repr=False
     )
     _bounds: dict[str, Bounds] = field(default_factory=dict, init=False, repr=False)
+    # the grasps of the last scene asked about, by tray (a plan asks for them many times)
+    _scene_grasps: tuple[Scene | None, dict[str, list[GraspSet]]] = field(
+        default=(None, {}), init=False, repr=False
+    )
 
     def __post_init__(self) -> None:
         from pickstop.robot.artifacts import derived, self_collision
@@ -99,6 +103,17 @@ class RegionKit:
         space of its open hands changes (other trays elsewhere may move freely). They are
         fixed in the tray's frame: where nothing else reaches into that space, a tray moved
         along the floor keeps them, carried with it."""
+        seen, by_tray = self._scene_grasps
+        if seen is not scene:
+            self._scene_grasps = seen, by_tray = scene, {}
+        if tray.id in by_tray and scene.tray(tray.id) is tray:
+            return list(by_tray[tray.id])
+        out = self._grasps(scene, tray)
+        if scene.tray(tray.id) is tray:
+            by_tray[tray.id] = out
+        return list(out)
+
+    def _grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
         others = self._bounds_of(scene, tray.id)
         at = _floor_position(tray)
         tray_json = _placed(tray)

@@ -8,6 +8,8 @@ box, so a sphere that misses the box surely misses the mesh.
 from __future__ import annotations
 
 import functools
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -221,11 +223,27 @@ def tray_solids(
     return out
 
 
+SCENES_KEPT = 8  # scenes whose solids are kept (a plan asks for them many times)
+_SOLIDS_OF: OrderedDict[tuple[int, str | None], tuple[Scene, tuple[Solid, ...]]] = OrderedDict()
+_SOLIDS_LOCK = threading.Lock()
+
+
 def scene_solids(scene: Scene, root: Path | None = None) -> list[Solid]:
-    """Every solid of the scene."""
+    """Every solid of the scene, made once per scene object (scenes are frozen; the object
+    is kept with its solids, so its id is not taken by another meanwhile)."""
+    key = (id(scene), None if root is None else str(root))
+    with _SOLIDS_LOCK:
+        hit = _SOLIDS_OF.get(key)
+        if hit is not None and hit[0] is scene:
+            _SOLIDS_OF.move_to_end(key)
+            return list(hit[1])
     out = obstacle_solids(scene, root)
     for tray in scene.trays:
         out += tray_body_solids(tray) + [part_solid(tray, p, root) for p in tray.parts]
+    with _SOLIDS_LOCK:
+        _SOLIDS_OF[key] = (scene, tuple(out))
+        while len(_SOLIDS_OF) > SCENES_KEPT:
+            _SOLIDS_OF.popitem(last=False)
     return out
 
 
