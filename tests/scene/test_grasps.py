@@ -192,3 +192,50 @@ def test_grasps_tested_at_once_are_those_tested_one_solid_at_a_time(hand, name):
             want, low = _grasps_one_solid_at_a_time(scene, tray, part, hand)
             np.testing.assert_array_equal(got.Ts_part_tcp, want)
             assert got.near_floor == low
+
+
+@pytest.mark.parametrize("name", ["five_trays", "factory_cell"])
+def test_grasps_from_verdicts_judged_elsewhere_are_those_tested_where_the_tray_stands(hand, name):
+    # Each tray's own verdicts judged where it stands, then the tray moved (into reach of its
+    # neighbours too; and with a bar over a part's edge, above the walls, which only the rest of the scene
+    # holds): its grasps are those of the reference at the new place.
+    from pickstop.scene.grasps import own_verdicts
+    from pickstop.scene.model import SceneError
+
+    doc = json.loads((Path(__file__).parents[2] / f"examples/scenes/{name}.json").read_text())
+    scene = parse_scene(doc)
+    compared = blocked = 0
+    for k, tray in enumerate(scene.trays[:4]):
+        verdicts = {p.id: own_verdicts(scene, tray, p, hand) for p in tray.parts}
+        for dx, dy in ((0.04, 0.0), (0.0, -0.15), (-0.25, 0.1)):
+            moved = json.loads(json.dumps(doc))
+            t = moved["trays"][k]
+            t["pose"]["x"] += dx
+            t["pose"]["y"] += dy
+            p0 = t["parts"][0]
+            bar = {
+                "id": "bar",
+                "geometry": {"shape": "box", "size": [0.012, 0.08, 0.012]},
+                "pose": {
+                    "x": t["pose"]["x"] + p0["pose"]["x"] + p0["geometry"]["size"][0] / 2,
+                    "y": t["pose"]["y"] + p0["pose"]["y"],
+                    "z": t["pose"]["z"] + t["floor_thickness"] + p0["geometry"]["size"][2] + 0.03,
+                },
+            }
+            with_bar = json.loads(json.dumps(moved))
+            with_bar["obstacles"].append(bar)
+            counts = []
+            for d in (moved, with_bar):
+                try:
+                    there = parse_scene(d)
+                except SceneError:
+                    break  # the tray would overlap another
+                t2 = there.tray(tray.id)
+                got = grasps_for_part(there, t2, t2.parts[0], hand, verdicts[t2.parts[0].id])
+                want, low = _grasps_one_solid_at_a_time(there, t2, t2.parts[0], hand)
+                np.testing.assert_allclose(got.Ts_part_tcp, want, atol=1e-12)
+                assert got.near_floor == low
+                counts.append(len(got.Ts_part_tcp))
+                compared += 1
+            blocked += len(counts) == 2 and counts[1] < counts[0]
+    assert compared >= 6 and blocked >= 2

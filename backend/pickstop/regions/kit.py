@@ -25,7 +25,13 @@ from pickstop.robot.exact import ExactSelfCollision
 from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.robot.model import RobotModel
 from pickstop.robot.screen import SphereModel
-from pickstop.scene.grasps import GraspSet, grasps_for_part, hand_space
+from pickstop.scene.grasps import (
+    GraspSet,
+    OwnVerdicts,
+    grasps_for_part,
+    hand_space,
+    own_verdicts,
+)
 from pickstop.scene.model import Part, Scene, Tray
 from pickstop.scene.world import (
     AGREE_MARGIN,
@@ -45,6 +51,7 @@ class Interrupted(Exception):
 # axis-aligned (lo, hi) bounds [m] of solids, each with whether the solid is that box
 Bounds = list[tuple[np.ndarray, np.ndarray, bool]]
 MEMO_SIZE = 4096  # open-hand spaces and object bounds kept, each
+OWN_VERDICTS = 512  # parts whose grasps judged against their own tray are kept (~0.1 MB each)
 
 
 @dataclass
@@ -69,6 +76,8 @@ class RegionKit:
         default_factory=dict, init=False, repr=False
     )
     _bounds: dict[str, Bounds] = field(default_factory=dict, init=False, repr=False)
+    # each part's grasps judged against its own tray alone, wherever the tray stands
+    _own_verdicts: dict[str, OwnVerdicts] = field(default_factory=dict, init=False, repr=False)
     # the grasps of the last scene asked about, by tray (a plan asks for them many times)
     _scene_grasps: tuple[Scene | None, dict[str, list[GraspSet]]] = field(
         default=(None, {}), init=False, repr=False
@@ -127,8 +136,13 @@ class RegionKit:
             if full not in self.grasp_cache:
                 if len(self.grasp_cache) >= MEMO_SIZE:
                     self.grasp_cache.clear()
+                own = self._own_verdicts.get(key)
+                if own is None:
+                    if len(self._own_verdicts) >= OWN_VERDICTS:
+                        self._own_verdicts.clear()
+                    own = self._own_verdicts[key] = own_verdicts(scene, tray, part, self.hand)
                 self.grasp_cache[full] = _moved_by(
-                    grasps_for_part(scene, tray, part, self.hand), -at
+                    grasps_for_part(scene, tray, part, self.hand, own), -at
                 )
             out.append(_moved_by(self.grasp_cache[full], at))
         return out

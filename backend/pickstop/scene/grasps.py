@@ -34,10 +34,11 @@ from pickstop.scene.world import (
     SolidSet,
     _coal,
     _Offset,
+    other_solids,
     part_solid,
     solid_below,
     solids_overlap,
-    tray_solids,
+    tray_body_solids,
     world_part_transform,
 )
 
@@ -206,6 +207,12 @@ class _HandAt:
                 return True
         return False
 
+    def shifted(self, d: np.ndarray) -> _HandAt:
+        """The same hand moved by ``d: (3,)`` [m]."""
+        T = self.T.copy()
+        T[:, :3, 3] += d
+        return _HandAt(self.boxes, T, self.lo + d, self.hi + d)
+
     def clear_of(self, target: Solid, margin: float) -> bool:
         """:func:`clear_of` of the hand's solids and ``target``."""
         lo_t, hi_t = target.aabb()
@@ -276,29 +283,100 @@ def hand_space(
     return allc.min(axis=0), allc.max(axis=0)
 
 
-def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> GraspSet:
-    """Grasps of ``part``: the user's if given, else generated; both filtered by the tray with
-    the open hand's own geometry."""
+@dataclass(frozen=True)
+class OwnVerdicts:
+    """A part's candidate grasps judged against its own tray alone: for each candidate (its
+    kind) and each height it may be raised to, the grasp point and the open hand there, and
+    what stops it: "low" (within the floor clearance), "own" (it meets the tray's body or
+    its other parts), "part" (not clear of the part itself) or nothing ("ok"). All of it is
+    fixed in the tray's frame: a tray moved along the floor (``at``, its floor position,
+    changes) keeps every verdict, its hands carried with it (:meth:`moved`)."""
+
+    at: np.ndarray  # (3,) [m] the tray's floor position (x, y, 0) they were judged at
+    # per candidate: its kind, and per height the grasp point, the hand there (kept where
+    # it is "ok" alone: nothing else is tested of the others) and the verdict
+    cands: tuple[tuple[str, tuple[tuple[np.ndarray, _HandAt | None, str], ...]], ...]
+    lo: np.ndarray  # (3,) [m] world bounds of every hand judged "ok"
+    hi: np.ndarray
+
+    def moved(self, at: np.ndarray) -> OwnVerdicts:
+        """The same verdicts for the tray standing at floor position ``at: (3,)``."""
+        d = np.asarray(at, float) - self.at
+        if not d.any():
+            return self
+        return OwnVerdicts(
+            np.asarray(at, float),
+            tuple(
+                (kind, tuple((T, h and h.shifted(d), v) for T, h, v in heights))
+                for kind, heights in self.cands
+            ),
+            self.lo + d,
+            self.hi + d,
+        )
+
+
+def own_verdicts(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> OwnVerdicts:
+    """:class:`OwnVerdicts` of ``part`` in ``tray`` where it stands now."""
     T_world_part = world_part_transform(tray, part)
-    cands = _candidates(scene, tray, part, hand)
-    obstacles = SolidSet.of(tray_solids(scene, tray, exclude_part=part.id))
+    own = SolidSet.of(
+        tray_body_solids(tray) + [part_solid(tray, p) for p in tray.parts if p.id != part.id]
+    )
     target = part_solid(tray, part)
     boxes = _HandBoxes.of(hand)
-    kept, kinds = [], []
-    near_floor = 0
-    for T0, kind in cands:
-        low = False
+    cands = []
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for T0, kind in _candidates(scene, tray, part, hand):
+        heights = []
         for T_part_tcp in _heights(T0, kind, part):
             at = boxes.at(T_world_part @ T_part_tcp)
             if at.below(scene.floor_clearance):
+                verdict = "low"
+            elif at.meets(own):
+                verdict = "own"
+            elif not at.clear_of(target, PART_CLEARANCE):
+                verdict = "part"
+            else:
+                verdict = "ok"
+                lo, hi = np.minimum(lo, at.lo.min(0)), np.maximum(hi, at.hi.max(0))
+            heights.append((T_part_tcp, at if verdict == "ok" else None, verdict))
+        cands.append((kind, tuple(heights)))
+    return OwnVerdicts(np.array([tray.pose.x, tray.pose.y, 0.0]), tuple(cands), lo, hi)
+
+
+def grasps_for_part(
+    scene: Scene, tray: Tray, part: Part, hand: HandShape, own: OwnVerdicts | None = None
+) -> GraspSet:
+    """Grasps of ``part``: the user's if given, else generated; both filtered by the tray with
+    the open hand's own geometry. ``own``: the part's :func:`own_verdicts`, judged before
+    with the tray anywhere on the floor (the rest of the scene is tested here: the obstacles
+    and the other trays with their parts, where they reach the hands)."""
+    at0 = np.array([tray.pose.x, tray.pose.y, 0.0])
+    own = own_verdicts(scene, tray, part, hand) if own is None else own.moved(at0)
+    T_world_part = world_part_transform(tray, part)
+    others = [
+        s
+        for s in other_solids(scene, tray)
+        if np.all(s.aabb()[0] <= own.hi + TOUCH) and np.all(own.lo - TOUCH <= s.aabb()[1])
+    ]
+    obstacles = SolidSet.of(others) if others else None
+    kept, kinds = [], []
+    near_floor = 0
+    n_cands = 0
+    for kind, heights in own.cands:
+        n_cands += 1
+        low = False
+        for T_part_tcp, at, verdict in heights:
+            if verdict == "low":
                 low = True
                 continue
-            if at.meets(obstacles):
+            if verdict != "ok":
                 continue
-            if at.clear_of(target, PART_CLEARANCE):
-                kept.append(T_part_tcp)
-                kinds.append(kind)
-                break
+            assert at is not None
+            if obstacles is not None and at.meets(obstacles):
+                continue
+            kept.append(T_part_tcp)
+            kinds.append(kind)
+            break
         else:
             near_floor += low
     Ts = np.array(kept).reshape(-1, 4, 4)
@@ -313,7 +391,7 @@ def grasps_for_part(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> Gr
         Ts_part_tcp=Ts,
         Ts_world_tool=T_world_part @ Ts @ hand.T_tcp_tool if len(Ts) else Ts,
         kinds=tuple(kinds),
-        rejected=len(cands) - len(kept),
+        rejected=n_cands - len(kept),
         user_given=part.grasps is not None,
         too_low=too_low,
         near_floor=near_floor,
