@@ -268,8 +268,7 @@ def _solids_key(solids: list[Solid]) -> str:
     half extents; :func:`floor_outline` and the heights look at nothing else)."""
     h = hashlib.sha256()
     for s in solids:
-        h.update(np.ascontiguousarray(s.T_world_solid, float).tobytes())
-        h.update(np.ascontiguousarray(s.half, float).tobytes())
+        h.update(s.pose_digest())
     return h.hexdigest()
 
 

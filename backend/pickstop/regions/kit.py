@@ -82,6 +82,10 @@ class RegionKit:
     _scene_grasps: tuple[Scene | None, dict[str, list[GraspSet]]] = field(
         default=(None, {}), init=False, repr=False
     )
+    # every object's bounds in the last scene asked about, with its tray id (None: obstacle)
+    _scene_bounds: tuple[Scene | None, list[tuple[str | None, str, Bounds]]] = field(
+        default=(None, []), init=False, repr=False
+    )
 
     def __post_init__(self) -> None:
         from pickstop.robot.artifacts import derived, self_collision
@@ -182,22 +186,27 @@ class RegionKit:
 
     def _bounds_of(self, scene: Scene, exclude: str) -> list[tuple[str, Bounds]]:
         """Every object but the tray ``exclude``: its definition and its solids' bounds, each
-        with whether the solid is an axis-aligned box (its bounds are the box)."""
+        with whether the solid is an axis-aligned box (its bounds are the box); the objects
+        of a scene listed once (by the scene object, as its grasps are)."""
+        if self._scene_bounds[0] is not scene:
+            self._scene_bounds = (scene, self._objects_bounds(scene))
+        return [(d, b) for tid, d, b in self._scene_bounds[1] if tid != exclude]
+
+    def _objects_bounds(self, scene: Scene) -> list[tuple[str | None, str, Bounds]]:
         if len(self._bounds) > MEMO_SIZE:
             self._bounds.clear()
-        out = []
+        out: list[tuple[str | None, str, Bounds]] = []
         for o in scene.obstacles:
             d = o.model_dump_json()
             if d not in self._bounds:
                 self._bounds[d] = [_bounds(shape_solid(o.geometry, pose_matrix(o.pose), o.id))]
-            out.append((d, self._bounds[d]))
+            out.append((None, d, self._bounds[d]))
         for t in scene.trays:
-            if t.id != exclude:
-                d = t.model_dump_json()
-                if d not in self._bounds:
-                    solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
-                    self._bounds[d] = [_bounds(s) for s in solids]
-                out.append((d, self._bounds[d]))
+            d = t.model_dump_json()
+            if d not in self._bounds:
+                solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
+                self._bounds[d] = [_bounds(s) for s in solids]
+            out.append((t.id, d, self._bounds[d]))
         return out
 
 
@@ -216,9 +225,15 @@ def _reaching_in(
     definition and the tray's place."""
     lo, hi = space[0] - AGREE_MARGIN, space[1] + AGREE_MARGIN
     out = []
-    for d, bounds in others:
-        if not any(_overlap((b_lo, b_hi), (lo, hi)) for b_lo, b_hi, _ in bounds):
-            continue
+    if not others:
+        return out
+    # a first look at every solid at once: most objects are far from the hands
+    flat = [(k, b_lo, b_hi) for k, (_, bounds) in enumerate(others) for b_lo, b_hi, _ in bounds]
+    all_lo = np.array([b[1] for b in flat]).reshape(-1, 3)
+    all_hi = np.array([b[2] for b in flat]).reshape(-1, 3)
+    meets = np.all(all_lo <= hi, axis=1) & np.all(lo <= all_hi, axis=1)
+    near = sorted({flat[i][0] for i in np.flatnonzero(meets).tolist()})
+    for d, bounds in (others[k] for k in near):
         if all(aligned for *_, aligned in bounds):
             for b_lo, b_hi, _ in bounds:
                 c_lo, c_hi = np.maximum(b_lo, lo) - at, np.minimum(b_hi, hi) - at
@@ -246,5 +261,3 @@ def _moved_by(gs: GraspSet, d: np.ndarray) -> GraspSet:
     return dataclasses.replace(gs, Ts_world_tool=T)
 
 
-def _overlap(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
-    return bool(np.all(a[0] <= b[1]) and np.all(b[0] <= a[1]))

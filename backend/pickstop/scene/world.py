@@ -92,6 +92,17 @@ class Solid:
             hit = self.__dict__["_aabb"] = (lo, hi)
         return hit
 
+    def pose_digest(self) -> bytes:
+        """Its pose and half extents as bytes (what a solid's bounding box depends on),
+        computed once."""
+        hit = self.__dict__.get("_pose_digest")
+        if hit is None:
+            hit = self.__dict__["_pose_digest"] = (
+                np.ascontiguousarray(self.T_world_solid, float).tobytes()
+                + np.ascontiguousarray(self.half, float).tobytes()
+            )
+        return hit
+
 
 def shape_solid(
     geometry: Box | Cylinder | Mesh, T_world_base: np.ndarray, owner: str, root: Path | None = None
