@@ -165,6 +165,33 @@ def test_screen_is_conservative(setups, name, seed):
     assert not (col & ~flagged).any(), th[col & ~flagged]
 
 
+@settings(max_examples=10, deadline=None)
+@given(name=st.sampled_from(["tiago", "pr2"]), seed=st.integers(0, 2**32 - 1))
+def test_compiled_screen_answers_as_the_numpy_passes(setups, name, seed):
+    """screen walks each configuration's trees compiled, depth first: the same answer as the
+    breadth-first numpy passes, configuration by configuration (random ones, and ones near
+    the collision boundary, where a bound decides), in batches of one to hundreds."""
+    from pickstop.robot.screen import _run
+
+    robot, _, model, exact = setups[name]
+    rng = np.random.default_rng(seed)
+    th = rng.uniform(robot.lower, robot.upper, (300, robot.dof))
+    col = exact.colliding(th)
+    lo, hi = th[~col][:20], th[col][:20]
+    k = min(len(lo), len(hi))
+    lo, hi = lo[:k], hi[:k]
+    for _ in range(10):
+        mid = 0.5 * (lo + hi)
+        c = exact.colliding(mid)
+        hi = np.where(c[:, None], mid, hi)
+        lo = np.where(c[:, None], lo, mid)
+    th = np.concatenate([th, lo, hi])
+    chain = Chain.from_robot(robot)
+    for B in (1, 7, len(th)):
+        _, _, frames = fk_soa(chain, np.ascontiguousarray(th[:B].T), frames=True)
+        np.testing.assert_array_equal(screen(model, frames), _run(model, frames, False))
+
+
 @pytest.mark.parametrize("name", ["tiago", "pr2"])
 def test_false_rejection_rate_below_5_percent(setups, name):
     robot, pairs, model, _ = setups[name]

@@ -974,6 +974,7 @@ def warm_kernels(kit: RegionKit) -> None:
     solids = [Solid.box(np.eye(4), np.ones(3), "warm-up")]
     boxes = BoxArrays.of(solids)
     screen_arm(kit.arm, boxes, frames, np.zeros((1, 2)), 0.0)
+    screen_self(kit.self_spheres, frames)
     kit.exact_arm.colliding(theta[0], 0.0, 0.0, 0.0, solids, boxes=boxes)
     change = Change(-np.ones(3), np.ones(3))
     ChangeSet.of([change]).hit(np.zeros((1, 3)), np.ones((1, 3)))

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pickstop.robot.link_geometry import LinkShape, distance_grid
+from pickstop.robot.screen_kernel import screen_rows
 from pickstop.robot.spheres import (
     SphereNode,
     cover,
@@ -372,9 +373,28 @@ def screen(model: SphereModel, frames: Frames) -> np.ndarray:
     """``(B,)`` bool, possibly colliding; False means free for the exact check.
 
     frames: :func:`pickstop.robot.kinematics.fk_soa` joint frames, n tuples
-    ``(R: (3, 3, B), p: (3, B))`` [m] in the base frame.
+    ``(R: (3, 3, B), p: (3, B))`` [m] in the base frame. Compiled
+    (:func:`~pickstop.robot.screen_kernel.screen_rows`), the same answers as the numpy passes.
     """
-    return _run(model, frames, per_pair=False)
+    B = frames[0][1].shape[1] if len(frames) else 0
+    out = np.zeros(B, dtype=bool)
+    if not B or not len(model.roots):
+        return out
+    screen_rows(
+        _poses(model, frames),
+        B,
+        model.roots,
+        model.node_rec,
+        model.node_offset,
+        model.field_values,
+        model.node_body_pair,
+        model.child_start,
+        model.child_count,
+        model.children,
+        float(model.step),
+        out,
+    )
+    return out
 
 
 def screen_pairs(model: SphereModel, frames: Frames) -> np.ndarray:

@@ -75,9 +75,13 @@ class Solid:
     @property
     def aligned_box(self) -> bool:
         """A box turned only by a permutation of the axes (with signs): its bounds
-        (:meth:`aabb`) are the box itself."""
-        A = np.abs(self.T_world_solid[:3, :3])
-        return self.kind == "box" and bool(np.allclose(A, np.round(A), atol=1e-12))
+        (:meth:`aabb`) are the box itself. Computed once."""
+        hit = self.__dict__.get("_aligned")
+        if hit is None:
+            A = np.abs(self.T_world_solid[:3, :3])
+            hit = self.kind == "box" and bool(np.allclose(A, np.round(A), atol=1e-12))
+            self.__dict__["_aligned"] = hit
+        return hit
 
     def aabb(self) -> tuple[np.ndarray, np.ndarray]:
         """World bounds ``(lo, hi)`` [m], computed once (read-only: a solid does not move)."""
