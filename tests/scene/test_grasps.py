@@ -197,8 +197,8 @@ def test_grasps_tested_at_once_are_those_tested_one_solid_at_a_time(hand, name):
 @pytest.mark.parametrize("name", ["five_trays", "factory_cell"])
 def test_grasps_from_verdicts_judged_elsewhere_are_those_tested_where_the_tray_stands(hand, name):
     # Each tray's own verdicts judged where it stands, then the tray moved (into reach of its
-    # neighbours too; and with a bar over a part's edge, above the walls, which only the rest of the scene
-    # holds): its grasps are those of the reference at the new place.
+    # neighbours too; and with a bar over a part's edge, above the walls, which only the rest
+    # of the scene holds): its grasps are those of the reference at the new place.
     from pickstop.scene.grasps import own_verdicts
     from pickstop.scene.model import SceneError
 

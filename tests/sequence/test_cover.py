@@ -68,8 +68,8 @@ def instances(draw, metric=True):
     )
     cost = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
     if not metric:  # any leg costs (the time objective makes no use of the triangle inequality)
-        cost = np.array(draw(st.lists(st.integers(0, 9), min_size=(n + 2) ** 2,
-                                      max_size=(n + 2) ** 2)), float).reshape(n + 2, n + 2)  # fmt: skip
+        legs = draw(st.lists(st.integers(0, 9), min_size=(n + 2) ** 2, max_size=(n + 2) ** 2))
+        cost = np.array(legs, float).reshape(n + 2, n + 2)
     # Some stops cut off (the base cannot get there: shortest paths keep the triangle
     # inequality, so such a stop has no leg at all), the goal too at times.
     for v in draw(st.sets(st.integers(1, n + 1), max_size=2)):
@@ -104,7 +104,9 @@ def test_matches_brute_force(inst, enumeration):
 
 @pytest.mark.parametrize("enumeration", [0, cover.ENUMERATION], ids=["cp-sat", "enumeration"])
 @settings(max_examples=80, deadline=None)
-@given(inst=st.one_of(instances(), instances(metric=False)), stop_cost=st.sampled_from([0.0, 0.5, 3.0]))
+@given(
+    inst=st.one_of(instances(), instances(metric=False)), stop_cost=st.sampled_from([0.0, 0.5, 3.0])
+)
 def test_least_time_matches_brute_force(inst, stop_cost, enumeration):
     trays_of, required, cost = inst
     expected = brute_force(trays_of, required, cost, stop_cost)

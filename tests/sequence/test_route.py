@@ -79,7 +79,9 @@ def test_distances_are_those_of_the_whole_visibility_graph(boxes, seed):
         if fin[a, b]:
             line = p.polyline(a, b)
             assert np.allclose(line[[0, -1]], pts[[a, b]])
-            assert np.linalg.norm(np.diff(line, axis=0), axis=1).sum() == pytest.approx(p.dist[a, b])
+            assert np.linalg.norm(np.diff(line, axis=0), axis=1).sum() == pytest.approx(
+                p.dist[a, b]
+            )
 
 
 @settings(max_examples=25, deadline=None)

@@ -35,9 +35,13 @@ from pickstop.scene.grasps import (
 from pickstop.scene.model import Part, Scene, Tray
 from pickstop.scene.world import (
     AGREE_MARGIN,
+    Groups,
     Solid,
+    object_solids,
+    other_solids,
     part_solid,
     pose_matrix,
+    scene_solids,
     shape_solid,
     tray_body_solids,
 )
@@ -82,6 +86,8 @@ class RegionKit:
     _scene_grasps: tuple[Scene | None, dict[str, list[GraspSet]]] = field(
         default=(None, {}), init=False, repr=False
     )
+    # the solids of each object of the last scene asked about (object_solids)
+    _scene_solids: tuple[Scene | None, Groups] = field(default=(None, ()), init=False, repr=False)
     # every object's bounds in the last scene asked about, with its tray id (None: obstacle)
     _scene_bounds: tuple[Scene | None, list[tuple[str | None, str, Bounds]]] = field(
         default=(None, []), init=False, repr=False
@@ -145,11 +151,25 @@ class RegionKit:
                     if len(self._own_verdicts) >= OWN_VERDICTS:
                         self._own_verdicts.clear()
                     own = self._own_verdicts[key] = own_verdicts(scene, tray, part, self.hand)
+                foreign = other_solids(scene, tray, self.object_solids(scene))
                 self.grasp_cache[full] = _moved_by(
-                    grasps_for_part(scene, tray, part, self.hand, own), -at
+                    grasps_for_part(scene, tray, part, self.hand, own, foreign), -at
                 )
             out.append(_moved_by(self.grasp_cache[full], at))
         return out
+
+    def object_solids(self, scene: Scene) -> Groups:
+        """:func:`~pickstop.scene.world.object_solids` of ``scene``, made once for the last
+        scene asked about (a plan asks for them many times; scenes are frozen)."""
+        seen, groups = self._scene_solids
+        if seen is not scene:
+            groups = object_solids(scene)
+            self._scene_solids = (scene, groups)
+        return groups
+
+    def solids_of(self, scene: Scene) -> list[Solid]:
+        """Every solid of ``scene`` (:meth:`object_solids`)."""
+        return scene_solids(scene, groups=self.object_solids(scene))
 
     def learn_grasps(self, entries: dict[str, GraspSet]) -> None:
         """Keep grasps another process computed (:mod:`pickstop.regions.workers`), by the
@@ -224,7 +244,7 @@ def _reaching_in(
     tray (a table the tray slides along looks the same); any other solid by its object's
     definition and the tray's place."""
     lo, hi = space[0] - AGREE_MARGIN, space[1] + AGREE_MARGIN
-    out = []
+    out: list[str] = []
     if not others:
         return out
     # a first look at every solid at once: most objects are far from the hands
@@ -259,5 +279,3 @@ def _moved_by(gs: GraspSet, d: np.ndarray) -> GraspSet:
     T = gs.Ts_world_tool.copy()
     T[:, :3, 3] += d
     return dataclasses.replace(gs, Ts_world_tool=T)
-
-

@@ -47,7 +47,7 @@ def feasible_at(
     M, P = len(xy), len(tray.parts)
     thetas = np.zeros((M, P, planner.robot.dof))
     grasp = np.zeros((M, P), int)
-    alive = np.flatnonzero(footprint_free(scene, planner.robot, xy, yaw))
+    alive = np.flatnonzero(footprint_free(scene, planner.robot, xy, yaw, planner.solids_of(scene)))
     if not P:
         return np.zeros(M, bool), thetas, grasp
     world, R_base_world = _arm_world(planner, scene, tray, yaw)
@@ -81,6 +81,7 @@ def check_key(
     elsewhere leaves the checks of the other trays as they were. ``solids``: the scene's
     (:func:`~pickstop.scene.world.scene_solids`), if made already."""
     tray = scene.tray(region.tray_id)
+    solids = planner.solids_of(scene) if solids is None else solids
     free = bool(footprint_free(scene, planner.robot, np.array([xy], float), yaw, solids)[0])
     near = planner.objects_near(scene, tray, arm_radius(planner, tray))
     own = own_key(planner, scene, tray, region.yaw)
@@ -107,7 +108,7 @@ def feasible_near(
     todo = np.flatnonzero(~ok)
     if not len(todo) or not len(region.cells) or abs(region.yaw - yaw) > 0.2:
         return ok, thetas, grasp
-    free = footprint_free(scene, planner.robot, xy[todo], yaw)
+    free = footprint_free(scene, planner.robot, xy[todo], yaw, planner.solids_of(scene))
     todo = todo[free]
     if not len(todo):
         return ok, thetas, grasp

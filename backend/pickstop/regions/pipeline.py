@@ -28,7 +28,7 @@ from pickstop.regions.reuse import Surroundings, TrayAnchor, grasps_digest
 from pickstop.regions.solve import ArmWorld, Targets
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Scene, Tray
-from pickstop.scene.world import BoxArrays, Solid, scene_solids
+from pickstop.scene.world import BoxArrays, Solid
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ def base_cells(
         env.mark_columns(cen, fp.bounding_radius, fp.height)
     if len(IX) == 0:
         return BaseCells(IX, IY, cen, counts, out_of_reach(tray, reach))
-    free, overhangs = footprint_check(scene, planner.robot, cen, yaw)
+    free, overhangs = footprint_check(scene, planner.robot, cen, yaw, planner.solids_of(scene))
     IX, IY, cen = IX[free], IY[free], cen[free]
     counts["footprint_free"] = len(IX)
     if env is not None:
@@ -213,7 +213,7 @@ def tray_world(
 ) -> tuple[float, list[Solid], BoxArrays, np.ndarray]:
     """Reach radius around the tray [m], the solids near it (exact and as arrays), R_base_world."""
     tc = np.array([tray.pose.x, tray.pose.y])
-    solids = nearby(scene_solids(scene), tc, arm_radius(planner, tray))
+    solids = nearby(planner.solids_of(scene), tc, arm_radius(planner, tray))
     return tray_reach(planner, tray), solids, BoxArrays.of(solids), frames.R_base_world(yaw)
 
 

@@ -344,18 +344,24 @@ def own_verdicts(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> OwnVe
 
 
 def grasps_for_part(
-    scene: Scene, tray: Tray, part: Part, hand: HandShape, own: OwnVerdicts | None = None
+    scene: Scene,
+    tray: Tray,
+    part: Part,
+    hand: HandShape,
+    own: OwnVerdicts | None = None,
+    others: list[Solid] | None = None,
 ) -> GraspSet:
     """Grasps of ``part``: the user's if given, else generated; both filtered by the tray with
     the open hand's own geometry. ``own``: the part's :func:`own_verdicts`, judged before
     with the tray anywhere on the floor (the rest of the scene is tested here: the obstacles
-    and the other trays with their parts, where they reach the hands)."""
+    and the other trays with their parts, where they reach the hands; ``others``: those
+    solids, :func:`~pickstop.scene.world.other_solids`, if made already)."""
     at0 = np.array([tray.pose.x, tray.pose.y, 0.0])
     own = own_verdicts(scene, tray, part, hand) if own is None else own.moved(at0)
     T_world_part = world_part_transform(tray, part)
     others = [
         s
-        for s in other_solids(scene, tray)
+        for s in (other_solids(scene, tray) if others is None else others)
         if np.all(s.aabb()[0] <= own.hi + TOUCH) and np.all(own.lo - TOUCH <= s.aabb()[1])
     ]
     obstacles = SolidSet.of(others) if others else None

@@ -8,8 +8,6 @@ box, so a sphere that misses the box surely misses the mesh.
 from __future__ import annotations
 
 import functools
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -238,44 +236,32 @@ def tray_solids(
     return out
 
 
-SCENES_KEPT = 8  # scenes whose solids are kept (a plan asks for them many times)
-_SOLIDS_OF: OrderedDict[tuple[int, str | None], tuple[Scene, tuple[tuple[Solid, ...], ...]]] = (
-    OrderedDict()
-)
-_SOLIDS_LOCK = threading.Lock()
+Groups = tuple[tuple[Solid, ...], ...]  # the solids of each object of a scene, in order
 
 
-def _object_solids(scene: Scene, root: Path | None) -> tuple[tuple[Solid, ...], ...]:
+def object_solids(scene: Scene, root: Path | None = None) -> Groups:
     """The solids of each object of the scene: each obstacle's, then each tray's (its body,
-    then its parts), in order; made once per scene object (scenes are frozen; the object is
-    kept with its solids, so its id is not taken by another meanwhile)."""
-    key = (id(scene), None if root is None else str(root))
-    with _SOLIDS_LOCK:
-        hit = _SOLIDS_OF.get(key)
-        if hit is not None and hit[0] is scene:
-            _SOLIDS_OF.move_to_end(key)
-            return hit[1]
-    out = tuple((s,) for s in obstacle_solids(scene, root)) + tuple(
+    then its parts), in order (a planner keeps them per scene:
+    :meth:`pickstop.regions.kit.RegionKit.object_solids`)."""
+    return tuple((s,) for s in obstacle_solids(scene, root)) + tuple(
         tuple(tray_body_solids(t) + [part_solid(t, p, root) for p in t.parts]) for t in scene.trays
     )
-    with _SOLIDS_LOCK:
-        _SOLIDS_OF[key] = (scene, out)
-        while len(_SOLIDS_OF) > SCENES_KEPT:
-            _SOLIDS_OF.popitem(last=False)
-    return out
 
 
-def scene_solids(scene: Scene, root: Path | None = None) -> list[Solid]:
-    """Every solid of the scene."""
-    return [s for group in _object_solids(scene, root) for s in group]
+def scene_solids(
+    scene: Scene, root: Path | None = None, groups: Groups | None = None
+) -> list[Solid]:
+    """Every solid of the scene (``groups``: its :func:`object_solids`, if made already)."""
+    groups = object_solids(scene, root) if groups is None else groups
+    return [s for group in groups for s in group]
 
 
-def other_solids(scene: Scene, tray: Tray, root: Path | None = None) -> list[Solid]:
+def other_solids(scene: Scene, tray: Tray, groups: Groups | None = None) -> list[Solid]:
     """Every solid of the scene but ``tray``'s own (its body and parts): the obstacles and
-    the other trays with their parts."""
-    groups = _object_solids(scene, root)
-    n = len(scene.obstacles)
-    mine = n + next(i for i, t in enumerate(scene.trays) if t.id == tray.id)
+    the other trays with their parts (``groups``: the scene's :func:`object_solids`, if made
+    already)."""
+    groups = object_solids(scene) if groups is None else groups
+    mine = len(scene.obstacles) + next(i for i, t in enumerate(scene.trays) if t.id == tray.id)
     return [s for k, group in enumerate(groups) if k != mine for s in group]
 
 

@@ -87,9 +87,9 @@ def select_stops(
     stop_unit = round(stop_cost * SCALE) if objective == "time" else None
     found = _by_enumeration(trays_of, req, icost, stop_unit, enumeration)
     if found is not None:
-        order, serves = found
-        return Selection(order, serves, _cost(cost, order, objective, stop_cost), True,
-                         time.perf_counter() - t0)  # fmt: skip
+        best_order, best_serves = found
+        return Selection(best_order, best_serves, _cost(cost, best_order, objective, stop_cost),
+                         True, time.perf_counter() - t0)  # fmt: skip
     model = cp_model.CpModel()
     x = [model.new_bool_var(f"x{c}") for c in range(N)]
     y = {(c, t): model.new_bool_var(f"y{c}_{t}") for t in req for c in servable[t]}

@@ -244,7 +244,7 @@ class StopPlanner:
         if known is not None and (hit := self._check_keys.hit(known)) is not None:
             return str(hit)
         if self._solids is None or self._solids[0] is not scene:
-            self._solids = (scene, scene_solids(scene))  # the last scene's, made once
+            self._solids = (scene, self.regions.solids_of(scene))  # the last scene's, made once
         key = check_key(self.regions, scene, region, xy, region.yaw, self._solids[1])
         return key if known is None else str(self._check_keys.put(known, key))
 

@@ -24,9 +24,9 @@ from functools import cached_property
 import numpy as np
 import shapely
 import shapely.ops
-from shapely.geometry import LineString, Point
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
+from shapely.geometry import LineString, Point
 from shapely.geometry.base import BaseGeometry
 
 from pickstop.sequence.cover import InfeasiblePlanError
