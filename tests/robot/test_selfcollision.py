@@ -134,6 +134,20 @@ def test_bad_samples_rejected(tiago):
         disabled_pairs(tiago, samples=0)
 
 
+def _across_the_boundary(exact, th, col, n, steps):
+    """Pairs just either side of the collision boundary: up to ``n`` free and colliding rows
+    of ``th`` (``col``: coal's answers), bisected ``steps`` times toward each other."""
+    hit, free = th[col][:n], th[~col][:n]
+    k = min(len(hit), len(free))
+    lo, hi = free[:k], hit[:k]
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        c = exact.colliding(mid)
+        hi = np.where(c[:, None], mid, hi)
+        lo = np.where(c[:, None], lo, mid)
+    return lo, hi
+
+
 def test_known_self_collision_caught(setups):
     for name, theta in (("tiago", TIAGO_HAND_IN_BASE), ("pr2", PR2_GRIPPER_IN_BASE)):
         robot, _, model, exact = setups[name]
@@ -150,15 +164,7 @@ def test_screen_is_conservative(setups, name, seed):
     rng = np.random.default_rng(seed)
     th = rng.uniform(robot.lower, robot.upper, (200, robot.dof))
     col = exact.colliding(th)
-    # Walk from colliding towards free configurations to just inside the collision boundary.
-    hit, free = th[col][:6], th[~col][:6]
-    k = min(len(hit), len(free))
-    lo, hi = free[:k], hit[:k]
-    for _ in range(12):
-        mid = 0.5 * (lo + hi)
-        c = exact.colliding(mid)
-        hi = np.where(c[:, None], mid, hi)
-        lo = np.where(c[:, None], lo, mid)
+    _, hi = _across_the_boundary(exact, th, col, 6, 12)
     th = np.concatenate([th, hi])
     col = np.concatenate([col, np.ones(len(hi), dtype=bool)])
     flagged = _screen(robot, model, th)
@@ -176,15 +182,7 @@ def test_compiled_screen_answers_as_the_numpy_passes(setups, name, seed):
     robot, _, model, exact = setups[name]
     rng = np.random.default_rng(seed)
     th = rng.uniform(robot.lower, robot.upper, (300, robot.dof))
-    col = exact.colliding(th)
-    lo, hi = th[~col][:20], th[col][:20]
-    k = min(len(lo), len(hi))
-    lo, hi = lo[:k], hi[:k]
-    for _ in range(10):
-        mid = 0.5 * (lo + hi)
-        c = exact.colliding(mid)
-        hi = np.where(c[:, None], mid, hi)
-        lo = np.where(c[:, None], lo, mid)
+    lo, hi = _across_the_boundary(exact, th, exact.colliding(th), 20, 10)
     th = np.concatenate([th, lo, hi])
     chain = Chain.from_robot(robot)
     for B in (1, 7, len(th)):

@@ -16,6 +16,13 @@ from shapely.geometry import Point, box
 from pickstop.regions.footprint import BodyPieces, FloorSolids, sweep_blocked
 from pickstop.sequence.route import Docking, FloorMap, polyline_clear, shortest_paths
 
+# Up to five boxes (x, y, width, depth) [m] on a 10 m floor.
+BOXES = st.lists(
+    st.tuples(st.floats(1, 8), st.floats(1, 8), st.floats(0.1, 1.5), st.floats(0.1, 1.5)),
+    min_size=1,
+    max_size=5,
+)
+
 
 def test_straight_line_when_nothing_is_in_the_way():
     fmap = FloorMap.build((0, 0, 10, 10), [], 0.3)
@@ -47,14 +54,7 @@ def test_unreachable_point_is_infinite():
 
 
 @settings(max_examples=25, deadline=None)
-@given(
-    boxes=st.lists(
-        st.tuples(st.floats(1, 8), st.floats(1, 8), st.floats(0.1, 1.5), st.floats(0.1, 1.5)),
-        min_size=1,
-        max_size=5,
-    ),
-    seed=st.integers(0, 1000),
-)
+@given(boxes=BOXES, seed=st.integers(0, 1000))
 def test_distances_are_those_of_the_whole_visibility_graph(boxes, seed):
     # Reference: every leg between points and corners tested anew, Floyd-Warshall over them.
     fmap = FloorMap.build((0, 0, 10, 10), [box(x, y, x + w, y + h) for x, y, w, h in boxes], 0.25)
@@ -85,14 +85,7 @@ def test_distances_are_those_of_the_whole_visibility_graph(boxes, seed):
 
 
 @settings(max_examples=25, deadline=None)
-@given(
-    boxes=st.lists(
-        st.tuples(st.floats(1, 8), st.floats(1, 8), st.floats(0.1, 1.5), st.floats(0.1, 1.5)),
-        min_size=1,
-        max_size=5,
-    ),
-    seed=st.integers(0, 1000),
-)
+@given(boxes=BOXES, seed=st.integers(0, 1000))
 def test_paths_never_cross_inflated_obstacles(boxes, seed):
     obstacles = [box(x, y, x + w, y + h) for x, y, w, h in boxes]
     radius = 0.25

@@ -138,6 +138,7 @@ class RegionKit:
         tray_json = _placed(tray)
         gripper_json = f"{scene.gripper.model_dump_json()}{self.hand.key}|{scene.floor_clearance}"
         out = []
+        foreign: list[Solid] | None = None  # the rest of the scene, made if a part needs it
         for part in tray.parts:
             key = f"{tray_json}|{part.id}|{gripper_json}"
             space = self.hand_space(scene, tray, part)
@@ -151,7 +152,8 @@ class RegionKit:
                     if len(self._own_verdicts) >= OWN_VERDICTS:
                         self._own_verdicts.clear()
                     own = self._own_verdicts[key] = own_verdicts(scene, tray, part, self.hand)
-                foreign = other_solids(scene, tray, self.object_solids(scene))
+                if foreign is None:
+                    foreign = other_solids(scene, tray, self.object_solids(scene))
                 self.grasp_cache[full] = _moved_by(
                     grasps_for_part(scene, tray, part, self.hand, own, foreign), -at
                 )
