@@ -59,6 +59,18 @@ OWN_VERDICTS = 512  # parts whose grasps judged against their own tray are kept 
 
 
 @dataclass
+class _SceneMemo:
+    """What a plan asks about one scene many times (scenes are frozen: kept by the scene
+    object): the solids of each object, every object's bounds with its tray id (None: an
+    obstacle), the grasps by tray."""
+
+    scene: Scene
+    groups: Groups | None = None
+    bounds: list[tuple[str | None, str, Bounds]] | None = None
+    grasps: dict[str, list[GraspSet]] = field(default_factory=dict)
+
+
+@dataclass
 class RegionKit:
     """What region computation needs of one robot and database, built once (see the module)."""
 
@@ -82,16 +94,8 @@ class RegionKit:
     _bounds: dict[str, Bounds] = field(default_factory=dict, init=False, repr=False)
     # each part's grasps judged against its own tray alone, wherever the tray stands
     _own_verdicts: dict[str, OwnVerdicts] = field(default_factory=dict, init=False, repr=False)
-    # the grasps of the last scene asked about, by tray (a plan asks for them many times)
-    _scene_grasps: tuple[Scene | None, dict[str, list[GraspSet]]] = field(
-        default=(None, {}), init=False, repr=False
-    )
-    # the solids of each object of the last scene asked about (object_solids)
-    _scene_solids: tuple[Scene | None, Groups] = field(default=(None, ()), init=False, repr=False)
-    # every object's bounds in the last scene asked about, with its tray id (None: obstacle)
-    _scene_bounds: tuple[Scene | None, list[tuple[str | None, str, Bounds]]] = field(
-        default=(None, []), init=False, repr=False
-    )
+    # what a plan asks about its scene many times, made once for the last scene asked about
+    _scene_memo: _SceneMemo | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         from pickstop.robot.artifacts import derived, self_collision
@@ -122,15 +126,12 @@ class RegionKit:
         space of its open hands changes (other trays elsewhere may move freely). They are
         fixed in the tray's frame: where nothing else reaches into that space, a tray moved
         along the floor keeps them, carried with it."""
-        seen, by_tray = self._scene_grasps
-        if seen is not scene:
-            self._scene_grasps = seen, by_tray = scene, {}
-        if tray.id in by_tray and scene.tray(tray.id) is tray:
-            return list(by_tray[tray.id])
-        out = self._grasps(scene, tray)
-        if scene.tray(tray.id) is tray:
-            by_tray[tray.id] = out
-        return list(out)
+        if scene.tray(tray.id) is not tray:  # a tray not of this scene (as it stands)
+            return self._grasps(scene, tray)
+        by_tray = self._memo(scene).grasps
+        if tray.id not in by_tray:
+            by_tray[tray.id] = self._grasps(scene, tray)
+        return list(by_tray[tray.id])
 
     def _grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
         others = self._bounds_of(scene, tray.id)
@@ -160,14 +161,20 @@ class RegionKit:
             out.append(_moved_by(self.grasp_cache[full], at))
         return out
 
+    def _memo(self, scene: Scene) -> _SceneMemo:
+        """The memo of ``scene`` (a new one if the last scene asked about was another)."""
+        last = self._scene_memo
+        if last is None or last.scene is not scene:
+            last = self._scene_memo = _SceneMemo(scene)
+        return last
+
     def object_solids(self, scene: Scene) -> Groups:
         """:func:`~pickstop.scene.world.object_solids` of ``scene``, made once for the last
         scene asked about (a plan asks for them many times; scenes are frozen)."""
-        seen, groups = self._scene_solids
-        if seen is not scene:
-            groups = object_solids(scene)
-            self._scene_solids = (scene, groups)
-        return groups
+        memo = self._memo(scene)
+        if memo.groups is None:
+            memo.groups = object_solids(scene)
+        return memo.groups
 
     def solids_of(self, scene: Scene) -> list[Solid]:
         """Every solid of ``scene`` (:meth:`object_solids`)."""
@@ -210,9 +217,10 @@ class RegionKit:
         """Every object but the tray ``exclude``: its definition and its solids' bounds, each
         with whether the solid is an axis-aligned box (its bounds are the box); the objects
         of a scene listed once (by the scene object, as its grasps are)."""
-        if self._scene_bounds[0] is not scene:
-            self._scene_bounds = (scene, self._objects_bounds(scene))
-        return [(d, b) for tid, d, b in self._scene_bounds[1] if tid != exclude]
+        memo = self._memo(scene)
+        if memo.bounds is None:
+            memo.bounds = self._objects_bounds(scene)
+        return [(d, b) for tid, d, b in memo.bounds if tid != exclude]
 
     def _objects_bounds(self, scene: Scene) -> list[tuple[str | None, str, Bounds]]:
         if len(self._bounds) > MEMO_SIZE:

@@ -46,7 +46,6 @@ from pickstop.regions.kit import Interrupted
 from pickstop.regions.offgrid import check_key, feasible_near
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
-from pickstop.scene.world import scene_solids
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
 from pickstop.sequence.intersections import Intersection, intersections
@@ -142,7 +141,6 @@ class StopPlanner:
         self._selections = _Lru(256)
         self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
         self._planned = _Lru(1024)  # (layout, options) planned ahead by prefetch_selections
-        self._solids: tuple[Scene, list[Any]] | None = None  # the last scene's solids
 
     # -- pieces ------------------------------------------------------------------------------
     def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Intersection]:
@@ -184,7 +182,7 @@ class StopPlanner:
         # Driving, the base turns: whatever reaches below the top of the base body (footprint
         # and base-fixed links) blocks it, grown by the body's farthest horizontal reach.
         body = upper_body(self.regions.robot)
-        solids = [s for s in scene_solids(scene) if s.aabb()[0][2] < body.top]
+        solids = [s for s in self.regions.solids_of(scene) if s.aabb()[0][2] < body.top]
         every = solids
         outlines = [(s.owner, Polygon(floor_outline(s))) for s in solids]
         # An outline within another's (a tray on its table) blocks nothing more: moving it
@@ -243,9 +241,7 @@ class StopPlanner:
         known = None if world is None else (world, region.digest, xy)
         if known is not None and (hit := self._check_keys.hit(known)) is not None:
             return str(hit)
-        if self._solids is None or self._solids[0] is not scene:
-            self._solids = (scene, self.regions.solids_of(scene))  # the last scene's, made once
-        key = check_key(self.regions, scene, region, xy, region.yaw, self._solids[1])
+        key = check_key(self.regions, scene, region, xy, region.yaw)
         return key if known is None else str(self._check_keys.put(known, key))
 
     def check(
