@@ -122,6 +122,52 @@ def test_a_preview_carries_only_the_same_tray(planner, paper_doc):
     assert planner.known_regions(parse_scene(finer), [("tray_1", yaw)]) == {}
 
 
+def _answers(n, dof=2, seed=0):
+    """n cell answers with distinct values in every column."""
+    from pickstop.regions.reuse import CellAnswers
+
+    rng = np.random.default_rng(seed)
+    lo = rng.uniform(-1, 0, (n, 3))
+    return CellAnswers(
+        rng.random(n) < 0.5, rng.normal(size=(n, dof)), rng.integers(0, 9, n), lo, lo + 1,
+        rng.normal(size=(n, 2)), rng.normal(size=(n, 3, 3)), rng.normal(size=(n, 3, 3)),
+        [rng.integers(0, 99, k).astype(np.int32) for k in rng.integers(0, 5, n)],
+        [rng.normal(size=(k, dof)).astype(np.float32) for k in rng.integers(0, 3, n)],
+    )  # fmt: skip
+
+
+def _same_answers(a, b):
+    for name in ("found", "theta", "grasp", "lo", "hi", "xy", "groups_lo", "groups_hi"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert len(a.rows) == len(b.rows) == len(a.refined) == len(b.refined)
+    for x, y in zip(a.rows + a.refined, b.rows + b.refined, strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_an_answer_table_gives_back_the_last_answer_of_each_cell():
+    """Answers kept column by column, in batches that grow the table past its first capacity
+    and answer some cells again: each cell gives back exactly its last answer and the
+    surroundings it was computed in; a cell never answered has no row."""
+    from pickstop.regions.reuse import AnswerTable
+
+    table = AnswerTable()
+    last: dict[int, tuple[object, int]] = {}
+    rng = np.random.default_rng(1)
+    for b in range(6):
+        keys = rng.choice(300, size=int(rng.integers(1, 120)), replace=False)
+        batch = _answers(len(keys), seed=b)
+        table.put(keys, batch, b)
+        for i, k in enumerate(keys.tolist()):
+            last[k] = (batch.take(np.array([i])), b)
+    keys = np.array([*sorted(last), 1000, 1001])
+    row = table.find(keys)
+    assert (row[-2:] == -1).all() and (row[:-2] >= 0).all() and len(table) == len(last)
+    assert table.cols is not None
+    for k, r in zip(keys[:-2].tolist(), row[:-2].tolist(), strict=True):
+        _same_answers(table.cols.take(np.array([r])), last[k][0])
+        assert table.around[r] == last[k][1]
+
+
 def _box(owner, lo, hi):
     from pickstop.frames import T_yaw
     from pickstop.scene.world import Solid
@@ -295,8 +341,7 @@ def test_the_memos_together_stay_within_their_budget(monkeypatch):
     cache = ReuseCache()
     for k in range(5):
         m = cache.memo(f"tray {k}")
-        for j in range(4):
-            m.answers[("db", "p", j)] = None  # type: ignore[assignment]
+        m.remember("db", "p", np.arange(4), _answers(4), 0)
     last = cache.memo("tray 4")
     assert sum(m.approx_bytes() for m in cache.values()) <= 10 * dict(reuse.BYTES_PER)["answers"]
     assert list(cache)[-1] == "tray 4" and cache["tray 4"] is last and "tray 0" not in cache

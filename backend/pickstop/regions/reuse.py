@@ -370,28 +370,103 @@ class Checked(Protocol):
         ...
 
 
-#: What was checked for a list of cell answers, given one id per answer.
-CheckedOf = Callable[[list["CellAnswer"], list[int]], Checked]
+#: What was checked for some cell answers, given one id per answer.
+CheckedOf = Callable[["CellAnswers", np.ndarray], Checked]
 
 
 @dataclass
-class CellAnswer:
-    """What the database gave one cell for one part: the verified witness (or none), its
-    grasp, the relative box ``lo, hi`` [m] that holds every configuration it checked, and
-    those configurations: database rows and refined joint values. Only ``around`` ever
-    changes (:meth:`RefineMemo.recall`)."""
+class CellAnswers:
+    """What the database gave M cells for one part, column by column: per cell whether a
+    witness verified, the witness and its grasp, the relative box ``lo, hi`` [m] that holds
+    every configuration checked for it, and those configurations: database rows and refined
+    joint values."""
 
-    found: bool
-    theta: np.ndarray  # (dof,)
-    grasp: int
-    lo: np.ndarray  # (3,)
-    hi: np.ndarray  # (3,)
-    around: int  # which of the memo's surroundings it was computed in
-    rows: np.ndarray  # (r,) int32: database candidates screened
-    refined: np.ndarray  # (k, dof) float32: refinements verified
-    xy: np.ndarray  # (2,) the cell's centre relative to the tray [m]
-    groups_lo: np.ndarray  # (J, 3) per joint, the box of its links over the configurations
+    found: np.ndarray  # (M,) bool
+    theta: np.ndarray  # (M, dof)
+    grasp: np.ndarray  # (M,) int
+    lo: np.ndarray  # (M, 3)
+    hi: np.ndarray  # (M, 3)
+    xy: np.ndarray  # (M, 2) the cells' centres relative to the tray [m]
+    groups_lo: np.ndarray  # (M, J, 3) per joint, the box of its links over the configurations
     groups_hi: np.ndarray
+    rows: list[np.ndarray]  # (M,) of (r,) int32: database candidates screened
+    refined: list[np.ndarray]  # (M,) of (k, dof) float32: refinements verified
+
+    def __len__(self) -> int:
+        return len(self.found)
+
+    def take(self, idx: np.ndarray) -> CellAnswers:
+        """The answers ``idx: (K,)`` (indices)."""
+        il = idx.tolist()
+        return CellAnswers(
+            self.found[idx], self.theta[idx], self.grasp[idx], self.lo[idx], self.hi[idx],
+            self.xy[idx], self.groups_lo[idx], self.groups_hi[idx],
+            [self.rows[i] for i in il], [self.refined[i] for i in il],
+        )  # fmt: skip
+
+
+_COLUMNS = ("found", "theta", "grasp", "lo", "hi", "xy", "groups_lo", "groups_hi")
+
+
+class AnswerTable:
+    """The remembered answers of one tag and part, by cell key (:class:`CellAnswers`' columns
+    and ``around``: which of the memo's surroundings each was computed in, the one column
+    that changes, :meth:`RefineMemo.recall`). A cell answered again takes its row anew."""
+
+    def __init__(self) -> None:
+        self.row_of: dict[int, int] = {}
+        self.cols: CellAnswers | None = None
+        self.around = np.zeros(0, np.int64)
+
+    def __len__(self) -> int:
+        return len(self.row_of)
+
+    def find(self, cell_keys: np.ndarray) -> np.ndarray:
+        """``(M,)`` the row of each cell key, -1 where none is kept."""
+        get = self.row_of.get
+        return np.fromiter((get(k, -1) for k in cell_keys.tolist()), np.int64, len(cell_keys))
+
+    def put(self, cell_keys: np.ndarray, answers: CellAnswers, around: int) -> None:
+        keys = cell_keys.tolist()
+        rows = np.empty(len(keys), np.int64)
+        for i, k in enumerate(keys):  # a cell key given twice keeps its last answer
+            rows[i] = self.row_of.setdefault(k, len(self.row_of))
+        n = len(self.row_of)
+        if self.cols is None:
+            self.cols = dataclasses.replace(
+                answers.take(np.zeros(0, np.int64)), rows=[], refined=[]
+            )
+        cols = self.cols
+        if n > len(cols):
+            cap = max(n, 2 * len(cols), 64)
+            for name in _COLUMNS:
+                old = getattr(cols, name)
+                new = np.zeros((cap, *old.shape[1:]), old.dtype)
+                new[: len(old)] = old
+                setattr(cols, name, new)
+            self.around = np.concatenate([self.around, np.zeros(cap - len(self.around), np.int64)])
+            cols.rows += [np.zeros(0, np.int32)] * (cap - len(cols.rows))
+            cols.refined += [np.zeros((0, answers.theta.shape[1]), np.float32)] * (
+                cap - len(cols.refined)
+            )
+        for name in _COLUMNS:
+            getattr(cols, name)[rows] = getattr(answers, name)
+        self.around[rows] = around
+        for r, a, b in zip(rows.tolist(), answers.rows, answers.refined, strict=True):
+            cols.rows[r], cols.refined[r] = a, b
+
+
+@dataclass
+class Answers:
+    """A memo's remembered cell answers: an :class:`AnswerTable` per tag and part."""
+
+    tables: dict[tuple[str, str], AnswerTable] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return sum(len(t) for t in self.tables.values())
+
+    def clear(self) -> None:
+        self.tables.clear()
 
 
 @dataclass
@@ -415,7 +490,7 @@ class RefineMemo:
 
     results: dict[MemoKey, np.ndarray | None] = field(default_factory=dict)
     served_cells: dict[int, bool] = field(default_factory=dict)
-    answers: dict[tuple[str, str, int], CellAnswer] = field(default_factory=dict)
+    answers: Answers = field(default_factory=Answers)
     surroundings: OrderedDict[int, Surroundings] = field(default_factory=OrderedDict)
     hits: int = 0
     misses: int = 0
@@ -455,7 +530,7 @@ class RefineMemo:
 
     def held(
         self,
-        arounds: list[int],
+        arounds: np.ndarray,
         lo: np.ndarray,
         hi: np.ndarray,
         now: int,
@@ -463,18 +538,17 @@ class RefineMemo:
         groups: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> np.ndarray:
         """``(n,)`` whether each of n things remembered still holds in the surroundings
-        ``now``: one computed in surroundings ``arounds[i]`` whose checks all lay in the box
-        ``lo[i], hi[i]`` (relative [m]) holds where no change since reaches the box, or where
-        the finer boxes of what it checked (``checked(indices)``, tested coarse to fine) stay
-        clear of every change that does. ``groups``: finer boxes ``(n, J, 3)`` each, tested
-        before the configurations are."""
+        ``now``: one computed in surroundings ``arounds[i]`` (``(n,)`` ids) whose checks all
+        lay in the box ``lo[i], hi[i]`` (relative [m]) holds where no change since reaches
+        the box, or where the finer boxes of what it checked (``checked(indices)``, tested
+        coarse to fine) stay clear of every change that does. ``groups``: finer boxes
+        ``(n, J, 3)`` each, tested before the configurations are."""
+        arounds = np.asarray(arounds, np.int64)
         out = np.zeros(len(arounds), bool)
-        by_around: dict[int, list[int]] = {}
-        for i, k in enumerate(arounds):
-            if k in self.surroundings:
-                by_around.setdefault(k, []).append(i)
-        for k, idx in by_around.items():
-            ix = np.array(idx)
+        for k in np.unique(arounds).tolist():
+            if k not in self.surroundings:
+                continue
+            ix = np.flatnonzero(arounds == k)
             if k == now:
                 out[ix] = True
                 continue
@@ -529,7 +603,7 @@ class RefineMemo:
             return out
         mine = [g for g in got if g is not None]
         ok = self.held(
-            [g.around for g in mine],
+            np.array([g.around for g in mine], np.int64),
             np.array([g.lo for g in mine]),
             np.array([g.hi for g in mine]),
             now,
@@ -608,98 +682,88 @@ class RefineMemo:
         now: int,
         checked: CheckedOf,
         free_of: Callable[[np.ndarray, np.ndarray, tuple[Solid, ...]], np.ndarray] | None = None,
-    ) -> tuple[np.ndarray, list[CellAnswer | None]]:
+    ) -> tuple[np.ndarray, CellAnswers | None]:
         """The remembered answers of cells ``cell_keys: (M,)`` that stand in the surroundings
-        ``now`` (an id from :meth:`around`): ``(M,)`` whether each does, and the answers.
+        ``now`` (an id from :meth:`around`): ``(M,)`` whether each does, and the answers of
+        those that do (in order; None if none does).
 
         A found answer from other surroundings stands where its links' boxes stay clear of the
         :meth:`newcomers`' bounds, or ``free_of(idx, thetas, solids)`` says its witness
         (``thetas`` of cells ``idx``, indices into ``cell_keys``) is free of them;
-        any other answer where it still holds (:meth:`held`; ``checked``: the links of an
-        answer's checked configurations). Without ``free_of``, every answer needs :meth:`held`.
+        any other answer where it still holds (:meth:`held`; ``checked(answers, ids)``: the
+        links of the answers' checked configurations). Without ``free_of``, every answer
+        needs :meth:`held`.
+
+        An answer that stands is kept as an answer in ``now``, so that it outlives the
+        surroundings it was computed in (the memo keeps :data:`MAX_SURROUNDINGS`). Sound for
+        both kinds: an answer that held would be computed the same in ``now`` (every check it
+        made has the same outcome there), and a witness carried is free of all of ``now``
+        (of the old surroundings when it was verified, of the newcomers since when it was
+        carried).
         """
-        keys = cell_keys.tolist()
-        got = [self.answers.get((tag, part, k)) for k in keys]
-        ok = np.zeros(len(keys), bool)
-        witnessed: dict[int, list[int]] = {}  # by the surroundings they were found in
-        idx: list[int] = []
-        mine: list[CellAnswer] = []
-        for i, a in enumerate(got):
-            if a is None:
-                continue
-            if (
-                free_of is not None
-                and a.found
-                and a.around != now
-                and a.around in self.surroundings
-            ):
-                witnessed.setdefault(a.around, []).append(i)
-            else:
-                idx.append(i)
-                mine.append(a)
-        for k, rows in witnessed.items():
-            assert free_of is not None
-            mine_k = [a for a in (got[i] for i in rows) if a is not None]
+        ok = np.zeros(len(cell_keys), bool)
+        table = self.answers.tables.get((tag, part))
+        if table is None or table.cols is None or not len(cell_keys):
+            return ok, None
+        cols = table.cols
+        row = table.find(cell_keys)
+        kept = np.flatnonzero(row >= 0)
+        r = row[kept]
+        around = table.around[r]
+        live = np.isin(around, np.fromiter(self.surroundings, np.int64, len(self.surroundings)))
+        carry = np.zeros(len(kept), bool)
+        if free_of is not None:
+            carry = cols.found[r] & (around != now) & live
+        for k in np.unique(around[carry]).tolist():
+            at = np.flatnonzero(carry & (around == k))  # into kept
+            ok[kept[at]] = True
             new = self.newcomers(k, now)
-            at = np.array(rows)
-            ok[at] = True
             if new:
+                assert free_of is not None
+                ra = r[at]
                 # Only a witness whose links' boxes meet a newcomer's bounds can touch it
                 # (the answer's box holds its links' boxes: tested first).
                 near = np.flatnonzero(
                     self.newcomer_boxes(k, now)
-                    .hit(
-                        np.array([a.lo for a in mine_k]),
-                        np.array([a.hi for a in mine_k]),
-                        (
-                            np.array([a.groups_lo for a in mine_k]),
-                            np.array([a.groups_hi for a in mine_k]),
-                        ),
-                    )
+                    .hit(cols.lo[ra], cols.hi[ra], (cols.groups_lo[ra], cols.groups_hi[ra]))
                     .any(0)
                 )
                 if len(near):
-                    thetas = np.stack([mine_k[j].theta for j in near.tolist()])
-                    ok[at[near]] = free_of(at[near], thetas, new)
-            self.carried += int(ok[at].sum())
-        if idx:
-            ok[idx] = self.held(
-                [a.around for a in mine],
-                np.array([a.lo for a in mine]),
-                np.array([a.hi for a in mine]),
+                    i = kept[at[near]]
+                    ok[i] = free_of(i, cols.theta[ra[near]], new)
+            self.carried += int(ok[kept[at]].sum())
+        rest = np.flatnonzero(~carry)
+        if len(rest):
+            rr = r[rest]
+            ok[kept[rest]] = self.held(
+                around[rest],
+                cols.lo[rr],
+                cols.hi[rr],
                 now,
-                lambda sel: checked([mine[i] for i in sel.tolist()], sel.tolist()),
-                (np.array([a.groups_lo for a in mine]), np.array([a.groups_hi for a in mine])),
+                lambda sel: checked(cols.take(rr[sel]), sel),
+                (cols.groups_lo[rr], cols.groups_hi[rr]),
             )
-        self._relabel(got, ok, now)
-        self.recalled += int(ok.sum())
-        return ok, got
-
-    @staticmethod
-    def _relabel(got: list[CellAnswer | None], ok: np.ndarray, now: int) -> None:
-        """Answers recalled in the surroundings ``now`` are kept as answers in ``now``, so
-        that they outlive the surroundings they were computed in (the memo keeps
-        :data:`MAX_SURROUNDINGS`). Sound for both kinds: an answer that held would be computed
-        the same in ``now`` (every check it made has the same outcome there), and a witness
-        carried is free of all of ``now`` (of the old surroundings when it was verified, of the
-        newcomers since when it was carried)."""
-        for i in np.flatnonzero(ok).tolist():
-            a = got[i]
-            if a is not None:
-                a.around = now
+        good = row[ok]
+        table.around[good] = now
+        self.recalled += len(good)
+        return ok, cols.take(good) if len(good) else None
 
     def remember(
         self,
         tag: str,
         part: str,
         cell_keys: np.ndarray,
-        answers: list[CellAnswer],
+        answers: CellAnswers,
+        around: int,
     ) -> None:
-        """Keep the ``answers`` of cells ``cell_keys: (M,)``."""
+        """Keep the ``answers`` of cells ``cell_keys: (M,)``, computed in the surroundings
+        ``around``."""
         if len(self.answers) + len(cell_keys) > MAX_ANSWERS:
             self.answers.clear()
-        for k, a in zip(cell_keys.tolist(), answers, strict=True):
-            self.answers[(tag, part, k)] = a
+        table = self.answers.tables.get((tag, part))
+        if table is None:
+            table = self.answers.tables[(tag, part)] = AnswerTable()
+        table.put(cell_keys, answers, around)
 
     def served(
         self, cell_keys: np.ndarray, compute: Callable[[np.ndarray], np.ndarray]

@@ -34,7 +34,7 @@ from pickstop.regions.envelope import Envelope
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.reuse import (
     SAME,
-    CellAnswer,
+    CellAnswers,
     Change,
     ChangeSet,
     ExactCheck,
@@ -201,15 +201,15 @@ def _solve_cells(
         return _rounds(planner, world, tg, cen, *_gather(planner.db, tg, vicinity), rounds)[:3]
     tag, part = ("vicinity" if vicinity else "db"), tg.grasps.part_id
 
-    def checked(answers: list[CellAnswer], ids: list[int]) -> CheckedConfigs:
+    def checked(answers: CellAnswers, ids: np.ndarray) -> CheckedConfigs:
         # each answer's database rows, then its refinements (one lookup for all the rows)
-        n_rows = [len(a.rows) for a in answers]
-        n_ref = [len(a.refined) for a in answers]
-        rows = np.concatenate([a.rows for a in answers]) if answers else np.zeros(0, np.int32)
-        th = np.concatenate(
-            [planner.db.thetas(rows).reshape(-1, dof), *(a.refined for a in answers)]
-        ).reshape(-1, dof)
-        xy = np.array([a.xy for a in answers]).reshape(-1, 2)
+        n_rows = [len(r) for r in answers.rows]
+        n_ref = [len(r) for r in answers.refined]
+        rows = np.concatenate(answers.rows) if len(answers) else np.zeros(0, np.int32)
+        th = np.concatenate([planner.db.thetas(rows).reshape(-1, dof), *answers.refined]).reshape(
+            -1, dof
+        )
+        xy = answers.xy.reshape(-1, 2)
         xy = np.concatenate([np.repeat(xy, n_rows, axis=0), np.repeat(xy, n_ref, axis=0)])
         owner = np.concatenate([np.repeat(ids, n_rows), np.repeat(ids, n_ref)])
         return CheckedConfigs(planner, th, xy, world.yaw, owner)
@@ -218,18 +218,15 @@ def _solve_cells(
         xy = cen[idx] - np.asarray(world.tray_xy)
         return free_of_newcomers(planner, world, thetas, xy, part, solids)
 
-    ok, got = memo.recall(tag, part, keys, world.around, checked, free_of)
+    ok, reused = memo.recall(tag, part, keys, world.around, checked, free_of)
     found, th_out, g_out = np.zeros(M, bool), np.zeros((M, dof)), np.zeros(M, int)
-    reused = [a for a, k in zip(got, ok.tolist(), strict=True) if k and a is not None]
     idx = np.flatnonzero(ok)
-    if len(idx):
-        found[idx] = [a.found for a in reused]
-        th_out[idx] = [a.theta for a in reused]
-        g_out[idx] = [a.grasp for a in reused]
+    if reused is not None:
+        found[idx], th_out[idx], g_out[idx] = reused.found, reused.theta, reused.grasp
         if world.env is not None:
             # What the screens of these cells flagged lies among what meets their boxes.
             world.env.hit_owners |= memo.surroundings[world.around].owners_within(
-                np.array([a.lo for a in reused]), np.array([a.hi for a in reused])
+                reused.lo, reused.hi
             )
     todo = np.flatnonzero(~ok)
     if len(todo):
@@ -239,7 +236,11 @@ def _solve_cells(
         )
         found[todo], th_out[todo], g_out[todo] = f, th, g
         memo.remember(
-            tag, part, keys[todo], _answers(planner, world, cen[todo], f, th, g, screened, refined)
+            tag,
+            part,
+            keys[todo],
+            _answers(planner, world, cen[todo], f, th, g, screened, refined),
+            world.around,
         )
     return found, th_out, g_out
 
@@ -285,8 +286,8 @@ def _answers(
     grasps: np.ndarray,
     screened: tuple[np.ndarray, np.ndarray],
     refined: tuple[np.ndarray, np.ndarray],
-) -> list[CellAnswer]:
-    """Each of M cells' answer from :func:`_rounds` as the memo keeps it: the database rows
+) -> CellAnswers:
+    """The M cells' answers from :func:`_rounds` as the memo keeps them: the database rows
     ``screened`` and the joint values ``refined`` checked for it (``(cells, rows)`` and
     ``(cells, thetas)``) and the relative box that holds all their links."""
     assert world.around is not None
@@ -311,22 +312,18 @@ def _answers(
     ref_of = np.split(
         r_th[order].astype(np.float32), np.cumsum(np.bincount(r_cell, minlength=M))[:-1]
     )
-    return [
-        CellAnswer(
-            bool(found[i]),
-            thetas[i].copy(),
-            int(grasps[i]),
-            lo[i],
-            hi[i],
-            world.around,
-            rows_of[i].astype(np.int32),
-            ref_of[i].reshape(-1, dof),
-            xy[i],
-            g_lo[i],
-            g_hi[i],
-        )
-        for i in range(M)
-    ]
+    return CellAnswers(
+        found.astype(bool),
+        np.array(thetas, float),
+        np.asarray(grasps, np.int64),
+        lo,
+        hi,
+        xy,
+        g_lo,
+        g_hi,
+        [r.astype(np.int32) for r in rows_of],
+        [r.reshape(-1, dof) for r in ref_of],
+    )
 
 
 @dataclass(frozen=True)
