@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pickstop.reach.so3 import quats_to_matrices
@@ -385,6 +385,44 @@ def test_witnesses_clear_sees_an_object_on_a_witness_arm(planner, paper_doc):
     T = np.eye(4)
     T[:3, 3] = (x + c * elbow[0] - s * elbow[1], y + s * elbow[0] + c * elbow[1], elbow[2])
     assert not witnesses_clear(planner, region, [Solid.box(T, (0.03, 0.03, 0.03), "elbow")])
+
+
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(st.integers(0, 10_000), st.floats(0.01, 0.3), st.floats(-0.15, 0.15))
+def test_witness_boxes_hold_every_witness_the_screen_flags(planner, paper_doc, seed, size, off):
+    """A box near some joint of a witness arm: every witness the sphere screen flags against
+    it has a witness box that meets the solid's bounds (so witnesses_clear may skip the rest),
+    and witnesses_clear says the same with the boxes as without."""
+    from pickstop.regions.validity import witness_boxes, witnesses_clear
+    from pickstop.scene.world import Solid
+
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "tray_1")
+    K, P, dof = region.thetas.shape
+    rng = np.random.default_rng(seed)
+    k, j = int(rng.integers(K)), int(rng.integers(1, dof + 2))
+    R_t, p_t, frames = fk_soa(planner.solver.chain, region.thetas[k, 0][:, None], frames=True)
+    # at a joint, or past the tool frame along the approach, where the fingers reach
+    p = (frames[j - 1][1][:, 0] if j <= dof else p_t[:, 0] + 0.09 * R_t[:, 0, 0]) + off
+    c, s_ = np.cos(region.yaw), np.sin(region.yaw)
+    x, y = region.grid.centres(region.cells[k : k + 1, 1], region.cells[k : k + 1, 0])[0]
+    T = np.eye(4)
+    T[:3, :3] = quats_to_matrices(rng.normal(size=(1, 4)))[0]
+    T[:3, 3] = (x + c * p[0] - s_ * p[1], y + s_ * p[0] + c * p[1], p[2])
+    solid = Solid.box(T, (size, 0.5 * size, 0.03), "probe")
+    lo, hi = witness_boxes(planner, region)
+    a, b = solid.aabb()
+    meets = np.all((lo <= b) & (a <= hi), axis=1)
+    xy = np.repeat(region.grid.centres(region.cells[:, 1], region.cells[:, 0]), P, axis=0)
+    th = region.thetas.reshape(K * P, dof)
+    _, _, fr = fk_soa(planner.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    flagged = screen_arm(planner.arm, BoxArrays.of([solid]), fr, xy, region.yaw)
+    assert not (flagged & ~meets).any()
+    assert witnesses_clear(planner, region, [solid], (lo, hi)) == witnesses_clear(
+        planner, region, [solid]
+    )
 
 
 def test_grasps_are_reused_while_nothing_reaches_into_the_hands(planner, paper_doc, monkeypatch):

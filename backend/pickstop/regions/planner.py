@@ -17,7 +17,14 @@ from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import compute_tray_region
 from pickstop.regions.solve import warm_kernels
-from pickstop.regions.validity import CacheEntry, Snapshot, own_key, snapshot, still_valid
+from pickstop.regions.validity import (
+    CacheEntry,
+    Snapshot,
+    own_key,
+    snapshot,
+    snapshots,
+    still_valid,
+)
 from pickstop.regions.workers import RegionWorkers
 from pickstop.scene.model import Scene
 
@@ -80,7 +87,8 @@ class RegionPlanner(RegionKit):
                 self._last.remember(scene, region)
             return dict(hit)
         workers = self.workers if workers is None else workers
-        snaps = {t: snapshot(scene, t) for t in dict.fromkeys(t for t, _ in pairs)}
+        trays = list(dict.fromkeys(t for t, _ in pairs))
+        snaps = dict(zip(trays, snapshots(scene, trays, self.object_solids(scene)), strict=True))
         out: dict[tuple[str, float], TrayRegion] = {}
         for t, y in pairs:
             kept = self._cached(scene, t, y, snaps[t])
@@ -111,7 +119,7 @@ class RegionPlanner(RegionKit):
         entries = self.cache.get(own_key(self, scene, tray, yaw), [])
         if not entries:
             return None  # never computed with the tray here: nothing to snapshot for
-        snap = snapshot(scene, tray.id) if snap is None else snap
+        snap = snapshot(scene, tray.id, self.object_solids(scene)) if snap is None else snap
         for entry in entries:
             if still_valid(self, entry, snap):
                 return entry.region
@@ -138,7 +146,7 @@ class RegionPlanner(RegionKit):
     def _store(self, scene: Scene, region: TrayRegion, snap: Snapshot | None = None) -> None:
         self._last.remember(scene, region)
         entries = self.cache.setdefault(region.key, [])
-        snap = snapshot(scene, region.tray_id) if snap is None else snap
+        snap = snapshot(scene, region.tray_id, self.object_solids(scene)) if snap is None else snap
         entries.insert(0, CacheEntry(region, snap))
         del entries[LAYOUTS_PER_TRAY:]
         if len(self.cache) > self.cache_size:

@@ -22,14 +22,7 @@ from pickstop.regions.footprint import blocked_by
 from pickstop.regions.kit import RegionKit
 from pickstop.robot.kinematics import fk_soa
 from pickstop.scene.model import Scene, Tray
-from pickstop.scene.world import (
-    BoxArrays,
-    Solid,
-    part_solid,
-    pose_matrix,
-    shape_solid,
-    tray_body_solids,
-)
+from pickstop.scene.world import BoxArrays, Groups, Solid, object_solids
 
 
 def own_key(planner: RegionKit, scene: Scene, tray: Tray, yaw: float) -> str:
@@ -60,38 +53,74 @@ class CacheEntry:
     region: TrayRegion
     snapshot: Snapshot
     cleared: set[str] = field(default_factory=set)  # new definitions no witness collides with
+    # the world box of each witness arm's covering spheres, once asked for (witness_boxes)
+    boxes: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
-def snapshot(scene: Scene, exclude: str) -> Snapshot:
+def snapshots(scene: Scene, excludes: list[str], groups: Groups | None = None) -> list[Snapshot]:
+    """For each tray id of ``excludes``, every object of ``scene`` but that tray: definition,
+    solids, owner names (``groups``: the scene's
+    :func:`~pickstop.scene.world.object_solids`, if made already)."""
+    groups = object_solids(scene) if groups is None else groups
+    every: dict[str, tuple[str, list[Solid], frozenset[str]]] = {}
+    for o, g in zip(scene.obstacles, groups, strict=False):
+        every[f"obstacle:{o.id}"] = (o.model_dump_json(), list(g), frozenset([o.id]))
+    for t, g in zip(scene.trays, groups[len(scene.obstacles) :], strict=True):
+        owners = frozenset([t.id, *(p.id for p in t.parts)])
+        every[f"tray:{t.id}"] = (t.model_dump_json(), list(g), owners)
+    return [{k: v for k, v in every.items() if k != f"tray:{x}"} for x in excludes]
+
+
+def snapshot(scene: Scene, exclude: str, groups: Groups | None = None) -> Snapshot:
     """Every object but the tray ``exclude``: definition, solids, owner names."""
-    out = {}
-    for o in scene.obstacles:
-        solid = shape_solid(o.geometry, pose_matrix(o.pose), o.id)
-        out[f"obstacle:{o.id}"] = (o.model_dump_json(), [solid], frozenset([o.id]))
-    for t in scene.trays:
-        if t.id != exclude:
-            solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
-            owners = frozenset([t.id, *(p.id for p in t.parts)])
-            out[f"tray:{t.id}"] = (t.model_dump_json(), solids, owners)
-    return out
+    return snapshots(scene, [exclude], groups)[0]
 
 
-def witnesses_clear(planner: RegionKit, region: TrayRegion, solids: list[Solid]) -> bool:
+def witness_boxes(planner: RegionKit, region: TrayRegion) -> tuple[np.ndarray, np.ndarray]:
+    """``(K * P, 3)`` lo and hi: the world box around the covering spheres of each witness
+    arm of ``region`` (cell by cell, part by part), padded as the screens' boxes are: a solid
+    whose bounds miss it is not flagged by the screen, so the witness is free of it."""
+    from pickstop.regions.solve import CheckedLinks
+
+    K, P, dof = region.thetas.shape
+    xy = np.repeat(region.grid.centres(region.cells[:, 1], region.cells[:, 0]), P, axis=0)
+    th = region.thetas.reshape(K * P, dof)
+    links = CheckedLinks.of(planner, th, xy, region.yaw, np.arange(K * P))
+    J = len(links.lo) // max(K * P, 1)
+    return links.lo.reshape(K * P, J, 3).min(1), links.hi.reshape(K * P, J, 3).max(1)
+
+
+def witnesses_clear(
+    planner: RegionKit,
+    region: TrayRegion,
+    solids: list[Solid],
+    arm_boxes: tuple[np.ndarray, np.ndarray] | None = None,
+) -> bool:
     """Is every witness arm of ``region`` free of ``solids``? The sphere screen first, coal
-    for what it flags (the hands and footprints are covered by the region's envelope)."""
+    for what it flags (the hands and footprints are covered by the region's envelope).
+    ``arm_boxes``: the region's :func:`witness_boxes`, if known (only the witnesses whose box
+    meets a solid's bounds are screened)."""
     if not len(region.cells) or not solids:
         return True
     K, P, dof = region.thetas.shape
     xy = np.repeat(region.grid.centres(region.cells[:, 1], region.cells[:, 0]), P, axis=0)
-    lo = np.min([s.aabb()[0] for s in solids], axis=0)
-    hi = np.max([s.aabb()[1] for s in solids], axis=0)
-    reach = planner.reach_xy + float(planner.arm.bound_r.max())
-    near = np.flatnonzero(
-        (xy[:, 0] > lo[0] - reach)
-        & (xy[:, 0] < hi[0] + reach)
-        & (xy[:, 1] > lo[1] - reach)
-        & (xy[:, 1] < hi[1] + reach)
-    )
+    s_lo = np.array([s.aabb()[0] for s in solids])
+    s_hi = np.array([s.aabb()[1] for s in solids])
+    if arm_boxes is not None:
+        w_lo, w_hi = arm_boxes
+        meets = np.zeros(K * P, bool)
+        for a, b in zip(s_lo, s_hi, strict=True):
+            meets |= np.all((w_lo <= b) & (a <= w_hi), axis=1)
+        near = np.flatnonzero(meets)
+    else:
+        lo, hi = s_lo.min(0), s_hi.max(0)
+        reach = planner.reach_xy + float(planner.arm.bound_r.max())
+        near = np.flatnonzero(
+            (xy[:, 0] > lo[0] - reach)
+            & (xy[:, 0] < hi[0] + reach)
+            & (xy[:, 1] > lo[1] - reach)
+            & (xy[:, 1] < hi[1] + reach)
+        )
     if not len(near):
         return True
     th = region.thetas.reshape(K * P, dof)[near]
@@ -124,7 +153,11 @@ def still_valid(planner: RegionKit, entry: CacheEntry, snap: Snapshot) -> bool:
             return False  # where it is, it may block a hand or the footprint
         if blocked_by(planner.robot, new[1], env.free_xy, entry.region.yaw).any():
             return False  # where it is, it overhangs a free cell
-        if not witnesses_clear(planner, entry.region, new[1]):
+        if not entry.boxes and len(entry.region.cells):
+            entry.boxes.append(witness_boxes(planner, entry.region))
+        if not witnesses_clear(
+            planner, entry.region, new[1], entry.boxes[0] if entry.boxes else None
+        ):
             return False  # where it is, it collides with a witness arm
         entry.cleared.add(new[0])
     return True
