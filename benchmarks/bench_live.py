@@ -2,7 +2,7 @@
 
     PICKSTOP_DATA_DIR=<data with a TIAGo database> python benchmarks/bench_live.py
         [--scenes paper_experiment five_trays factory_cell] [--trays N]
-        [--only moves|options] [--hold S]
+        [--only moves|options] [--hold S] [--verbose]
 
 Starts ``pickstop serve`` on 127.0.0.1 over the data folder, then per example scene: plans the
 scene as it is (warm), and for each of its first ``--trays`` trays and each move (0.05, 0.1,
@@ -14,10 +14,11 @@ the scene invalid (a tray into its neighbour, off its table) is skipped. Then si
 (0.05 to 0.15 m), rule, target and objective changes on the scene as it is. Prints the time
 each request took at the client (HTTP and JSON included), median and p90, per kind and scene.
 ``--hold S`` waits S seconds between a move's preview and its exact plan (the engineer
-holding the tray still before letting go: the service plans the previewed layout ahead then).
-``--only options`` runs only the sigma, rule, target and objective part (a minute instead of
-several per scene), ``--only moves`` only the tray moves; ``--sweeps K`` repeats the sigma
-sweep K times (more samples, a steadier median).
+holding the tray still before letting go: the service plans the previewed layout ahead
+then). ``--verbose`` prints each exact plan's time and stages. ``--only options`` runs only
+the sigma, rule, target and objective part (a minute instead of several per scene), ``--only
+moves`` only the tray moves; ``--sweeps K`` repeats the sigma sweep K times (more samples, a
+steadier median).
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ def _stats(xs: list[float]) -> str:
 SERVER: list[float] = []  # the plans' own total times [s] (timings.total), request by request
 PARTS: list[dict[str, float]] = []  # the plans' timings [s] by stage, request by request
 LAST_SIZE = [0]  # bytes of the last response body
+VERBOSE = False  # --verbose: each exact plan's time and stages
 
 
 def _plan(c: httpx.Client, doc: dict, options: dict, mode: str = "sync") -> tuple[float, int]:
@@ -128,6 +130,11 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int, hold: float = 0.0) -> 
                 skipped += 1  # the move made the scene invalid or infeasible
                 continue
             exact[kind].append(te)
+            if VERBOSE:
+                parts = ", ".join(
+                    f"{k} {v * 1e3:.0f}" for k, v in PARTS[-1].items() if isinstance(v, float)
+                )
+                print(f"    {tray['id']} {(dx, dy, dyaw)}: exact {te * 1e3:.0f} ms ({parts})")
             if kind == "move":
                 own["exact"].append(SERVER[-1])
                 stages.append(PARTS[-1])
@@ -193,7 +200,10 @@ def main() -> None:
     ap.add_argument(
         "--hold", type=float, default=0.0, help="seconds between a preview and its exact plan"
     )
+    ap.add_argument("--verbose", action="store_true", help="each exact plan's stages")
     args = ap.parse_args()
+    global VERBOSE
+    VERBOSE = args.verbose
     port = _port()
     env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]'}
     log_path = Path(tempfile.gettempdir()) / "pickstop-bench-live.log"
