@@ -4,6 +4,7 @@ emptiness, precise cache invalidation, off-grid checks, the worker pool."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 from pathlib import Path
 
@@ -22,27 +23,24 @@ from pickstop.scene.world import BoxArrays, scene_solids
 from .conftest import add_high_shelf_tray
 
 
-def test_every_feasible_cell_has_exactly_verified_witnesses(planner, paper_doc, tiago):
+def _assert_verified(tiago, planner, scene, tray_id, xy, yaw, thetas, grasp_index):
+    """Each witness ``thetas: (N, P, dof)`` on its base ``xy: (N, 2)`` reaches its grasp's
+    tool pose, keeps the joint limits and is free of the scene and of itself (exact)."""
     from pickstop.robot.artifacts import self_collision
     from pickstop.robot.selfcollision import ExactSelfCollision
 
-    scene = parse_scene(paper_doc)
-    region = planner.tray_region(scene, "tray_2")
-    assert region.reason is None and len(region.cells) > 20
     chain = Chain.from_robot(tiago)
-    grasps = planner.grasps(scene, scene.tray("tray_2"))
+    grasps = planner.grasps(scene, scene.tray(tray_id))
     solids = scene_solids(scene)
     exact_arm = ExactArm(tiago)
     exact_self = ExactSelfCollision(tiago, self_collision(tiago, planner.cache_dir)[0])
-    yaw = region.yaw
     c, s = np.cos(yaw), np.sin(yaw)
-    xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
     for k, gs in enumerate(grasps):
-        th = region.thetas[:, k]
+        th = thetas[:, k]
         R, p = fk(chain, th)
         for i in range(len(th)):
-            T_wt = gs.Ts_world_tool[region.grasp_index[i, k]]
-            # The tool pose in the world from the witness on its base cell.
+            T_wt = gs.Ts_world_tool[grasp_index[i, k]]
+            # The tool pose in the world from the witness on its base.
             Rw = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ R[i]
             pw = np.array(
                 [
@@ -57,6 +55,16 @@ def test_every_feasible_cell_has_exactly_verified_witnesses(planner, paper_doc, 
             assert (th[i] >= tiago.lower - 1e-9).all() and (th[i] <= tiago.upper + 1e-9).all()
             assert not exact_arm.colliding(th[i], xy[i, 0], xy[i, 1], yaw, solids)
         assert not exact_self.colliding(th).any()
+
+
+def test_every_feasible_cell_has_exactly_verified_witnesses(planner, paper_doc, tiago):
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "tray_2")
+    assert region.reason is None and len(region.cells) > 20
+    xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
+    _assert_verified(
+        tiago, planner, scene, "tray_2", xy, region.yaw, region.thetas, region.grasp_index
+    )
 
 
 def test_region_polygon_matches_cells_and_geojson_round_trip(planner, paper_doc):
@@ -241,6 +249,61 @@ def test_feasible_at_agrees_with_the_grid(planner, paper_doc):
     assert ok.mean() > 0.99
     far = np.array([[4.5, -0.5], [0.0, 0.0]])
     assert not feasible_at(planner, scene, "tray_2", far, region.yaw)[0].any()
+
+
+def test_seeds_first_passes_the_same_poses_with_verified_witnesses(planner, paper_doc, tiago):
+    """The stop checks try the seeds before the database: the same poses pass as the
+    other way round (off the grid, near the region and beyond it), each with a witness
+    verified where it stands."""
+    from pickstop.regions.offgrid import feasible_near
+
+    scene = parse_scene(paper_doc)
+    region = planner.tray_region(scene, "tray_2")
+    rng = np.random.default_rng(7)
+    cells = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
+    xy = cells[rng.integers(len(cells), size=60)] + rng.uniform(-0.12, 0.12, (60, 2))
+    # The whole region seeds nearly every pose; a region of its one farthest cell seeds
+    # hardly any, so the database must settle them.
+    far = np.argmax(np.hypot(*(cells - cells.mean(0)).T))
+    thin = dataclasses.replace(
+        region,
+        cells=region.cells[far : far + 1],
+        thetas=region.thetas[far : far + 1],
+        grasp_index=region.grasp_index[far : far + 1],
+    )
+    for r in (region, thin):
+        ok, _, _ = feasible_near(planner, scene, r, xy, r.yaw)
+        first, th, g = feasible_near(planner, scene, r, xy, r.yaw, seeds_first=True)
+        assert (first == ok).all()
+        assert 0 < ok.sum() < len(ok)  # some poses pass, some do not
+        _assert_verified(tiago, planner, scene, "tray_2", xy[first], r.yaw, th[first], g[first])
+
+
+def test_a_layout_edited_away_from_and_back_keeps_its_regions(planner, paper_doc):
+    """More layouts than a tray keeps regions for are tried around the scene as it is,
+    going back to it after each: the regions of the scene as it is stay cached (used last),
+    so they serve it again without a recompute once its whole layout is forgotten."""
+    from pickstop.regions.planner import LAYOUTS_PER_TRAY
+
+    scene = parse_scene(paper_doc)
+    planner.forget()
+    before = planner.regions(scene, workers=1)
+    for k in range(LAYOUTS_PER_TRAY + 1):
+        doc = copy.deepcopy(paper_doc)
+        doc["trays"][0]["pose"]["y"] += 0.05 * (k + 1)
+        moved = planner.regions(parse_scene(doc), workers=1)
+        yaw = scene.base_yaw.yaws[0]
+        assert moved["tray_2", yaw] is not before["tray_2", yaw]  # tray_2 computed anew
+        assert planner.regions(scene, workers=1) == before
+    planner._layouts.clear()  # the scene's layout forgotten: each region from the cache
+    computed = []
+    real = planner._compute
+    planner._compute = lambda *a: computed.append(a) or real(*a)  # type: ignore[method-assign]
+    try:
+        again = planner.regions(scene, workers=1)
+    finally:
+        del planner._compute
+    assert computed == [] and all(again[p] is before[p] for p in before)
 
 
 def test_parallel_regions_equal_serial(planner, paper_doc):

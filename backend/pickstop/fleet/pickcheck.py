@@ -51,7 +51,9 @@ class PickChecker:
                 out = (False, f"tray {tray_id!r} is not in the scene")
             else:
                 self.calls += 1
-                ok, _, _ = feasible_near(self.planner, self.scene, region, np.array([[x, y]]), yaw)
+                ok, _, _ = feasible_near(
+                    self.planner, self.scene, region, np.array([[x, y]]), yaw, seeds_first=True
+                )
                 out = (
                     (True, "graspable collision-free")
                     if ok[0]

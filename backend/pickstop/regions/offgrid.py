@@ -3,7 +3,8 @@
 A stop's inscribed centre or a Monte Carlo sample of the base pose seldom falls on a cell
 centre. :func:`feasible_at` runs the pipeline's checks there (footprint, IK by query, screen,
 refinement, coal); :func:`feasible_near` adds IK seeded by the witnesses of the region's
-nearest feasible cells where the database's voxels hold nothing usable.
+nearest feasible cells where the database's voxels hold nothing usable (or tries it first,
+where that is cheaper).
 """
 
 from __future__ import annotations
@@ -94,56 +95,91 @@ SEED_ITERATIONS = 20
 
 
 def feasible_near(
-    planner: RegionKit, scene: Scene, region: TrayRegion, xy: np.ndarray, yaw: float
+    planner: RegionKit,
+    scene: Scene,
+    region: TrayRegion,
+    xy: np.ndarray,
+    yaw: float,
+    seeds_first: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`feasible_at`, then, where that fails, IK seeded by the witnesses of the region's
-    nearest feasible cells (exact solutions a few centimetres away; their own grasps, then
-    every other grasp), verified the same way.
+    """The region's test at arbitrary base poses, as :func:`feasible_at` and more: a pose
+    passes if :func:`feasible_at` verifies there (the database queried at the pose itself),
+    or else if IK seeded by the witnesses of the region's nearest feasible cells (exact
+    solutions a few centimetres away; their own grasps, then every other grasp) does.
 
     Off the grid (a stop's inscribed centre, a Monte Carlo sample) the database's voxels may
     hold no candidate for a pose whose neighbours were solved; the seeds close that gap.
+    ``seeds_first``: the seeds are tried first and the database only where they fail, the
+    same poses passing (a pose's outcome by either way depends on it alone): cheaper for a
+    few poses near the cells (a stop's centre), dearer for many (a query serves a batch at
+    once). Every witness returned is verified at its pose.
     """
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
-    ok, thetas, grasp = feasible_at(planner, scene, region.tray_id, xy, yaw)
-    todo = np.flatnonzero(~ok)
-    if not len(todo) or not len(region.cells) or abs(region.yaw - yaw) > 0.2:
-        return ok, thetas, grasp
-    free = footprint_free(scene, planner.robot, xy[todo], yaw, planner.solids_of(scene))
-    todo = todo[free]
-    if not len(todo):
-        return ok, thetas, grasp
+    tray = scene.tray(region.tray_id)
+    M, P, dof = len(xy), len(tray.parts), planner.robot.dof
+    ok = np.zeros(M, bool)
+    thetas = np.zeros((M, P, dof))
+    grasp = np.zeros((M, P), int)
+
+    def take(idx: np.ndarray, got: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        win = idx[got[0]]
+        ok[win], thetas[win], grasp[win] = True, got[1][got[0]], got[2][got[0]]
+
+    def by_database() -> None:
+        idx = np.flatnonzero(~ok)
+        if len(idx):
+            take(idx, feasible_at(planner, scene, region.tray_id, xy[idx], yaw))
+
+    def by_seeds() -> None:
+        if not P or not len(region.cells) or abs(region.yaw - yaw) > 0.2:
+            return
+        idx = np.flatnonzero(~ok)
+        idx = idx[footprint_free(scene, planner.robot, xy[idx], yaw, planner.solids_of(scene))]
+        if len(idx):
+            take(idx, _seeded_by_cells(planner, scene, region, xy[idx], yaw))
+
+    for step in (by_seeds, by_database) if seeds_first else (by_database, by_seeds):
+        step()
+    return ok, thetas, grasp
+
+
+def _seeded_by_cells(
+    planner: RegionKit, scene: Scene, region: TrayRegion, xy: np.ndarray, yaw: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`feasible_near`'s seeded IK at base poses ``xy: (T, 2)`` whose footprint is
+    free: ``ok (T,)``, witnesses ``(T, P, dof)``, grasps ``(T, P)``."""
     tray = scene.tray(region.tray_id)
     world, R_base_world = _arm_world(planner, scene, tray, yaw)
     cells_xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
     S = min(NEIGHBOUR_SEEDS, len(cells_xy))
-    d2 = ((xy[todo, None, :] - cells_xy[None]) ** 2).sum(-1)
+    d2 = ((xy[:, None, :] - cells_xy[None]) ** 2).sum(-1)
     near = np.argsort(d2, axis=1)[:, :S]  # (T, S) nearest feasible cells
-    alive = np.ones(len(todo), bool)
-    th_new = np.zeros((len(todo), len(tray.parts), planner.robot.dof))
-    g_new = np.zeros((len(todo), len(tray.parts)), int)
-    dof = planner.robot.dof
+    T, dof = len(xy), planner.robot.dof
+    alive = np.ones(T, bool)
+    th_new = np.zeros((T, len(tray.parts), dof))
+    g_new = np.zeros((T, len(tray.parts)), int)
     for k, gs in enumerate(planner.grasps(scene, tray)):
         G = len(gs.Ts_world_tool)
-        hit = np.zeros(len(todo), bool)
+        hit = np.zeros(T, bool)
         # The neighbours' own grasps first, then (from the two nearest) every other grasp,
         # as the region's growth does.
         for n_seeds, shifts in ((S, np.zeros(1, int)), (min(2, S), np.arange(1, G))):
             rest = np.flatnonzero(alive & ~hit)
-            if not len(rest) or not len(shifts):
+            if not len(rest) or not len(shifts) or not G:
                 continue
             src = near[rest, :n_seeds].reshape(-1)  # seeding cells
             owner = np.repeat(np.repeat(rest, n_seeds), len(shifts))
             g = ((region.grasp_index[src, k][:, None] + shifts) % G).ravel()
-            tg = Targets.of(gs, xy[todo[owner]], R_base_world)
+            tg = Targets.of(gs, xy[owner], R_base_world)
             win, th = solve.seeded(
                 planner,
                 world,
                 np.repeat(region.thetas[src, k].reshape(-1, dof), len(shifts), axis=0),
                 tg.Rs_base_tool[g],
                 tg.ps_base_tool[np.arange(len(g)), g],
-                xy[todo[owner]],
+                xy[owner],
                 owner,
-                len(todo),
+                T,
                 SEED_ITERATIONS,
                 solve.GROW_GIVE_UP,
                 gs.part_id,
@@ -153,8 +189,4 @@ def feasible_near(
             g_new[got, k] = g[win[got]]
             hit |= got
         alive &= hit
-    win = todo[alive]
-    ok[win] = True
-    thetas[win] = th_new[alive]
-    grasp[win] = g_new[alive]
-    return ok, thetas, grasp
+    return alive, th_new, g_new

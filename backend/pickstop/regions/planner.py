@@ -85,6 +85,7 @@ class RegionPlanner(RegionKit):
         if hit is not None:
             for region in hit.values():
                 self._last.remember(scene, region)
+                self._used(region)
             return dict(hit)
         workers = self.workers if workers is None else workers
         trays = list(dict.fromkeys(t for t, _ in pairs))
@@ -122,8 +123,22 @@ class RegionPlanner(RegionKit):
         snap = snapshot(scene, tray.id, self.object_solids(scene)) if snap is None else snap
         for entry in entries:
             if still_valid(self, entry, snap):
+                self._used(entry.region)
                 return entry.region
         return None
+
+    def _used(self, region: TrayRegion) -> None:
+        """``region`` served a layout: its cache entry is the last its tray (and of all
+        trays, its key) lets go, so a layout edited away from and back to keeps its regions
+        however many layouts were tried meanwhile."""
+        entries = self.cache.get(region.key)
+        if entries is None:
+            return
+        self.cache[region.key] = self.cache.pop(region.key)
+        for i, entry in enumerate(entries):
+            if entry.region is region:
+                entries.insert(0, entries.pop(i))
+                return
 
     def known_regions(
         self, scene: Scene, pairs: list[tuple[str, float]]

@@ -8,9 +8,11 @@ Shapely may return lines and points where regions merely touch: only polygon par
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
+import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
@@ -38,7 +40,9 @@ class Intersection:
         """The polygon's exterior ring, then its holes, as plans report them: coordinates [m]
         rounded to 0.1 mm (computed once: candidates are kept while their regions are)."""
         rings = [self.polygon.exterior, *self.polygon.interiors]
-        return [[(round(x, 4), round(y, 4)) for x, y in r.coords] for r in rings]
+        return [
+            [(x, y) for x, y in np.round(shapely.get_coordinates(r), 4).tolist()] for r in rings
+        ]
 
 
 def polygon_parts(geom: BaseGeometry) -> list[Polygon]:
@@ -63,13 +67,17 @@ def inscribed_circle(poly: Polygon, tolerance: float = 1e-3) -> tuple[tuple[floa
 
 
 def intersections(
-    regions: dict[str, BaseGeometry], yaw: float = 0.0, max_order: int | None = None
+    regions: dict[str, BaseGeometry],
+    yaw: float = 0.0,
+    max_order: int | None = None,
+    circle: Callable[[Polygon], tuple[tuple[float, float], float]] = inscribed_circle,
 ) -> list[Intersection]:
     """Every connected component of every non-empty intersection of ``regions``.
 
     regions: tray id -> region geometry at one yaw. Subsets grow one tray at a time and stop
     as soon as they are empty (an empty intersection has no non-empty superset), so the work
-    follows the number of non-empty intersections, not 2^n.
+    follows the number of non-empty intersections, not 2^n. ``circle``: the
+    :func:`inscribed_circle` of a component (a memo of it, say).
     """
     ids = sorted(t for t, g in regions.items() if polygon_parts(g))
     cleaned = {t: shapely.union_all(polygon_parts(regions[t])) for t in ids}
@@ -80,7 +88,7 @@ def intersections(
     while level:
         for trays, geom in level:
             for part in polygon_parts(geom):
-                centre, radius = inscribed_circle(part)
+                centre, radius = circle(part)
                 out.append(Intersection(frozenset(trays), yaw, part, centre, radius))
         if max_order is not None and k >= max_order:
             break

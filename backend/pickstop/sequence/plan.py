@@ -48,7 +48,7 @@ from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
-from pickstop.sequence.intersections import Intersection, intersections
+from pickstop.sequence.intersections import Intersection, inscribed_circle, intersections
 from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
 from pickstop.sequence.success import Rate, combined, monte_carlo
@@ -139,6 +139,7 @@ class StopPlanner:
         self._witnesses = _Lru(4096)
         self._rates = _Lru(4096)
         self._selections = _Lru(256)
+        self._circles = _Lru(4096)  # component (WKB) -> its inscribed circle
         self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
         self._planned = _Lru(1024)  # (layout, options) planned ahead by prefetch_selections
 
@@ -157,7 +158,7 @@ class StopPlanner:
         out: list[Intersection] = []
         for yaw in sorted({y for _, y in regions}):
             polys = {t: r.polygon for (t, y), r in regions.items() if y == yaw}
-            for c in intersections(polys, yaw):
+            for c in intersections(polys, yaw, circle=self._circle):
                 if not any(
                     o.trays == c.trays
                     and o.yaw == c.yaw
@@ -166,6 +167,14 @@ class StopPlanner:
                 ):
                     out.append(c)
         return list(self._candidates.put(key, tuple(out)))
+
+    def _circle(self, poly: Polygon) -> tuple[tuple[float, float], float]:
+        """The largest inscribed circle of an intersection component, kept by its exact
+        coordinates: a layout that moves one tray leaves the intersections of the others as
+        they were."""
+        key = shapely.to_wkb(poly)
+        hit = self._circles.hit(key)
+        return hit if hit is not None else self._circles.put(key, inscribed_circle(poly))
 
     def floor(self, scene: Scene, world: str | None = None) -> _Floor:
         """Where the base may drive: the floor minus obstacles inflated by the footprint.
@@ -252,7 +261,9 @@ class StopPlanner:
         key = self.check_key(scene, region, xy) if key is None else key
         hit = self._checks.hit(key)
         if hit is None:
-            ok, th, g = feasible_near(self.regions, scene, region, np.array([xy]), region.yaw)
+            ok, th, g = feasible_near(
+                self.regions, scene, region, np.array([xy]), region.yaw, seeds_first=True
+            )
             hit = self._checks.put(key, (bool(ok[0]), th[0], g[0]))
         return hit
 
