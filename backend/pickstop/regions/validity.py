@@ -53,7 +53,7 @@ class CacheEntry:
     region: TrayRegion
     snapshot: Snapshot
     cleared: set[str] = field(default_factory=set)  # new definitions no witness collides with
-    # the world box of each witness arm's covering spheres, once asked for (witness_boxes)
+    # the region's witness_boxes, once asked for (_arm_boxes; the entry is frozen)
     boxes: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
@@ -88,6 +88,13 @@ def witness_boxes(planner: RegionKit, region: TrayRegion) -> tuple[np.ndarray, n
     links = CheckedLinks.of(planner, th, xy, region.yaw, np.arange(K * P))
     J = len(links.lo) // max(K * P, 1)
     return links.lo.reshape(K * P, J, 3).min(1), links.hi.reshape(K * P, J, 3).max(1)
+
+
+def _arm_boxes(planner: RegionKit, entry: CacheEntry) -> tuple[np.ndarray, np.ndarray]:
+    """The :func:`witness_boxes` of the entry's region, computed once."""
+    if not entry.boxes:
+        entry.boxes.append(witness_boxes(planner, entry.region))
+    return entry.boxes[0]
 
 
 def witnesses_clear(
@@ -153,11 +160,8 @@ def still_valid(planner: RegionKit, entry: CacheEntry, snap: Snapshot) -> bool:
             return False  # where it is, it may block a hand or the footprint
         if blocked_by(planner.robot, new[1], env.free_xy, entry.region.yaw).any():
             return False  # where it is, it overhangs a free cell
-        if not entry.boxes and len(entry.region.cells):
-            entry.boxes.append(witness_boxes(planner, entry.region))
-        if not witnesses_clear(
-            planner, entry.region, new[1], entry.boxes[0] if entry.boxes else None
-        ):
+        boxes = _arm_boxes(planner, entry) if len(entry.region.cells) else None
+        if not witnesses_clear(planner, entry.region, new[1], boxes):
             return False  # where it is, it collides with a witness arm
         entry.cleared.add(new[0])
     return True

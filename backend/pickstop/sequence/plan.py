@@ -139,7 +139,7 @@ class StopPlanner:
         self._witnesses = _Lru(4096)
         self._rates = _Lru(4096)
         self._selections = _Lru(256)
-        self._circles = _Lru(4096)  # component (WKB) -> its inscribed circle
+        self._circles = _Lru(4096)  # component (its WKB's digest) -> its inscribed circle
         self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
         self._planned = _Lru(1024)  # (layout, options) planned ahead by prefetch_selections
 
@@ -172,7 +172,7 @@ class StopPlanner:
         """The largest inscribed circle of an intersection component, kept by its exact
         coordinates: a layout that moves one tray leaves the intersections of the others as
         they were."""
-        key = shapely.to_wkb(poly)
+        key = hashlib.sha1(shapely.to_wkb(poly)).digest()
         hit = self._circles.hit(key)
         return hit if hit is not None else self._circles.put(key, inscribed_circle(poly))
 
