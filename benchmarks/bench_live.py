@@ -18,7 +18,7 @@ holding the tray still before letting go: the service plans the previewed layout
 then). ``--verbose`` prints each exact plan's time and stages. ``--only options`` runs only
 the sigma, rule, target and objective part (a minute instead of several per scene), ``--only
 moves`` only the tray moves; ``--sweeps K`` repeats the sigma sweep K times (more samples, a
-steadier median).
+steadier median); ``--kinds turn`` moves the trays only by turns (``move``: only translations).
 """
 
 from __future__ import annotations
@@ -145,6 +145,8 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int, hold: float = 0.0) -> 
             _plan(c, doc, {})  # back to the layout as it was
             time.sleep(PAUSE)  # the engineer looks at the plan before the next move
     for kind in ("move", "turn"):
+        if not any(("turn" if m[2] else "move") == kind for m in MOVES):
+            continue
         label = "translations 0.05-0.5 m" if kind == "move" else "turns by 0.3 rad"
         pv = "not offered" if no_preview else _stats(preview[kind])
         print(f"  preview, {label:24s} {pv}")
@@ -201,9 +203,14 @@ def main() -> None:
         "--hold", type=float, default=0.0, help="seconds between a preview and its exact plan"
     )
     ap.add_argument("--verbose", action="store_true", help="each exact plan's stages")
+    ap.add_argument(
+        "--kinds", nargs="+", choices=["move", "turn"], default=["move", "turn"],
+        help="which tray moves: translations, turns or both",
+    )  # fmt: skip
     args = ap.parse_args()
     global VERBOSE
     VERBOSE = args.verbose
+    MOVES[:] = [m for m in MOVES if ("turn" if m[2] else "move") in args.kinds]
     port = _port()
     env = {**os.environ, "PICKSTOP_API_KEYS": f'["{hash_key(KEY)}"]'}
     log_path = Path(tempfile.gettempdir()) / "pickstop-bench-live.log"

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from pickstop.frames import R_z
 from pickstop.regions.arm import ArmSpheres
 from pickstop.regions.reuse import Change, ChangeSet
-from pickstop.regions.solve import CheckedConfigs
+from pickstop.regions.solve import CheckedConfigs, group_boxes_of
 from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.kinematics import FEW, Chain, fk_soa
 from pickstop.scene.world import AGREE_MARGIN
@@ -54,6 +54,48 @@ def test_joint_frames_are_pinocchios(name, request):
                 assert np.allclose(pj, M.translation, atol=1e-12)
 
 
+def _world_box(Rz, Rj, pj, lo, hi, base):
+    """The world box ``(1, 3)`` twice of the box ``lo, hi`` in a joint's frame ``Rj, pj``,
+    the base at ``base`` turned by ``Rz``, padded by :data:`AGREE_MARGIN`."""
+    c = Rz @ (Rj @ ((lo + hi) / 2) + pj) + np.array([base[0], base[1], 0.0])
+    half = np.abs(Rz @ Rj) @ ((hi - lo) / 2) + AGREE_MARGIN
+    return (c - half)[None], (c + half)[None]
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_group_boxes_gather_each_owners_numpy_boxes_and_hold_its_spheres(tiago, tiago_kit, seed):
+    """Per owner and joint group, the compiled boxes are the numpy boxes of its
+    configurations gathered (min and max), hold every covering sphere of the group's links
+    (padded), and stay empty (inf) for an owner without configurations."""
+    rng = np.random.default_rng(seed)
+    C, A = 60, 9
+    thetas = random_thetas(tiago, C, seed=seed % 1000)
+    xy = rng.uniform(-0.5, 0.5, (C, 2))
+    yaw = float(rng.uniform(-np.pi, np.pi))
+    owner = rng.integers(0, A - 1, C)  # owner A - 1 has none
+    lo, hi = group_boxes_of(tiago_kit, thetas, xy, yaw, owner, A)
+    groups, arm = tiago_kit.arm.joint_groups, tiago_kit.arm
+    _, _, frames = fk_soa(tiago_kit.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
+    want_lo = np.full_like(lo, np.inf)
+    want_hi = np.full_like(hi, -np.inf)
+    Rz = R_z(yaw)
+    for c in range(C):
+        for g, j in enumerate(groups.joints):
+            Rj, pj = frames[j - 1][0][:, :, c], frames[j - 1][1][:, c]
+            b_lo, b_hi = _world_box(Rz, Rj, pj, groups.lo[g], groups.hi[g], xy[c])
+            want_lo[owner[c], g] = np.minimum(want_lo[owner[c], g], b_lo[0])
+            want_hi[owner[c], g] = np.maximum(want_hi[owner[c], g], b_hi[0])
+            for lk in groups.links[g]:
+                s = slice(arm.leaf_start[lk], arm.leaf_start[lk] + arm.leaf_count[lk])
+                centres = (Rz @ (Rj @ arm.leaf_c[s].T + pj[:, None])).T + np.array([*xy[c], 0.0])
+                r = arm.leaf_r[s, None]
+                assert np.all(centres - r >= lo[owner[c], g] - 1e-12)
+                assert np.all(centres + r <= hi[owner[c], g] + 1e-12)
+    assert np.allclose(lo, want_lo, atol=1e-12) and np.allclose(hi, want_hi, atol=1e-12)
+    assert np.all(np.isinf(lo[A - 1])) and np.isfinite(lo[: A - 1]).any()
+
+
 def _touched_reference(kit, thetas, xy, yaw, owner, changes, reached):
     """Owners some padded covering sphere of whose configurations a change reaching them
     hits, tested coarse to fine with numpy and :meth:`Change.hits`."""
@@ -64,9 +106,7 @@ def _touched_reference(kit, thetas, xy, yaw, owner, changes, reached):
     Rz = R_z(yaw)
 
     def world_box(Rj, pj, lo, hi, base):
-        c = Rz @ (Rj @ ((lo + hi) / 2) + pj) + np.array([base[0], base[1], 0.0])
-        half = np.abs(Rz @ Rj) @ ((hi - lo) / 2) + AGREE_MARGIN
-        return (c - half)[None], (c + half)[None]
+        return _world_box(Rz, Rj, pj, lo, hi, base)
 
     out = set()
     for b in range(len(thetas)):

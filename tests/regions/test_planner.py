@@ -172,6 +172,46 @@ def test_exact_check_of_the_sphere_pairs_alone_is_the_whole_exact_check(planner,
     assert any(hits) and not all(hits)
 
 
+@settings(max_examples=3, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), clearance=st.sampled_from([None, 0.01, 0.35]))
+def test_checks_of_many_configurations_answer_as_one_at_a_time(planner, tiago, seed, clearance):
+    """:meth:`ExactArm.checks`, rows asked in any order across its chunks, answers each as
+    :meth:`ExactArm.colliding` does: the hand's target per row no obstacle for it, the floor
+    checked (also high enough to meet) or not."""
+    from unittest import mock
+
+    import pickstop.regions.arm as arm_module
+    from pickstop.scene.load import load_scene
+    from tests.regions.conftest import EXAMPLES
+
+    scene = load_scene(EXAMPLES / "paper_experiment.json")
+    solids = scene_solids(scene)
+    boxes = BoxArrays.of(solids)
+    rng = np.random.default_rng(seed)
+    n = 240
+    th = rng.uniform(tiago.lower, tiago.upper, (n, tiago.dof))
+    xy = np.stack([rng.uniform(0.5, 2.2, n), rng.uniform(0.6, 1.1, n)], 1)
+    yaw = float(rng.uniform(0, 2 * np.pi))
+    parts = [p.id for t in scene.trays for p in t.parts]
+    targets = np.array([parts[i % len(parts)] for i in range(n)])
+    one = ExactArm(tiago, planner.arm)
+    with mock.patch.object(arm_module, "CHECK_CHUNK", 64):
+        many = ExactArm(tiago, planner.arm).checks(th, xy, yaw, solids, targets, clearance, boxes)
+    got = {}
+    for i in rng.permutation(n).tolist():
+        got[i] = many.colliding(i)
+    want = [
+        one.colliding(th[i], xy[i, 0], xy[i, 1], yaw, solids, targets[i], clearance, boxes)
+        for i in range(n)
+    ]
+    assert [got[i] for i in range(n)] == want
+    assert any(want) and not all(want)
+    floor_only = ExactArm(tiago, planner.arm).checks(th, xy, yaw, [], None, 0.35, BoxArrays.of([]))
+    low = [one.colliding(th[i], xy[i, 0], xy[i, 1], yaw, [], None, 0.35) for i in range(n)]
+    assert [floor_only.colliding(i) for i in range(n)] == low
+    assert any(low) and not all(low)
+
+
 @settings(max_examples=4, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_environment_screen_flags_what_every_covering_sphere_flags(planner, tiago, seed):

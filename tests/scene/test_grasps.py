@@ -196,9 +196,10 @@ def test_grasps_tested_at_once_are_those_tested_one_solid_at_a_time(hand, name):
 
 @pytest.mark.parametrize("name", ["five_trays", "factory_cell"])
 def test_grasps_from_verdicts_judged_elsewhere_are_those_tested_where_the_tray_stands(hand, name):
-    # Each tray's own verdicts judged where it stands, then the tray moved (into reach of its
-    # neighbours too; and with a bar over a part's edge, above the walls, which only the rest
-    # of the scene holds): its grasps are those of the reference at the new place.
+    # Each tray's own verdicts judged where it stands, then the tray moved and turned (into
+    # reach of its neighbours too; and with a bar over a part's edge, above the walls, which
+    # only the rest of the scene holds): its grasps are those of the reference at the new
+    # place.
     from pickstop.scene.grasps import own_verdicts
     from pickstop.scene.model import SceneError
 
@@ -207,19 +208,25 @@ def test_grasps_from_verdicts_judged_elsewhere_are_those_tested_where_the_tray_s
     compared = blocked = 0
     for k, tray in enumerate(scene.trays[:4]):
         verdicts = {p.id: own_verdicts(scene, tray, p, hand) for p in tray.parts}
-        for dx, dy in ((0.04, 0.0), (0.0, -0.15), (-0.25, 0.1)):
+        for dx, dy, turn in ((0.04, 0.0, 0.0), (0.0, -0.15, 0.0), (-0.25, 0.1, 0.0),
+                             (0.0, 0.0, 0.3), (0.05, -0.1, -1.2), (0.0, 0.0, np.pi)):  # fmt: skip
             moved = json.loads(json.dumps(doc))
             t = moved["trays"][k]
             t["pose"]["x"] += dx
             t["pose"]["y"] += dy
+            t["pose"]["yaw"] = t["pose"].get("yaw", 0.0) + turn
             p0 = t["parts"][0]
+            # over the part's edge: its pose (and the edge) turned with the tray
+            yaw = t["pose"]["yaw"]
+            ex, ey = p0["pose"]["x"] + p0["geometry"]["size"][0] / 2, p0["pose"]["y"]
             bar = {
                 "id": "bar",
                 "geometry": {"shape": "box", "size": [0.012, 0.08, 0.012]},
                 "pose": {
-                    "x": t["pose"]["x"] + p0["pose"]["x"] + p0["geometry"]["size"][0] / 2,
-                    "y": t["pose"]["y"] + p0["pose"]["y"],
+                    "x": t["pose"]["x"] + np.cos(yaw) * ex - np.sin(yaw) * ey,
+                    "y": t["pose"]["y"] + np.sin(yaw) * ex + np.cos(yaw) * ey,
                     "z": t["pose"]["z"] + t["floor_thickness"] + p0["geometry"]["size"][2] + 0.03,
+                    "yaw": yaw,
                 },
             }
             with_bar = json.loads(json.dumps(moved))
@@ -238,4 +245,4 @@ def test_grasps_from_verdicts_judged_elsewhere_are_those_tested_where_the_tray_s
                 counts.append(len(got.Ts_part_tcp))
                 compared += 1
             blocked += len(counts) == 2 and counts[1] < counts[0]
-    assert compared >= 6 and blocked >= 2
+    assert compared >= 12 and blocked >= 4

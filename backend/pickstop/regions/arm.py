@@ -20,7 +20,7 @@ import pinocchio as pin
 
 from pickstop import frames
 from pickstop.frames import rot2
-from pickstop.regions.arm_kernel import link_contacts, screen_links
+from pickstop.regions.arm_kernel import contacts_many, link_contacts, screen_links
 from pickstop.regions.envelope import Envelope
 from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
@@ -276,6 +276,9 @@ class ExactArm:
         self._Rj = np.zeros((robot.dof, 3, 3))
         self._pj = np.zeros((robot.dof, 3))
         self._bounds_memo: dict[tuple[Solid, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        pl = self.floor.placements  # contiguous, for the compiled placements of :meth:`checks`
+        self._R_local = np.ascontiguousarray(pl.R_local)
+        self._p_local = np.ascontiguousarray(pl.p_local)
 
     def below_floor(self, clearance: float) -> list[str]:
         """After :meth:`place`: the arm geometries, and the stand-in hand boxes
@@ -376,6 +379,24 @@ class ExactArm:
                     return True
         return False
 
+    def checks(
+        self,
+        thetas: np.ndarray,
+        base_xy: np.ndarray,
+        yaw: float,
+        solids: list[Solid],
+        targets: Sequence[str] | np.ndarray | str | None,
+        floor: float | None,
+        boxes: BoxArrays,
+    ) -> ArmChecks:
+        """:meth:`colliding` of many configurations ``thetas: (B, dof)`` on bases
+        ``base_xy: (B, 2)`` at ``yaw``, the hand of each free to touch ``targets`` (one part
+        for all, or one per row), asked row by row (:meth:`ArmChecks.colliding`): what
+        needs no coal (the joints, the placements, which link spheres meet which solid, the
+        floor's bounds tests) is done for all rows at once, compiled where it loops."""
+        return ArmChecks(self, np.asarray(thetas, float), np.asarray(base_xy, float), yaw,
+                         solids, targets, floor, boxes)  # fmt: skip
+
     def _bounds(self, solids: list[Solid]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """World bounding boxes ``lo, hi: (S, 3)`` [m] and owners ``(S,)`` of ``solids``, kept
         for the last few lists (the same solids are checked against many configurations)."""
@@ -392,6 +413,103 @@ class ExactArm:
                 self._bounds_memo.pop(next(iter(self._bounds_memo)))
             self._bounds_memo[key] = hit
         return hit
+
+
+CHECK_CHUNK = 2048  # configurations an ArmChecks prepares at once (bounds its arrays)
+CHECK_PAIRS = 1 << 20  # and (configuration, link, solid) slots for their sphere contacts
+
+
+class ArmChecks:
+    """:meth:`ExactArm.checks`: the exact checks of B configurations, prepared a chunk of
+    rows at a time as they are asked for; each answer is :meth:`ExactArm.colliding`'s."""
+
+    def __init__(
+        self,
+        arm: ExactArm,
+        thetas: np.ndarray,
+        base_xy: np.ndarray,
+        yaw: float,
+        solids: list[Solid],
+        targets: Sequence[str] | np.ndarray | str | None,
+        floor: float | None,
+        boxes: BoxArrays,
+    ) -> None:
+        self.arm, self.thetas, self.base_xy, self.yaw = arm, thetas, base_xy, yaw
+        self.solids, self.targets, self.floor, self.boxes = solids, targets, floor, boxes
+        self.batched = arm._chain is not None and arm.spheres is not None and bool(arm.ids)
+        self.codes = owner_codes(boxes, targets, len(thetas)) if self.batched else None
+        self.R_world_base = frames.R_z(yaw)
+        self._chunk = -1
+        slots = 1 if arm.spheres is None else len(arm.spheres.bound_r) * max(len(solids), 1)
+        self._rows = max(1, min(CHECK_CHUNK, CHECK_PAIRS // slots))  # rows per chunk
+
+    def colliding(self, i: int) -> bool:
+        """Does configuration ``i`` touch a solid, or come within the floor clearance?"""
+        a = self.arm
+        if not self.batched:
+            tg = self.targets
+            target = tg if tg is None or isinstance(tg, str) else str(tg[i])
+            x, y = self.base_xy[i]
+            return a.colliding(
+                self.thetas[i], x, y, self.yaw, self.solids, target, self.floor, self.boxes
+            )
+        if i // self._rows != self._chunk:
+            self._prepare(i // self._rows)
+        r = i - self._chunk * self._rows
+        if (
+            self.floor is not None
+            and self._low[r]
+            and a.floor.placed_below(self._M[r], self._R[r], self._p[r], self.floor)
+        ):
+            return True
+        if not self.solids:
+            return False
+        Rw, shift = self.R_world_base, np.array([*self.base_xy[i], 0.0])
+        for t in range(self._start[r], self._start[r + 1]):
+            gs, ts = _coal(self.solids[self._box[t]])
+            for g in a.link_geoms[self._link[t]]:
+                tf = coal.Transform3s(Rw @ self._R[r, g], Rw @ self._p[r, g] + shift)
+                if collide(a.geometries[g], tf, gs, ts):
+                    return True
+        return False
+
+    def _prepare(self, chunk: int) -> None:
+        a, sp, b, c = self.arm, self.arm.spheres, self.boxes, self.arm._chain
+        assert sp is not None and c is not None and self.codes is not None
+        sl = slice(chunk * self._rows, (chunk + 1) * self._rows)
+        th = np.ascontiguousarray(self.thetas[sl])
+        B, n, L, K = len(th), th.shape[1], len(sp.bound_r), len(b.owners)
+        pl, fl = a.floor.placements, a.floor
+        G = len(pl.parent)
+        M = np.empty((B, n + 1, 4, 4))
+        R, p, z = np.empty((B, G, 3, 3)), np.empty((B, G, 3)), np.empty(B)
+        start = np.zeros(B + 1, np.int64)
+        out_link = np.empty(max(B * L * K, 1), np.int64)
+        out_box = np.empty(max(B * L * K, 1), np.int64)
+        contacts_many(
+            th, np.ascontiguousarray(self.base_xy[sl]), np.ascontiguousarray(self.codes[sl]),
+            math.cos(self.yaw), math.sin(self.yaw), c.R_parent_joint, c.p_parent_joint,
+            a._axis_index, c.axes, c.prismatic, sp.link_joint, sp.bound_c, sp.bound_r,
+            sp.is_hand, sp.leaf_start, sp.leaf_count, sp.leaf_c, sp.leaf_r, b.centres, b.R,
+            b.half, b.is_cylinder, b.radius, b.lo, b.hi, b.owner_codes, TOUCH, pl.parent,
+            a._R_local, a._p_local, fl.box_c, fl.box_h, M, R, p, z, start, out_link, out_box,
+        )  # fmt: skip
+        low = np.zeros(B, bool)
+        if self.floor is not None:
+            low = z <= self.floor + 1e-9  # a screen: placed_below decides
+            if fl.stand_in:
+                # the stand-in boxes' lowest points, all rows at once (as placed_below)
+                T = M[:, a.robot.dof][:, None] @ np.array([T for _, T in fl.stand_in])
+                bc = np.array([bx[0] for bx in fl.stand_in_boxes])
+                bh = np.array([bx[1] for bx in fl.stand_in_boxes])
+                zs = (
+                    np.einsum("bkj,kj->bk", T[:, :, 2, :3], bc)
+                    + T[:, :, 2, 3]
+                    - np.einsum("bkj,kj->bk", np.abs(T[:, :, 2, :3]), bh)
+                )
+                low |= (zs <= self.floor + 1e-9).any(1)
+        self._chunk, self._M, self._R, self._p, self._low = chunk, M, R, p, low
+        self._start, self._link, self._box = start, out_link, out_box
 
 
 def nearby(

@@ -10,6 +10,8 @@ hundred configurations was mostly numpy calls.
   :func:`pickstop.regions.arm.points_to_world`, without their temporaries.
 - :func:`link_contacts`: the (link, solid) pairs of one configuration whose spheres meet,
   all that :class:`pickstop.regions.arm.ExactArm` hands coal.
+- :func:`group_boxes`: per joint group the world box around its spheres, over many
+  configurations at once, gathered per owner (:class:`pickstop.regions.solve.CheckedLinks`).
 - :func:`boxes_hit`: which remembered things' boxes a change may reach, and
   :func:`configs_touched`: whether their configurations may see it
   (:meth:`pickstop.regions.reuse.RefineMemo.held`), coarse to fine.
@@ -396,6 +398,61 @@ def _placed_box_hits(
 
 
 @njit(cache=True, nogil=True)
+def group_boxes(
+    thetas: np.ndarray,
+    xy: np.ndarray,
+    owner: np.ndarray,
+    cos_yaw: float,
+    sin_yaw: float,
+    R_parent: np.ndarray,
+    p_parent: np.ndarray,
+    axis_index: np.ndarray,
+    axes: np.ndarray,
+    prismatic: np.ndarray,
+    group_joint: np.ndarray,
+    group_lo: np.ndarray,
+    group_hi: np.ndarray,
+    margin: float,
+    out_lo: np.ndarray,
+    out_hi: np.ndarray,
+) -> None:
+    """In place: ``out_lo[a, g], out_hi[a, g]`` grown to hold, for every configuration
+    ``thetas[c]`` on its base ``xy[c]`` with ``owner[c] == a``, the world box of joint group
+    ``g``: its box ``group_lo[g], group_hi[g]`` in the frame of joint ``group_joint[g]``
+    (0-based) turned into the world (the base at yaw ``cos_yaw, sin_yaw``), padded by
+    ``margin``. The chain's arrays as for :func:`~pickstop.robot.fk_kernel.joint_frames`."""
+    C, n = thetas.shape
+    G = group_joint.shape[0]
+    R = np.empty((n, 3, 3))
+    p = np.empty((n, 3))
+    for c in range(C):
+        a = owner[c]
+        joint_frames(R_parent, p_parent, axis_index, axes, prismatic, thetas[c], R, p)
+        bx, by = xy[c, 0], xy[c, 1]
+        for g in range(G):
+            j = group_joint[g]
+            lx = 0.5 * (group_lo[g, 0] + group_hi[g, 0])
+            ly = 0.5 * (group_lo[g, 1] + group_hi[g, 1])
+            lz = 0.5 * (group_lo[g, 2] + group_hi[g, 2])
+            px = R[j, 0, 0] * lx + R[j, 0, 1] * ly + R[j, 0, 2] * lz + p[j, 0]
+            py = R[j, 1, 0] * lx + R[j, 1, 1] * ly + R[j, 1, 2] * lz + p[j, 1]
+            pz = R[j, 2, 0] * lx + R[j, 2, 1] * ly + R[j, 2, 2] * lz + p[j, 2]
+            centre = (cos_yaw * px - sin_yaw * py + bx, sin_yaw * px + cos_yaw * py + by, pz)
+            for i in range(3):
+                half = margin
+                for k in range(3):
+                    if i == 0:
+                        w = cos_yaw * R[j, 0, k] - sin_yaw * R[j, 1, k]
+                    elif i == 1:
+                        w = sin_yaw * R[j, 0, k] + cos_yaw * R[j, 1, k]
+                    else:
+                        w = R[j, 2, k]
+                    half += abs(w) * 0.5 * (group_hi[g, k] - group_lo[g, k])
+                out_lo[a, g, i] = min(out_lo[a, g, i], centre[i] - half)
+                out_hi[a, g, i] = max(out_hi[a, g, i], centre[i] + half)
+
+
+@njit(cache=True, nogil=True)
 def configs_touched(
     thetas: np.ndarray,
     xy: np.ndarray,
@@ -586,3 +643,108 @@ def link_contacts(
         for i in range(n):
             found[near[i]] = False
     return count
+
+
+@njit(cache=True, nogil=True)
+def contacts_many(
+    thetas: np.ndarray,
+    xy: np.ndarray,
+    codes: np.ndarray,
+    cos_yaw: float,
+    sin_yaw: float,
+    R_parent: np.ndarray,
+    p_parent: np.ndarray,
+    axis_index: np.ndarray,
+    axes: np.ndarray,
+    prismatic: np.ndarray,
+    link_joint: np.ndarray,
+    bound_c: np.ndarray,
+    bound_r: np.ndarray,
+    is_hand: np.ndarray,
+    leaf_start: np.ndarray,
+    leaf_count: np.ndarray,
+    leaf_c: np.ndarray,
+    leaf_r: np.ndarray,
+    box_c: np.ndarray,
+    box_R: np.ndarray,
+    box_half: np.ndarray,
+    box_cyl: np.ndarray,
+    box_rad: np.ndarray,
+    box_lo: np.ndarray,
+    box_hi: np.ndarray,
+    box_code: np.ndarray,
+    touch: float,
+    geom_parent: np.ndarray,
+    geom_R: np.ndarray,
+    geom_p: np.ndarray,
+    geom_c: np.ndarray,
+    geom_h: np.ndarray,
+    M: np.ndarray,
+    R_geom: np.ndarray,
+    p_geom: np.ndarray,
+    z_low: np.ndarray,
+    start: np.ndarray,
+    out_link: np.ndarray,
+    out_box: np.ndarray,
+) -> None:
+    """:func:`link_contacts` of B configurations ``thetas: (B, n)`` on bases ``xy: (B, 2)``,
+    the hand of each free to touch owner ``codes[b]``: the joints' placements into
+    ``M: (B, n + 1, 4, 4)`` (:func:`~pickstop.robot.fk_kernel.joint_frames`, the base at index
+    0) and configuration ``b``'s pairs into ``out_link, out_box[start[b]:start[b + 1]]``
+    (``start: (B + 1,)``; the outputs at least ``B * L * K`` long). The G geometries on joints
+    ``geom_parent`` at ``geom_R, geom_p`` there are placed in the base frame into
+    ``R_geom: (B, G, 3, 3)``, ``p_geom: (B, G, 3)`` (as
+    :class:`~pickstop.robot.floor.Placements` places them), and ``z_low: (B,)`` is the lowest
+    z of their local bounding boxes (centres ``geom_c``, half extents ``geom_h``) so placed."""
+    B, n = thetas.shape
+    L = bound_r.shape[0]
+    K = box_lo.shape[0]
+    R = np.empty((n, 3, 3))
+    p = np.empty((n, 3))
+    lk_buf = np.empty(L * K, np.int64)
+    bx_buf = np.empty(L * K, np.int64)
+    count = 0
+    start[0] = 0
+    for b in range(B):
+        joint_frames(R_parent, p_parent, axis_index, axes, prismatic, thetas[b], R, p)
+        for r in range(4):
+            for c in range(4):
+                M[b, 0, r, c] = 1.0 if r == c else 0.0
+        for i in range(n):
+            for r in range(3):
+                for c in range(3):
+                    M[b, i + 1, r, c] = R[i, r, c]
+                M[b, i + 1, r, 3] = p[i, r]
+                M[b, i + 1, 3, r] = 0.0
+            M[b, i + 1, 3, 3] = 1.0
+        low = np.inf
+        for g in range(geom_parent.shape[0]):
+            j = geom_parent[g]
+            for r in range(3):
+                for c in range(3):
+                    R_geom[b, g, r, c] = (
+                        M[b, j, r, 0] * geom_R[g, 0, c]
+                        + M[b, j, r, 1] * geom_R[g, 1, c]
+                        + M[b, j, r, 2] * geom_R[g, 2, c]
+                    )
+                p_geom[b, g, r] = (
+                    M[b, j, r, 0] * geom_p[g, 0]
+                    + M[b, j, r, 1] * geom_p[g, 1]
+                    + M[b, j, r, 2] * geom_p[g, 2]
+                    + M[b, j, r, 3]
+                )
+            z = p_geom[b, g, 2]
+            for c in range(3):
+                z += R_geom[b, g, 2, c] * geom_c[g, c] - abs(R_geom[b, g, 2, c]) * geom_h[g, c]
+            low = min(low, z)
+        z_low[b] = low
+        k = link_contacts(
+            M[b], link_joint, bound_c, bound_r, is_hand, leaf_start, leaf_count, leaf_c,
+            leaf_r, xy[b, 0], xy[b, 1], cos_yaw, sin_yaw, box_c, box_R, box_half, box_cyl,
+            box_rad, box_lo, box_hi, box_code, codes[b], touch, lk_buf, bx_buf,
+        )  # fmt: skip
+        for i in range(k):
+            out_link[count + i] = lk_buf[i]
+            out_box[count + i] = bx_buf[i]
+        count += k
+        start[b + 1] = count

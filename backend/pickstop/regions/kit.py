@@ -140,19 +140,21 @@ class RegionKit:
         gripper_json = f"{scene.gripper.model_dump_json()}{self.hand.key}|{scene.floor_clearance}"
         out = []
         foreign: list[Solid] | None = None  # the rest of the scene, made if a part needs it
+        turnable = _turnable(tray)
         for part in tray.parts:
             key = f"{tray_json}|{part.id}|{gripper_json}"
+            own_key = f"{turnable}|{part.id}|{gripper_json}"
             space = self.hand_space(scene, tray, part)
             near = _reaching_in(others, space, at)
             full = hashlib.sha256("|".join([key, *sorted(near)]).encode()).hexdigest()
             if full not in self.grasp_cache:
                 if len(self.grasp_cache) >= MEMO_SIZE:
                     self.grasp_cache.clear()
-                own = self._own_verdicts.get(key)
+                own = self._own_verdicts.get(own_key)
                 if own is None:
                     if len(self._own_verdicts) >= OWN_VERDICTS:
                         self._own_verdicts.clear()
-                    own = self._own_verdicts[key] = own_verdicts(scene, tray, part, self.hand)
+                    own = self._own_verdicts[own_key] = own_verdicts(scene, tray, part, self.hand)
                 if foreign is None:
                     foreign = other_solids(scene, tray, self.object_solids(scene))
                 self.grasp_cache[full] = _moved_by(
@@ -282,6 +284,12 @@ def _floor_position(tray: Tray) -> np.ndarray:
 def _placed(tray: Tray) -> str:
     """The tray's definition but for where it stands on the floor (its x and y)."""
     return tray.model_dump_json(exclude={"pose": {"x", "y"}})
+
+
+def _turnable(tray: Tray) -> str:
+    """The tray's definition but for where it stands and how it is turned about the vertical
+    (its x, y and yaw): what its own verdicts depend on (:class:`OwnVerdicts`)."""
+    return tray.model_dump_json(exclude={"pose": {"x", "y", "yaw"}})
 
 
 def _moved_by(gs: GraspSet, d: np.ndarray) -> GraspSet:

@@ -24,12 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from pickstop.frames import R_z
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import points_to_world, screen_arm
-from pickstop.regions.arm_kernel import configs_touched
+from pickstop.regions.arm import screen_arm
+from pickstop.regions.arm_kernel import configs_touched, group_boxes
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.reuse import (
@@ -269,11 +268,12 @@ def free_of_newcomers(
         hit[sl] = screen_arm(
             planner.arm, boxes, frames, base_xy[sl], world.yaw, world.env, target, None
         )
-    for j in np.flatnonzero(hit).tolist():
-        x, y = base_xy[j]
-        hit[j] = planner.exact_arm.colliding(
-            thetas[j], x, y, world.yaw, list(solids), target, boxes=boxes
-        )
+    flagged = np.flatnonzero(hit)
+    checks = planner.exact_arm.checks(
+        thetas[flagged], base_xy[flagged], world.yaw, list(solids), target, None, boxes
+    )
+    for i, j in enumerate(flagged.tolist()):
+        hit[j] = checks.colliding(i)
     return ~hit
 
 
@@ -297,21 +297,10 @@ def _answers(
     r_cell, r_th = refined
     th = np.concatenate([planner.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
     cell = np.concatenate([s_cell, r_cell]).astype(np.int64)
-    J = len(planner.arm.joint_groups.joints)
-    g_lo = np.full((M, J, 3), np.inf)
-    g_hi = np.full((M, J, 3), -np.inf)
-    if len(th):
-        links = CheckedLinks.of(planner, th, xy[cell], world.yaw, cell)
-        np.minimum.at(g_lo, (links.owner, links.group), links.lo)
-        np.maximum.at(g_hi, (links.owner, links.group), links.hi)
+    g_lo, g_hi = group_boxes_of(planner, th, xy[cell], world.yaw, cell, M)
     lo, hi = g_lo.min(axis=1), g_hi.max(axis=1)
-    rows_of = np.split(
-        s_rows[np.argsort(s_cell, kind="stable")], np.cumsum(np.bincount(s_cell, minlength=M))[:-1]
-    )
-    order = np.argsort(r_cell, kind="stable")
-    ref_of = np.split(
-        r_th[order].astype(np.float32), np.cumsum(np.bincount(r_cell, minlength=M))[:-1]
-    )
+    rows_of = _per_cell(s_rows.astype(np.int32), s_cell, M)
+    ref_of = _per_cell(r_th.reshape(-1, dof).astype(np.float32), r_cell, M)
     return CellAnswers(
         found.astype(bool),
         np.array(thetas, float),
@@ -321,9 +310,18 @@ def _answers(
         xy,
         g_lo,
         g_hi,
-        [r.astype(np.int32) for r in rows_of],
-        [r.reshape(-1, dof) for r in ref_of],
+        rows_of,
+        ref_of,
     )
+
+
+def _per_cell(values: np.ndarray, cell: np.ndarray, M: int) -> list[np.ndarray]:
+    """``values`` (along the first axis) of each of M cells, ``cell`` telling whose each is:
+    views of one array sorted by cell (stable: each cell's in their order)."""
+    order = np.argsort(cell, kind="stable")
+    ends = np.cumsum(np.bincount(cell, minlength=M)).tolist()
+    v = values[order]
+    return [v[s:e] for s, e in zip([0, *ends[:-1]], ends, strict=True)]
 
 
 @dataclass(frozen=True)
@@ -343,22 +341,44 @@ class CheckedLinks:
         cls, planner: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray
     ) -> CheckedLinks:
         """``thetas: (C, dof)`` on bases at ``xy: (C, 2)``; ``owner: (C,)`` per configuration."""
-        arm = planner.arm
-        _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(thetas.T), frames=True)
-        groups = arm.joint_groups
-        joints, lo_l, hi_l = groups.joints, groups.lo, groups.hi
-        # each group's box in its joint's frame, turned into a world box
-        c = points_to_world(frames, joints, (lo_l + hi_l) / 2, xy, yaw)  # (C, J, 3)
-        R = np.stack([frames[j - 1][0] for j in joints])  # (J, 3, 3, C)
-        Rw = np.einsum("ij,ljkc->clik", R_z(yaw), R)  # (C, J, 3, 3) world axes
-        half = np.einsum("clik,lk->cli", np.abs(Rw), (hi_l - lo_l) / 2) + AGREE_MARGIN
-        C, J = len(thetas), len(joints)
+        C, J = len(thetas), len(planner.arm.joint_groups.joints)
+        lo, hi = group_boxes_of(planner, thetas, xy, yaw, np.arange(C), C)
         return cls(
-            (c - half).reshape(-1, 3),
-            (c + half).reshape(-1, 3),
-            np.repeat(owner, J),
-            np.tile(np.arange(J), C),
+            lo.reshape(-1, 3), hi.reshape(-1, 3), np.repeat(owner, J), np.tile(np.arange(J), C)
         )
+
+
+def group_boxes_of(
+    planner: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray, A: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, J, 3)`` twice: per owner ``a`` (``owner: (C,)`` in 0..A-1) and joint group, the box
+    that holds the group's covering spheres, padded by :data:`AGREE_MARGIN`, over every
+    configuration ``thetas: (C, dof)`` on its base ``xy: (C, 2)`` at ``yaw`` that ``a`` owns
+    (inf and -inf where it owns none), compiled
+    (:func:`~pickstop.regions.arm_kernel.group_boxes`)."""
+    chain, groups = planner.solver.chain, planner.arm.joint_groups
+    J = len(groups.joints)
+    lo, hi = np.full((A, J, 3), np.inf), np.full((A, J, 3), -np.inf)
+    if len(thetas):
+        group_boxes(
+            np.ascontiguousarray(thetas, dtype=float).reshape(len(thetas), -1),
+            np.ascontiguousarray(xy, dtype=float).reshape(-1, 2),
+            np.ascontiguousarray(owner, dtype=np.int64),
+            math.cos(yaw),
+            math.sin(yaw),
+            chain.R_parent_joint,
+            chain.p_parent_joint,
+            chain.axis_index.astype(np.int64),
+            chain.axes,
+            chain.prismatic,
+            (groups.joints - 1).astype(np.int64),
+            groups.lo,
+            groups.hi,
+            AGREE_MARGIN,
+            lo,
+            hi,
+        )
+    return lo, hi
 
 
 @dataclass(frozen=True)
@@ -641,22 +661,25 @@ def verify(
     def target_of(j: int) -> str | None:
         return targets if targets is None or isinstance(targets, str) else str(targets[j])
 
-    checks = _ExactChecks.of(p, world, thetas, base_xy, rows[env_hit[rows]], target_of, cell_keys)
+    env_rows = rows[env_hit[rows]]
+    checks = _ExactChecks.of(p, world, thetas, base_xy, env_rows, target_of, cell_keys)
+    env_targets = targets if targets is None or isinstance(targets, str) else targets[env_rows]
+    arm_checks = p.exact_arm.checks(
+        thetas[env_rows], base_xy[env_rows], world.yaw, world.solids, env_targets, world.floor,
+        world.boxes,
+    )  # fmt: skip
+    env_index = dict(zip(env_rows.tolist(), range(len(env_rows)), strict=True))
     for j in rows.tolist():
         o = None if owner is None else int(owner[j])
         if o in done:
             continue
-        x, y = base_xy[j]
         if counts is not None:
             counts["exact_checks"] = counts.get("exact_checks", 0) + 1
         bad = bool(self_hit[j] and p.exact_self.colliding(thetas[j][None])[0])
         if not bad and env_hit[j]:
             bad = checks.known.get(j)  # type: ignore[assignment]
             if bad is None:
-                bad = p.exact_arm.colliding(
-                    thetas[j], x, y, world.yaw, world.solids, target_of(j), world.floor,
-                    world.boxes,
-                )  # fmt: skip
+                bad = arm_checks.colliding(env_index[j])
                 checks.remember(j, bad)
         good[j] = not bad
         if not bad and o is not None:
@@ -975,6 +998,7 @@ def warm_kernels(kit: RegionKit) -> None:
     kit.exact_arm.colliding(theta[0], 0.0, 0.0, 0.0, solids, boxes=boxes)
     change = Change(-np.ones(3), np.ones(3))
     ChangeSet.of([change]).hit(np.zeros((1, 3)), np.ones((1, 3)))
+    group_boxes_of(kit, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int), 1)
     CheckedConfigs(kit, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int)).touched_by(
         [change], [np.zeros(1, int)]
     )

@@ -134,11 +134,10 @@ def witnesses_clear(
     _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(th.T), frames=True)
     boxes = BoxArrays.of(solids)
     flagged = np.flatnonzero(screen_arm(planner.arm, boxes, frames, xy[near], region.yaw))
-    x, y = xy[near, 0], xy[near, 1]
-    return not any(
-        planner.exact_arm.colliding(th[j], x[j], y[j], region.yaw, solids, boxes=boxes)
-        for j in flagged
+    checks = planner.exact_arm.checks(
+        th[flagged], xy[near][flagged], region.yaw, solids, None, None, boxes
     )
+    return not any(checks.colliding(i) for i in range(len(flagged)))
 
 
 def still_valid(planner: RegionKit, entry: CacheEntry, snap: Snapshot) -> bool:

@@ -213,6 +213,12 @@ class _HandAt:
         T[:, :3, 3] += d
         return _HandAt(self.boxes, T, self.lo + d, self.hi + d)
 
+    def moved(self, M: np.ndarray) -> _HandAt:
+        """The same hand carried by the rigid motion ``M: (4, 4)`` (world to world)."""
+        T = M[None] @ self.T
+        ext = np.einsum("gij,gj->gi", np.abs(T[:, :3, :3]), self.boxes.half)
+        return _HandAt(self.boxes, T, T[:, :3, 3] - ext, T[:, :3, 3] + ext)
+
     def clear_of(self, target: Solid, margin: float) -> bool:
         """:func:`clear_of` of the hand's solids and ``target``."""
         lo_t, hi_t = target.aabb()
@@ -298,21 +304,38 @@ class OwnVerdicts:
     cands: tuple[tuple[str, tuple[tuple[np.ndarray, _HandAt | None, str], ...]], ...]
     lo: np.ndarray  # (3,) [m] world bounds of every hand judged "ok"
     hi: np.ndarray
+    yaw: float = 0.0  # [rad] the tray's yaw they were judged at
 
-    def moved(self, at: np.ndarray) -> OwnVerdicts:
-        """The same verdicts for the tray standing at floor position ``at: (3,)``."""
-        d = np.asarray(at, float) - self.at
-        if not d.any():
+    def moved(self, at: np.ndarray, yaw: float | None = None) -> OwnVerdicts:
+        """The same verdicts for the tray standing at floor position ``at: (3,)``, turned to
+        ``yaw`` [rad] (None: as it was). A turn about the vertical carries the tray, its
+        parts and the hands at its grasps rigidly and leaves every height as it was: what
+        stops a grasp is the same."""
+        at = np.asarray(at, float)
+        turn = 0.0 if yaw is None else math.remainder(yaw - self.yaw, 2 * math.pi)
+        d = at - self.at
+        if not d.any() and turn == 0.0:
             return self
-        return OwnVerdicts(
-            np.asarray(at, float),
-            tuple(
+        if turn == 0.0:
+            hands = tuple(
                 (kind, tuple((T, h and h.shifted(d), v) for T, h, v in heights))
                 for kind, heights in self.cands
-            ),
-            self.lo + d,
-            self.hi + d,
+            )
+            return OwnVerdicts(at, hands, self.lo + d, self.hi + d, self.yaw)
+        # about the vertical through where the tray stood, then to where it stands
+        M = np.eye(4)
+        M[:3, :3] = R_z(turn)
+        M[:3, 3] = at - M[:3, :3] @ self.at
+        hands = tuple(
+            (kind, tuple((T, h and h.moved(M), v) for T, h, v in heights))
+            for kind, heights in self.cands
         )
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for _, heights in hands:
+            for _, h, _ in heights:
+                if h is not None:
+                    lo, hi = np.minimum(lo, h.lo.min(0)), np.maximum(hi, h.hi.max(0))
+        return OwnVerdicts(at, hands, lo, hi, self.yaw + turn)
 
 
 def own_verdicts(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> OwnVerdicts:
@@ -340,7 +363,8 @@ def own_verdicts(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> OwnVe
                 lo, hi = np.minimum(lo, at.lo.min(0)), np.maximum(hi, at.hi.max(0))
             heights.append((T_part_tcp, at if verdict == "ok" else None, verdict))
         cands.append((kind, tuple(heights)))
-    return OwnVerdicts(np.array([tray.pose.x, tray.pose.y, 0.0]), tuple(cands), lo, hi)
+    at0 = np.array([tray.pose.x, tray.pose.y, 0.0])
+    return OwnVerdicts(at0, tuple(cands), lo, hi, tray.pose.yaw)
 
 
 def grasps_for_part(
@@ -357,7 +381,7 @@ def grasps_for_part(
     and the other trays with their parts, where they reach the hands; ``others``: those
     solids, :func:`~pickstop.scene.world.other_solids`, if made already)."""
     at0 = np.array([tray.pose.x, tray.pose.y, 0.0])
-    own = own_verdicts(scene, tray, part, hand) if own is None else own.moved(at0)
+    own = own_verdicts(scene, tray, part, hand) if own is None else own.moved(at0, tray.pose.yaw)
     T_world_part = world_part_transform(tray, part)
     others = [
         s
