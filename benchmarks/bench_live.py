@@ -153,6 +153,8 @@ def bench_moves(c: httpx.Client, doc: dict, n_trays: int, hold: float = 0.0) -> 
         after = f"exact {hold:g} s after" if hold else "exact,  "
         print(f"  {after} {label:24s} {_stats(exact[kind])}")
     for what, xs in own.items():
+        if not xs:
+            continue  # no translations asked for (--kinds turn)
         print(f"  {what} of translations, the plan's own time (timings.total): {_stats(xs)}")
     if stages:
         keys = [k for k in stages[0] if k != "total" and isinstance(stages[0][k], float)]
