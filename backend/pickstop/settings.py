@@ -47,6 +47,9 @@ class Settings(BaseSettings):
     max_trays: int = Field(default=40, ge=1, description="trays per scene")
     max_parts_per_tray: int = Field(default=50, ge=1, description="parts per tray")
     max_parts: int = Field(default=300, ge=1, description="parts per scene, all trays")
+    max_yaml_bytes: int = Field(
+        default=100_000, ge=1024, description="YAML request body limit (robot configs) [bytes]"
+    )
     max_obstacles: int = Field(default=200, ge=0, description="obstacles per scene")
     max_mesh_triangles: int = Field(
         default=200_000, ge=0, description="triangles of every mesh of a scene together"
