@@ -40,6 +40,12 @@ class Settings(BaseSettings):
         "one); empty: writes are refused",
     )
     read_requires_key: bool = Field(default=False, description="require a key for reads too")
+    default_databases: dict[str, str] = Field(
+        default_factory=dict,
+        description="robot name -> the reachability database its plans use when they name "
+        "none (JSON); a robot not listed uses the first database completed for it with the "
+        "default build parameters (else the first completed)",
+    )
     max_body_bytes: int = Field(default=2_000_000, ge=1024, description="request body limit")
     max_grid_cells: int = Field(default=250_000, ge=1, description="base grid cells per scene")
     max_samples: int = Field(default=50_000_000, ge=1, description="samples per database build")

@@ -52,7 +52,7 @@ class Service:
         self.planners = (
             planners
             if planners is not None
-            else PlannerPool(self.data_dir, settings.region_processes)
+            else PlannerPool(self.data_dir, settings.region_processes, settings.default_databases)
         )
         self.robots = RobotRegistry(self.store, self.data_dir, self.planners)
         self.scenes = SceneChecks(self.limits, self.data_dir, self.store, self.robots)
