@@ -41,6 +41,10 @@ class DatabaseMismatchError(DatabaseError):
     """A database was built for another robot or robot config than the one given."""
 
 
+class DatabaseBusyError(DatabaseError):
+    """A database is being built: it cannot be used or deleted now."""
+
+
 class CorruptShardError(DatabaseError):
     """A shard file is missing, truncated or does not match its recorded checksum."""
 

@@ -47,15 +47,15 @@ class Settings(BaseSettings):
         "default build parameters (else the first completed)",
     )
     max_body_bytes: int = Field(default=2_000_000, ge=1024, description="request body limit")
+    max_yaml_bytes: int = Field(
+        default=100_000, ge=1024, description="YAML request body limit (robot configs) [bytes]"
+    )
     max_grid_cells: int = Field(default=250_000, ge=1, description="base grid cells per scene")
     max_samples: int = Field(default=50_000_000, ge=1, description="samples per database build")
     max_batch: int = Field(default=200, ge=1, description="scenes per batch job")
     max_trays: int = Field(default=40, ge=1, description="trays per scene")
     max_parts_per_tray: int = Field(default=50, ge=1, description="parts per tray")
     max_parts: int = Field(default=300, ge=1, description="parts per scene, all trays")
-    max_yaml_bytes: int = Field(
-        default=100_000, ge=1024, description="YAML request body limit (robot configs) [bytes]"
-    )
     max_obstacles: int = Field(default=200, ge=0, description="obstacles per scene")
     max_mesh_triangles: int = Field(
         default=200_000, ge=0, description="triangles of every mesh of a scene together"
@@ -85,6 +85,12 @@ class Settings(BaseSettings):
     )
     job_deadline: float = Field(
         default=6 * 3600.0, gt=0, description="seconds a job may run (then it fails)"
+    )
+    interrupted_retention: float = Field(
+        default=24 * 3600.0,
+        ge=0,
+        description="seconds after its start a database whose build was interrupted is kept "
+        "(resumable by the same build) before it is deleted; a cancelled build is deleted at once",
     )
 
 
