@@ -143,3 +143,13 @@ def scene_row(scene_id: str, service: ServiceDep) -> dict[str, Any]:
 
 
 SceneRow = Annotated[dict[str, Any], Depends(scene_row)]
+
+
+def robot_name(name: str, service: ServiceDep) -> str:
+    """The name of a preset or registered robot (404 if there is none)."""
+    if not service.robots.exists(name):
+        raise Problem(404, "Not found", f"no robot {name!r}", field="name")
+    return name
+
+
+RobotName = Annotated[str, Depends(robot_name)]

@@ -71,6 +71,7 @@ def install(app: FastAPI, settings: Settings, models: dict[str, type[BaseModel]]
             schemas[name] = js
         _link(doc)
         _limits(schemas, settings)
+        _rules(schemas)
         comps.setdefault("securitySchemes", {})["bearer"] = {"type": "http", "scheme": "bearer"}
         for path, ops in doc["paths"].items():
             for method, op in ops.items():
@@ -99,6 +100,30 @@ def _limits(schemas: dict[str, Any], s: Settings) -> None:
     for branch in [samples, *samples.get("anyOf", []), *samples.get("allOf", [])]:
         if "maximum" in branch:
             branch["maximum"] = min(branch["maximum"], s.max_mc_samples)
+
+
+def _rules(schemas: dict[str, Any]) -> None:
+    """The rules between fields that the models check, in the schemas too (or, where JSON
+    Schema cannot say them, in the descriptions)."""
+    one_of = [
+        {"required": ["scene_id"], "properties": {"scene_id": {"type": "string"}}},
+        {"required": ["scene"], "properties": {"scene": {"type": "object"}}},
+    ]
+    for name in ("BatchItem", "PlanRequest"):
+        if name in schemas:
+            schemas[name]["oneOf"] = one_of
+            schemas[name]["description"] = "give exactly one of scene_id and scene"
+    hand = schemas.get("Hand", {}).get("properties", {})
+    for axis in ("approach_axis", "closing_axis"):
+        if axis in hand:
+            hand[axis]["not"] = {"items": {"const": 0}}
+            hand[axis]["description"] = (
+                "a non-zero direction in the grasp point's frame; closing_axis is "
+                "perpendicular to approach_axis (to 0.06 deg)"
+            )
+    extent = schemas.get("Extent")
+    if extent is not None:
+        extent["description"] = "a rectangle on the floor [m]: min below max in x and in y"
 
 
 def _link(node: Any) -> None:
@@ -138,6 +163,11 @@ def _operation(op: dict[str, Any], method: str, path: str, settings: Settings) -
         codes[422] = BODY[422]
     if method in ("put", "delete") and "scenes/{" in path:
         codes[412], codes[428] = TEXT[412], TEXT[428]
+        for param in op.get("parameters", []):
+            if param.get("in") == "header" and param.get("name", "").lower() == "if-match":
+                # Required: without it the answer is 428 (RFC 6585), not a plain 422.
+                param["required"] = True
+                param["schema"] = {"type": "string", "minLength": 1}
     if path.endswith("/plans") or path.endswith("/regions") or path.endswith("/batch"):
         codes[409], codes[504] = TEXT[409], TEXT[504]
     if path.endswith("/dispatch"):
