@@ -56,18 +56,20 @@ class JobRunner:
         self._running: tuple[str, Work] | None = None
         self._running_lock = threading.Lock()
         self._children: dict[str, BuildProcess] = {}  # job id -> its build's process group
+        self._closing = False
         self._thread = threading.Thread(target=self._loop, name="pickstop-jobs", daemon=True)
         if start:
             self._thread.start()
 
     def close(self) -> None:
-        """Stop the running job and every process it started, then the runner."""
+        """Stop the running job (it is recorded interrupted) and every process it started,
+        then the runner."""
         if not self.runs_jobs:
             return
+        self._closing = True
         self._queue.put(None)
         with self._running_lock:
             if self._running is not None:
-                self._cancel.add(self._running[0])
                 self._running[1].stop()
             children = list(self._children.values())
         for child in children:
@@ -155,6 +157,9 @@ class JobRunner:
         except (JobCancelled, Cancelled):
             if job_id in self._cancel:
                 self.store.set_job(job_id, state="cancelled", error="cancelled while running")
+            elif self._closing:
+                self.store.set_job(job_id, state="interrupted", error="the service stopped "
+                                   "while it ran; submit it again to resume it")  # fmt: skip
             else:
                 self.store.set_job(job_id, state="failed", error="the job passed its "
                                    f"deadline of {self.settings.job_deadline:g} s")  # fmt: skip
