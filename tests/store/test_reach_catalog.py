@@ -82,8 +82,8 @@ def test_deleting_a_database_forgets_only_its_rows(cat):
 
 def _complete(db_id: str, completed: str, stored: int, **over):
     """A complete database row; default build parameters unless ``over`` changes them."""
-    return _row(db_id, state="complete", completed=completed, stored=stored, chunk_size=250_000,
-                floor_clearance=0.01, **over)  # fmt: skip
+    over = {"chunk_size": 250_000, "floor_clearance": 0.01, **over}
+    return _row(db_id, state="complete", completed=completed, stored=stored, **over)
 
 
 @pytest.fixture
