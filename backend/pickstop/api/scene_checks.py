@@ -18,7 +18,7 @@ from pickstop.api.registry import RobotRegistry
 from pickstop.errors import InputError, RobotConfigError
 from pickstop.scene.checks import CheckedScenes
 from pickstop.scene.load import parse_scene
-from pickstop.scene.mesh_file import MeshFileError, check_mesh, claimed_triangles
+from pickstop.scene.mesh_file import MeshFileError, MeshFiles, claimed_triangles
 from pickstop.scene.model import Scene, SceneError, resolve_mesh_paths
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.store.records import ServiceStore
@@ -35,6 +35,7 @@ class SceneChecks:
         self.store = store
         self.robots = robots
         self.checked = CheckedScenes()  # the geometry checks of the last layouts
+        self.mesh_files = MeshFiles()  # what each mesh file was found to be
 
     def parse(self, doc: Any, loc: str = "") -> Scene:
         """A scene from a request, every check passed; ``loc`` prefixes the fields named in
@@ -81,7 +82,7 @@ class SceneChecks:
                 scale = geom.get("scale", 1.0)
                 scale = scale if isinstance(scale, int | float) and scale > 0 else 1.0
                 try:
-                    claimed = check_mesh(Path(path), limit, scale).triangles
+                    claimed = self.mesh_files.check(Path(path), limit, scale).triangles
                 except MeshFileError as e:
                     raise SceneError([(field, f"mesh {Path(path).name!r}: {e.message}")]) from None
             triangles += claimed

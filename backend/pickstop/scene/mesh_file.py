@@ -4,8 +4,8 @@ A mesh file can lie: a binary STL whose header claims 100 triangles in 512 MB, o
 none; an ASCII STL of 256 MB on one line. Each is refused here, naming what is wrong, in time
 bounded by the file's size (itself bounded by the triangles it may hold); then the file is
 loaded as the planner loads it (coal), so that a file that passes is one the planner reads,
-with the triangles counted and a size of its own. What a file was found to be is remembered by
-its path, size and modification time.
+with the triangles counted and a size of its own. :class:`MeshFiles` remembers what each file
+was found to be by its path, size and modification time.
 """
 
 from __future__ import annotations
@@ -25,7 +25,6 @@ BYTES_PER_TRIANGLE = 400  # an ASCII STL facet takes about 250 bytes, an OBJ fac
 MAX_LINE = 1 << 16  # [bytes] longest line of a text mesh
 CHUNK = 1 << 20  # [bytes] read at a time
 MIN_EXTENT = 1e-4  # [m] smallest extent of a scaled mesh along x and y (scene MIN_SIZE)
-_REMEMBERED = 256
 
 
 class MeshFileError(InputError):
@@ -40,10 +39,6 @@ class MeshFacts:
     extent: tuple[float, float, float]
 
 
-_known: OrderedDict[tuple[str, int, int], MeshFacts] = OrderedDict()
-_lock = threading.Lock()
-
-
 def claimed_triangles(path: Path) -> int | None:
     """The triangles a binary STL's header claims (None for other files): read first, so
     that a file claiming too many is refused by the limit before anything reads it."""
@@ -56,31 +51,53 @@ def claimed_triangles(path: Path) -> int | None:
     return int.from_bytes(head[80:84], "little")
 
 
+class MeshFiles:
+    """:func:`check_mesh`, remembered for the last ``size`` files (by path, size and
+    modification time: a changed file is checked again)."""
+
+    def __init__(self, size: int = 256) -> None:
+        self.size = size
+        self._known: OrderedDict[tuple[str, int, int], MeshFacts] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def check(self, path: Path, max_triangles: int, scale: float = 1.0) -> MeshFacts:
+        stat = path.stat()
+        key = (str(path), stat.st_size, stat.st_mtime_ns)
+        with self._lock:
+            facts = self._known.get(key)
+            if facts is not None:
+                self._known.move_to_end(key)
+        if facts is None:
+            facts = inspect_mesh(path, stat.st_size, max_triangles)
+            with self._lock:
+                self._known[key] = facts
+                while len(self._known) > self.size:
+                    self._known.popitem(last=False)
+        check_extent(facts, scale)
+        return facts
+
+
 def check_mesh(path: Path, max_triangles: int, scale: float = 1.0) -> MeshFacts:
     """The facts of the mesh file ``path`` (scaled by ``scale`` in the scene), or
     :class:`MeshFileError` saying why it is refused: more bytes than ``max_triangles``
     triangles take, a binary STL whose size disagrees with its header, a text mesh with a line
     over :data:`MAX_LINE` bytes or facets without their three vertices, a file the planner's
     loader cannot read, or one flatter than :data:`MIN_EXTENT` along x or y once scaled."""
-    stat = path.stat()
-    key = (str(path), stat.st_size, stat.st_mtime_ns)
-    with _lock:
-        facts = _known.get(key)
-    if facts is None:
-        facts = _inspect(path, stat.st_size, max_triangles)
-        with _lock:
-            _known[key] = facts
-            while len(_known) > _REMEMBERED:
-                _known.popitem(last=False)
+    facts = inspect_mesh(path, path.stat().st_size, max_triangles)
+    check_extent(facts, scale)
+    return facts
+
+
+def check_extent(facts: MeshFacts, scale: float) -> None:
     if min(facts.extent[:2]) * scale < MIN_EXTENT:
         raise MeshFileError(
             f"the mesh is {facts.extent[0] * scale:.3g} x {facts.extent[1] * scale:.3g} m "
             f"across once scaled, flatter than {MIN_EXTENT:g} m"
         )
-    return facts
 
 
-def _inspect(path: Path, size: int, max_triangles: int) -> MeshFacts:
+def inspect_mesh(path: Path, size: int, max_triangles: int) -> MeshFacts:
+    """What :func:`check_mesh` finds of a file of ``size`` bytes, its extent aside."""
     limit = max_triangles * BYTES_PER_TRIANGLE + 84
     if size > limit:
         raise MeshFileError(f"the file holds {size} bytes, more than {max_triangles} "
