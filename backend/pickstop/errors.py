@@ -25,6 +25,10 @@ class InputError(PickStopError):
     exit_code = 2
 
 
+class ExistsError(InputError):
+    """What a request would create exists already (a robot of that name)."""
+
+
 class RobotConfigError(InputError):
     """A robot config, URDF, SRDF or mesh cannot be used."""
 

@@ -35,6 +35,11 @@ def live_schema(live_api):
     # an obstacle, a URDF that is not there, sizes over the limits. The schema cannot say so.
     accept = schema.config.checks.positive_data_acceptance
     accept.expected_statuses = [*accept.expected_statuses, "422"]
+    # An If-Match made up by the tool matches no ETag: 412, as documented.
+    accept.expected_statuses = [*accept.expected_statuses, "412"]
+    # A missing If-Match is 428 Precondition Required (RFC 6585), as documented.
+    missing = schema.config.checks.missing_required_header
+    missing.expected_statuses = [*missing.expected_statuses, "428"]
     # A batch over the limit is refused as too large (413), as any oversized body is.
     refuse = schema.config.checks.negative_data_rejection
     refuse.expected_statuses = [*refuse.expected_statuses, "413"]

@@ -100,7 +100,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         dependencies=R,
         responses={200: {"description": "the order or goal: JSON, or YAML for nav2_format=yaml",
                          "content": {"application/json": {"schema": {"type": "object"}},
-                                     "application/yaml": {"schema": {"type": "string"}}}}},
+                                     "application/yaml": {"schema": {"type": "object"}}}}},
     )  # fmt: skip
     async def export_plan(
         request: Request,

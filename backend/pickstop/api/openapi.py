@@ -96,6 +96,9 @@ def _limits(schemas: dict[str, Any], s: Settings) -> None:
     bound("Scene", "obstacles", maxItems=s.max_obstacles)
     bound("Tray", "parts", maxItems=s.max_parts_per_tray)
     bound("BuildRequest", "samples", maximum=s.max_samples)
+    samples = schemas.get("BuildRequest", {}).get("properties", {}).get("samples", {})
+    if "default" in samples:
+        samples["default"] = min(samples["default"], s.max_samples)
     samples = schemas.get("PlanOptions", {}).get("properties", {}).get("samples", {})
     for branch in [samples, *samples.get("anyOf", []), *samples.get("allOf", [])]:
         if "maximum" in branch:
@@ -124,6 +127,27 @@ def _rules(schemas: dict[str, Any]) -> None:
     extent = schemas.get("Extent")
     if extent is not None:
         extent["description"] = "a rectangle on the floor [m]: min below max in x and in y"
+
+
+#: Where what a POST creates is read: (path suffix, status) -> (operation id, parameter).
+CREATED = {
+    ("/scenes", "201"): ("get_scene_api_v1_scenes__scene_id__get", "scene_id"),
+    ("/plans", "201"): ("get_plan_api_v1_plans__plan_id__get", "plan_id"),
+    ("/databases", "202"): ("job_api_v1_jobs__job_id__get", "job_id"),
+    ("/jobs/batch", "202"): ("job_api_v1_jobs__job_id__get", "job_id"),
+}
+
+
+def _links(op: dict[str, Any], method: str, path: str) -> None:
+    """OpenAPI links from a creating POST to the resource it made (a database build makes a
+    job, not yet a database)."""
+    if method != "post":
+        return
+    for (suffix, status), (target, param) in CREATED.items():
+        answer = op.get("responses", {}).get(status)
+        if path.endswith(suffix) and answer is not None:
+            link = {"operationId": target, "parameters": {param: "$response.body#/id"}}
+            answer["links"] = {"created": link}
 
 
 def _link(node: Any) -> None:
@@ -174,6 +198,9 @@ def _operation(op: dict[str, Any], method: str, path: str, settings: Settings) -
         codes[409] = "no MQTT broker is configured on this server (PICKSTOP_MQTT_BROKER)"
     if path.endswith("/check") or path.endswith("/model"):
         codes[504] = TEXT[504]
+    if method == "post" and path.endswith("/robots"):
+        codes[409] = "a robot of that name exists already"
+    _links(op, method, path)
     codes[405] = TEXT[405]
     for code, text in codes.items():
         responses.setdefault(

@@ -19,6 +19,7 @@ from pickstop.errors import (
     DatabaseError,
     DatabaseMismatchError,
     DatabaseNotFoundError,
+    ExistsError,
     InputError,
     PickStopError,
     UnavailableError,
@@ -101,6 +102,8 @@ def from_error(e: PickStopError) -> Problem:
     if isinstance(e, DatabaseError) and not isinstance(e, CorruptShardError):
         # incomplete, being built, or of an older format: the request may succeed later
         return Problem(409, "Database not usable", e.message, kind="database-unusable")
+    if isinstance(e, ExistsError):
+        return Problem(409, "Conflict", e.message, kind="exists", field=e.field)
     if isinstance(e, InputError):
         problems = getattr(e, "problems", None)
         errors = [{"field": f, "message": m} for f, m in problems] if problems else None

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from pickstop.api.body import type_errors
-from pickstop.errors import InputError, RobotConfigError
+from pickstop.errors import ExistsError, InputError, RobotConfigError
 from pickstop.pool import PlannerPool
 from pickstop.robot.config import (
     RobotConfig,
@@ -74,7 +74,7 @@ class RobotRegistry:
             raise RobotConfigError("; ".join(f"{f}: {m}" for f, m in strict), field=strict[0][0])
         config = parse_config(data, "robot")
         if config.name in preset_names() or self.store.robot(config.name) is not None:
-            raise InputError(f"robot {config.name!r} already exists", field="name")
+            raise ExistsError(f"robot {config.name!r} already exists", field="name")
         self.confine(config)
         robot = self.planners.robot(config, self.robot_dir)
         self.store.add_robot(config.name, config.model_dump(mode="json"))

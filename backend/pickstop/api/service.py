@@ -96,6 +96,8 @@ class Service:
     def submit_build(self, body: Any) -> dict[str, Any]:
         from pickstop.reach.build import BuildParams
 
+        if "samples" not in body.model_fields_set:  # the default, within this server's limit
+            body = body.model_copy(update={"samples": min(body.samples, self.settings.max_samples)})
         if body.samples > self.settings.max_samples:
             raise InputError(f"samples {body.samples} exceeds the limit of "
                              f"{self.settings.max_samples}", field="samples")  # fmt: skip

@@ -83,7 +83,7 @@ def test_register_a_robot_from_the_bundled_data(client):
     assert r.json()["dof"] == 8
     names = [x["name"] for x in client.get("/api/v1/robots").json()]
     assert "tiago" in names and "tiago_copy" in names
-    titled_problem(client.post("/api/v1/robots", json=pr2, headers=AUTH), 422)  # exists already
+    titled_problem(client.post("/api/v1/robots", json=pr2, headers=AUTH), 409)  # exists already
 
 
 YAML_CONFIG = """\
