@@ -41,7 +41,8 @@ def test_the_rules_between_fields_are_in_the_schemas(spec):
         branches = schemas[name]["oneOf"]
         assert [b["required"] for b in branches] == [["scene_id"], ["scene"]]
     hand = schemas["Hand"]["properties"]
-    assert hand["approach_axis"]["not"] == {"items": {"const": 0}}
+    assert hand["approach_axis"]["not"] == {"type": "array", "items": {"const": 0}}
+    assert schemas["RobotConfig"]["properties"]["approach_axis"]["not"]["type"] == "array"
     assert "perpendicular" in hand["closing_axis"]["description"]
     assert "min below max" in schemas["Extent"]["description"]
 

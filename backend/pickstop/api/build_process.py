@@ -144,7 +144,9 @@ def main() -> None:
     """The child: build what the parent's first line says, reporting on stdout."""
     out = os.fdopen(os.dup(1), "w")
     os.dup2(2, 1)  # anything printed goes to stderr, never into the protocol
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # unwind: the build records itself
+    # Stopped: end at once. The catalog finds the build's process gone and calls it
+    # interrupted; its pool's workers get the same signal.
+    signal.signal(signal.SIGTERM, lambda *_: os._exit(143))
     job = json.loads(sys.stdin.buffer.readline())
     threading.Thread(target=_end_group_at_eof, daemon=True).start()
     os.nice(10)  # interactive requests come first
@@ -152,7 +154,7 @@ def main() -> None:
         _send(out, {"result": _build(job, out)})
     except Exception as e:
         _send(out, {"error": base64.b64encode(dump_error(e)).decode()})
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # nothing left to record: end quietly
+    os._exit(0)  # the pools are shut down; nothing else (the stdin watcher) is waited for
 
 
 def _build(job: dict[str, Any], out: IO[str]) -> dict[str, Any]:

@@ -116,11 +116,13 @@ def _rules(schemas: dict[str, Any]) -> None:
         if name in schemas:
             schemas[name]["oneOf"] = one_of
             schemas[name]["description"] = "give exactly one of scene_id and scene"
+    zero = {"type": "array", "items": {"const": 0}}
     hand = schemas.get("Hand", {}).get("properties", {})
-    for axis in ("approach_axis", "closing_axis"):
-        if axis in hand:
-            hand[axis]["not"] = {"items": {"const": 0}}
-            hand[axis]["description"] = (
+    config = schemas.get("RobotConfig", {}).get("properties", {})
+    for props, axis in ((hand, "approach_axis"), (hand, "closing_axis"), (config, "approach_axis")):
+        if axis in props:
+            props[axis]["not"] = zero
+            props[axis]["description"] = (
                 "a non-zero direction in the grasp point's frame; closing_axis is "
                 "perpendicular to approach_axis (to 0.06 deg)"
             )
