@@ -83,6 +83,30 @@ def chunks(total: int) -> Any:
     yield b'"}'
 
 
+def yaml_config(size: int) -> bytes:
+    """A robot config as YAML of about ``size`` bytes (a long list of locked joints)."""
+    text = "name: big\nurdf: robot.urdf\narm_joints: [a]\ntool_frame: t\nlocked_joints:\n"
+    lines = []
+    while len(text) + sum(map(len, lines)) < size - 40:
+        lines.append(f"  joint_{len(lines)}: {{x: [1, 2.5, true, null, 'q{len(lines)}']}}\n")
+    return (text + "".join(lines)).encode()
+
+
+def at_once(n: int, send: Callable[[httpx.Client], httpx.Response]) -> Callable[..., Any]:
+    """``send`` by ``n`` clients at once; the last answer."""
+
+    def run(c: httpx.Client) -> httpx.Response:
+        out: list[httpx.Response] = []
+        threads = [threading.Thread(target=lambda: out.append(send(c))) for _ in range(n)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        return out[-1]
+
+    return run
+
+
 def cases(sid: str, heavy_sid: str) -> list[tuple[str, Callable[[httpx.Client], httpx.Response]]]:
     """(name, send): every body is encoded before the clock starts."""
     seed = time.time_ns() % 2**31
@@ -90,7 +114,18 @@ def cases(sid: str, heavy_sid: str) -> list[tuple[str, Callable[[httpx.Client], 
     plan10k = json.dumps({"scene": trays(10_000)}).encode()
     batch = json.dumps({"scenes": [{"scene": trays(2000)}] * 3}).encode()
     print(f"bodies: 2,000 trays {len(t2k) / 1e6:.1f} MB, 10,000 trays {len(t10k) / 1e6:.1f} MB")
+    yml = yaml_config(99_000)
+    nested = b"a: " + b"[" * 49_000 + b"]" * 49_000 + b"\n"
+    YAML = {**AUTH, "content-type": "application/yaml"}
+
+    def post_yaml(body: bytes) -> Callable[[httpx.Client], httpx.Response]:
+        return lambda c: c.post("/api/v1/robots", content=body, headers=YAML)
+
     return [
+        ("POST /robots, YAML 99 kB (limit 100 kB)", post_yaml(yml)),
+        ("POST /robots, 3 x YAML 99 kB at once", at_once(3, post_yaml(yml))),
+        ("POST /robots, YAML nested 49,000 deep", post_yaml(nested)),
+        ("POST /robots, 3 x YAML nested at once", at_once(3, post_yaml(nested))),
         ("POST /scenes, 2,000 trays ", lambda c: c.post("/api/v1/scenes",
          content=t2k, headers={**AUTH, **JSON})),
         ("POST /scenes, 10,000 trays", lambda c: c.post("/api/v1/scenes",

@@ -25,6 +25,10 @@ class InputError(PickStopError):
     exit_code = 2
 
 
+class ExistsError(InputError):
+    """What a request would create exists already (a robot of that name)."""
+
+
 class RobotConfigError(InputError):
     """A robot config, URDF, SRDF or mesh cannot be used."""
 
@@ -39,6 +43,10 @@ class DatabaseNotFoundError(DatabaseError):
 
 class DatabaseMismatchError(DatabaseError):
     """A database was built for another robot or robot config than the one given."""
+
+
+class DatabaseBusyError(DatabaseError):
+    """A database is being built: it cannot be used or deleted now."""
 
 
 class CorruptShardError(DatabaseError):

@@ -13,8 +13,10 @@ What the pool keeps, and what invalidates it:
 - a :class:`PlannerSlot` per (robot hash, database id): the region planner, the stop planner
   over it (made on first use: it loads the route solver) and the lock that serialises their
   caches, which are not thread-safe;
-- which database a robot's plans use when none is named: the newest complete one when first
-  asked (or :meth:`PlannerPool.preload`), kept until that database is dropped.
+- which database a robot's plans use when none is named: the one the settings name for it
+  (``default_databases``), else the first completed with the default build parameters (see
+  :func:`pickstop.store.reach_catalog.default_row`), chosen when first asked (or
+  :meth:`PlannerPool.preload`) and kept until that database is dropped.
 
 Forked API workers share one copy of the default database: the parent preloads a pool and the
 children inherit it with the process (copy-on-write; nothing writes the arrays).
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -88,11 +91,22 @@ class PlannerSlot:
 class PlannerPool:
     """Robots, databases and planners of one data folder, each loaded once per process."""
 
-    def __init__(self, data_dir: Path, region_processes: int = 1) -> None:
+    def __init__(
+        self,
+        data_dir: Path,
+        region_processes: int = 1,
+        default_databases: Mapping[str, str] | None = None,
+    ) -> None:
         """region_processes: the planners' ``workers`` (processes computing a plan's regions
-        at once, :mod:`pickstop.regions.workers`)."""
+        at once, :mod:`pickstop.regions.workers`); default_databases: robot name -> the
+        database its plans use when they name none (None: the settings')."""
         self.data_dir = Path(data_dir)
         self.region_processes = region_processes
+        if default_databases is None:
+            from pickstop.settings import Settings
+
+            default_databases = Settings().default_databases
+        self.default_databases = dict(default_databases)
         self._robots: dict[str, RobotModel] = {}  # config_key -> robot
         self._databases: dict[tuple[str, str], ReachDatabase] = {}  # (robot hash, db id)
         self._defaults: dict[str, str] = {}  # robot hash -> the database used when none named
@@ -112,7 +126,7 @@ class PlannerPool:
             return robot
 
     def database(self, robot: RobotModel, db_id: str | None = None) -> ReachDatabase:
-        """The reachability database ``db_id`` of ``robot`` (default: the newest complete one)."""
+        """The reachability database ``db_id`` of ``robot`` (default: the robot's default)."""
         with self._lock:
             if db_id is None:
                 db_id = self._defaults.get(robot.robot_hash)
@@ -120,14 +134,15 @@ class PlannerPool:
             if db is None:
                 from pickstop.store.reach_catalog import open_database
 
-                db = open_database(self.data_dir, robot, db_id)
+                default = self.default_databases.get(robot.name)
+                db = open_database(self.data_dir, robot, db_id, default)
                 self._databases[(robot.robot_hash, db.id)] = db
             if db_id is None:
                 self._defaults[robot.robot_hash] = db.id
             return db
 
     def slot(self, robot: RobotModel, db_id: str | None = None) -> PlannerSlot:
-        """The planners of ``robot`` over its database ``db_id`` (default: the newest)."""
+        """The planners of ``robot`` over its database ``db_id`` (default: its default)."""
         from pickstop.regions.planner import RegionPlanner
 
         with self._lock:

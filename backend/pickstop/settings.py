@@ -40,7 +40,16 @@ class Settings(BaseSettings):
         "one); empty: writes are refused",
     )
     read_requires_key: bool = Field(default=False, description="require a key for reads too")
+    default_databases: dict[str, str] = Field(
+        default_factory=dict,
+        description="robot name -> the reachability database its plans use when they name "
+        "none (JSON); a robot not listed uses the first database completed for it with the "
+        "default build parameters (else the first completed)",
+    )
     max_body_bytes: int = Field(default=2_000_000, ge=1024, description="request body limit")
+    max_yaml_bytes: int = Field(
+        default=100_000, ge=1024, description="YAML request body limit (robot configs) [bytes]"
+    )
     max_grid_cells: int = Field(default=250_000, ge=1, description="base grid cells per scene")
     max_samples: int = Field(default=50_000_000, ge=1, description="samples per database build")
     max_batch: int = Field(default=200, ge=1, description="scenes per batch job")
@@ -76,6 +85,12 @@ class Settings(BaseSettings):
     )
     job_deadline: float = Field(
         default=6 * 3600.0, gt=0, description="seconds a job may run (then it fails)"
+    )
+    interrupted_retention: float = Field(
+        default=24 * 3600.0,
+        ge=0,
+        description="seconds after its start a database whose build was interrupted is kept "
+        "(resumable by the same build) before it is deleted; a cancelled build is deleted at once",
     )
 
 

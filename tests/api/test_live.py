@@ -35,6 +35,11 @@ def live_schema(live_api):
     # an obstacle, a URDF that is not there, sizes over the limits. The schema cannot say so.
     accept = schema.config.checks.positive_data_acceptance
     accept.expected_statuses = [*accept.expected_statuses, "422"]
+    # An If-Match made up by the tool matches no ETag: 412, as documented.
+    accept.expected_statuses = [*accept.expected_statuses, "412"]
+    # A missing If-Match is 428 Precondition Required (RFC 6585), as documented.
+    missing = schema.config.checks.missing_required_header
+    missing.expected_statuses = [*missing.expected_statuses, "428"]
     # A batch over the limit is refused as too large (413), as any oversized body is.
     refuse = schema.config.checks.negative_data_rejection
     refuse.expected_statuses = [*refuse.expected_statuses, "413"]
@@ -140,3 +145,47 @@ def test_a_client_that_leaves_stops_its_computation(live_api):
         seconds = time.perf_counter() - t0
     assert r.status_code == 200, r.text
     assert seconds < 10.0, seconds
+
+
+def test_health_answers_while_yaml_bodies_decode(live_api):
+    """Three clients sending YAML robot configs at the size limit, and YAML nested deeper than
+    a parser recurses, over and over: /health answers within 100 ms throughout (the YAML is
+    decoded in child processes, never on the API's interpreter)."""
+    import threading
+    import time
+
+    big = "name: big\nurdf: robot.urdf\narm_joints: [a]\ntool_frame: t\nlocked_joints:\n"
+    big += "".join(f"  joint_{i}: {{x: [1, 2.5, true, null, 'q{i}']}}\n" for i in range(2050))
+    nested = "a: " + "[" * 45_000 + "]" * 45_000 + "\n"
+    with httpx.Client(base_url=live_api, timeout=60) as c:
+        limit = c.get("/api/v1/limits").json()["max_yaml_bytes"]
+    assert limit - 5000 < len(big) <= limit and len(nested) <= limit
+    headers = {**AUTH, "Content-Type": "application/yaml"}
+    stop = threading.Event()
+    answers: list[int] = []
+
+    def send(body: str) -> None:
+        with httpx.Client(base_url=live_api, timeout=60) as h:
+            while not stop.is_set():
+                answers.append(h.post("/api/v1/robots", content=body, headers=headers).status_code)
+
+    senders = [threading.Thread(target=send, args=(b,)) for b in (big, big, nested)]
+    for t in senders:
+        t.start()
+    latencies = []
+    with httpx.Client(base_url=live_api, timeout=30) as c:
+        t_end = time.monotonic() + 8.0
+        while time.monotonic() < t_end:
+            t0 = time.perf_counter()
+            assert c.get("/api/v1/health").status_code == 200
+            latencies.append(time.perf_counter() - t0)
+            time.sleep(0.01)
+    stop.set()
+    for t in senders:
+        t.join()
+    latencies.sort()
+    p99, top = latencies[int(len(latencies) * 0.99)] * 1e3, latencies[-1] * 1e3
+    print(f"/health during YAML bodies: {len(latencies)} polls, {len(answers)} YAML requests "
+          f"{sorted(set(answers))}, p99 {p99:.1f} ms, max {top:.1f} ms")  # fmt: skip
+    assert set(answers) == {422} and len(answers) >= 6
+    assert p99 < 100.0, latencies[-10:]

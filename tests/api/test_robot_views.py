@@ -31,4 +31,4 @@ def test_robot_check_over_the_api(client):
     assert report["self_collision"]["source"] == "computed"
     assert "/" not in report["urdf"]
     unknown = client.get("/api/v1/robots/nobody/check")
-    assert unknown.status_code == 422 and "unknown robot" in unknown.json()["detail"]
+    assert unknown.status_code == 404 and "no robot" in unknown.json()["detail"]

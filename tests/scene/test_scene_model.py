@@ -111,7 +111,7 @@ def test_nan_size():
 
 def test_negative_size():
     p = _problems(lambda d: d["trays"][0].update(inner_size=[0.3, -0.2]))
-    _has(p, "trays.0.inner_size.1", "greater than 0")
+    _has(p, "trays.0.inner_size.1", "greater than or equal to 0.0001")
 
 
 def test_duplicate_ids():

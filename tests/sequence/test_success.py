@@ -108,3 +108,12 @@ def test_wilson_interval_and_plan_product():
             assert lo <= k / n <= hi
     p, (plo, phi) = combined([Rate(100, 90), Rate(100, 50)])
     assert p == pytest.approx(0.45) and plo < p < phi
+
+
+@pytest.mark.parametrize("sigma", [1e-300, 5e-324])
+def test_a_sigma_too_small_to_square_still_gives_a_probability(sigma):
+    """A subnormal sigma squares to 0: the disc bound is taken from ratios, never from it."""
+    for kind in ("gaussian", "bounded"):
+        assert disc_probability(kind, sigma, 0.1) == 1.0
+        assert disc_probability(kind, sigma, 0.0) == 0.0
+        assert math.isfinite(radius_for(kind, sigma, 0.95))

@@ -78,3 +78,43 @@ def test_deleting_a_database_forgets_only_its_rows(cat):
     assert rc.database_row(cat, "a") is None and rc.shards(cat, "a") == []
     assert rc.database_row(cat, "b") is not None and len(rc.shards(cat, "b")) == 1
     assert rc.delete_database(cat, "a") is False
+
+
+def _complete(db_id: str, completed: str, stored: int, **over):
+    """A complete database row; default build parameters unless ``over`` changes them."""
+    over = {"chunk_size": 250_000, "floor_clearance": 0.01, **over}
+    return _row(db_id, state="complete", completed=completed, stored=stored, **over)
+
+
+@pytest.fixture
+def robot():
+    from types import SimpleNamespace
+
+    return SimpleNamespace(robot_hash="h" * 64, name="tiago", source="tiago")
+
+
+def test_a_later_build_never_becomes_the_default_database(cat, tmp_path, robot):
+    """The default is the first database completed with the default build parameters: a later
+    one with more configurations (default parameters or not) never takes its place."""
+    rc.insert_database(cat, _complete("first", "2026-01-01T00:00:00+00:00", 100))
+    rc.insert_database(cat, _complete("thin", "2026-01-02T00:00:00+00:00", 900,
+                                      floor_clearance=1e-38))  # fmt: skip
+    rc.insert_database(cat, _complete("bigger", "2026-01-03T00:00:00+00:00", 500))
+    assert rc.find_database(tmp_path, robot)["id"] == "first"
+    assert rc.find_database(tmp_path, robot, "thin")["id"] == "thin"  # named: used
+
+
+def test_without_default_parameters_the_first_completed_is_the_default(cat, tmp_path, robot):
+    rc.insert_database(cat, _complete("b", "2026-01-02T00:00:00+00:00", 900, seed=3))
+    rc.insert_database(cat, _complete("a", "2026-01-01T00:00:00+00:00", 100, seed=11))
+    assert rc.find_database(tmp_path, robot)["id"] == "a"
+
+
+def test_a_configured_default_database_is_used_and_checked(cat, tmp_path, robot):
+    from pickstop.errors import DatabaseNotFoundError
+
+    rc.insert_database(cat, _complete("first", "2026-01-01T00:00:00+00:00", 100))
+    rc.insert_database(cat, _complete("chosen", "2026-01-02T00:00:00+00:00", 50, seed=4))
+    assert rc.find_database(tmp_path, robot, default="chosen")["id"] == "chosen"
+    with pytest.raises(DatabaseNotFoundError):
+        rc.find_database(tmp_path, robot, default="gone")

@@ -21,7 +21,7 @@ from pickstop import __version__
 from pickstop.api import openapi
 from pickstop.api.fleet import DispatchRequest
 from pickstop.api.limits import Limits
-from pickstop.api.middleware import API, BodyLimit, StoredPlanFastPath
+from pickstop.api.middleware import API, BodyLimit, ErrorGuard, Head, StoredPlanFastPath
 from pickstop.api.problems import install, server_roots
 from pickstop.api.routes import databases, health, jobs, plans, robots, scenes
 from pickstop.api.schemas import BatchRequest, BuildRequest, PlanRequest, ProblemDetails
@@ -71,6 +71,8 @@ def create_app(
     install(app)
     app.add_middleware(BodyLimit, limit=settings.max_body_bytes)
     app.add_middleware(StoredPlanFastPath, settings=settings)
+    app.add_middleware(ErrorGuard)
+    app.add_middleware(Head)
     for router in ROUTERS:
         app.include_router(router, prefix=API)
     openapi.install(app, settings, {

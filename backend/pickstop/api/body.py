@@ -2,17 +2,24 @@
 
 FastAPI would decode a body on the event loop and before the key is checked; PickStop's routes
 take the raw bytes instead (:func:`pickstop.api.deps.json_body`) and decode them here, in a
-worker thread, after authentication: not UTF-8, not JSON, nested too deep, a 5,000-digit
-integer or a NaN each come back as a 422 whose ``field`` is ``body`` (or the value's path) and
-whose detail says where. Nesting is bounded by the decoder's recursion limit (about 1,000
-levels); anything recursing over a document later answers the same 422 (see problems.py).
+worker thread, after authentication, in the ``charset`` the content type names (UTF-8 if it
+names none): not in that charset, not JSON, nested too deep, a 5,000-digit integer or a NaN
+each come back as a 422 whose ``field`` is ``body`` (or the value's path) and whose detail
+says where. Nesting is bounded by the decoder's recursion limit (about 1,000 levels); anything
+recursing over a document later answers the same 422 (see problems.py). YAML is decoded in a
+child process under a time limit (:mod:`pickstop.api.yaml_child`), never on the API's
+interpreter.
 """
 
 from __future__ import annotations
 
+import codecs
 import json
 import math
 import re
+import subprocess
+import sys
+import threading
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
@@ -35,24 +42,36 @@ def invalid(field: str, message: str, errors: list[tuple[str, str]] | None = Non
 
 
 # Numbers Python would read as infinite or NaN: only then is the document walked for them.
-_NON_FINITE = re.compile(rb"NaN|Infinity|\d[eE]\+?\d{3}")
+_NON_FINITE = re.compile(r"NaN|Infinity|\d[eE]\+?\d{3}")
 _DIGITS = re.compile(r"has (\d+) digits")
 
 
-def _text(raw: bytes, kind: str) -> str:
-    """The body as UTF-8 text, or a 422 saying it is empty or where it is not UTF-8."""
+def _text(raw: bytes, kind: str, charset: str = "utf-8") -> str:
+    """The body as text in ``charset``, or a 422 saying it is empty or where it breaks."""
     if not raw.strip():
         raise invalid("body", f"the request needs a {kind} body")
     try:
-        return raw.decode("utf-8")
+        return raw.decode(charset)
     except UnicodeDecodeError as e:
-        raise invalid("body", f"not valid UTF-8 at byte {e.start}") from None
+        raise invalid("body", f"not valid {_charset_name(charset)} at byte {e.start}") from None
 
 
-def decode(raw: bytes) -> Any:
+def _charset_name(charset: str) -> str:
+    return "UTF-8" if codecs.lookup(charset).name == "utf-8" else charset
+
+
+def known_charset(charset: str) -> bool:
+    """Whether Python decodes bytes in ``charset`` to text (``latin-1`` yes, ``rot13`` no)."""
+    try:
+        return bool(getattr(codecs.lookup(charset), "_is_text_encoding", True))
+    except LookupError:
+        return False
+
+
+def decode(raw: bytes, charset: str = "utf-8") -> Any:
     """The JSON document in ``raw``, or a 422 :class:`Problem` saying where it breaks. Costs
     one pass of the C decoder: a 1 MB scene takes milliseconds."""
-    text = _text(raw, "JSON")
+    text = _text(raw, "JSON", charset)
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as e:
@@ -65,36 +84,44 @@ def decode(raw: bytes) -> Any:
         m = _DIGITS.search(str(e))
         raise invalid("body", f"an integer of {m.group(1) if m else 'too many'} digits, "
                       "more than any field accepts") from None  # fmt: skip
-    if _NON_FINITE.search(raw):
+    if _NON_FINITE.search(text):
         bad = finite_problem(doc)
         if bad is not None:
             raise invalid(*bad)
     return doc
 
 
-def decode_yaml(raw: bytes) -> Any:
-    """The YAML document in ``raw`` (safe types only, no anchors or aliases: a few bytes of
-    aliases can stand for gigabytes), or a 422 :class:`Problem` saying where it breaks."""
-    import yaml
+#: Time [s] a YAML body may take to decode in its child process, and how many decode at once.
+YAML_SECONDS = 5.0
+_YAML_SLOTS = threading.BoundedSemaphore(2)
 
-    class _NoAliases(yaml.SafeLoader):
-        def compose_node(self, parent: Any, index: Any) -> Any:
-            if self.check_event(yaml.AliasEvent):
-                mark = self.peek_event().start_mark
-                raise yaml.YAMLError(
-                    f"aliases are not accepted (line {mark.line + 1} column {mark.column + 1})"
-                )
-            return super().compose_node(parent, index)
 
-    text = _text(raw, "YAML")
+def decode_yaml(raw: bytes, charset: str = "utf-8") -> Any:
+    """The YAML document in ``raw`` as JSON values (no aliases, no types JSON lacks), or a 422
+    :class:`Problem` saying where it breaks. Decoded in a child process
+    (:mod:`pickstop.api.yaml_child`) under :data:`YAML_SECONDS`, at most two at once, so that
+    no document holds this interpreter nor outlives its request."""
+    text = _text(raw, "YAML", charset)
+    with _YAML_SLOTS:
+        try:
+            done = subprocess.run(
+                [sys.executable, "-m", "pickstop.api.yaml_child"],
+                input=text.encode("utf-8", "surrogatepass"),
+                capture_output=True,
+                timeout=YAML_SECONDS,
+                check=False,
+            )
+        except subprocess.TimeoutExpired:
+            raise invalid("body", f"the YAML took more than {YAML_SECONDS:g} s to decode "
+                          "(nested too deeply, or too complex)") from None  # fmt: skip
     try:
-        doc = yaml.load(text, Loader=_NoAliases)
-    except yaml.YAMLError as e:
-        where = getattr(e, "problem_mark", None)
-        at = f" at line {where.line + 1} column {where.column + 1}" if where else ""
-        raise invalid("body", f"not valid YAML{at}: {getattr(e, 'problem', None) or e}") from None
-    except RecursionError:
-        raise nested() from None
+        out = json.loads(done.stdout)
+    except ValueError:
+        raise invalid("body", "the YAML could not be decoded (nested too deeply, or too "
+                      "complex)") from None  # fmt: skip
+    if "error" in out:
+        raise invalid("body", str(out["error"]))
+    doc = out["doc"]
     bad = finite_problem(doc)
     if bad is not None:
         raise invalid(*bad)
@@ -133,7 +160,7 @@ def validate(model: type[M], doc: Any, prefix: str = "") -> M:
 def type_errors(model: type[BaseModel], doc: Any, prefix: str = "") -> list[tuple[str, str]]:
     """What strict JSON validation of ``doc`` as ``model`` finds, as (field, message)."""
     try:
-        model.model_validate_json(json.dumps(doc), strict=True)
+        model.model_validate_json(json.dumps(_integral(doc)), strict=True)
     except ValidationError as e:
         return [
             (prefix + (".".join(str(p) for p in err["loc"]) or "body"), err["msg"])
@@ -142,6 +169,18 @@ def type_errors(model: type[BaseModel], doc: Any, prefix: str = "") -> list[tupl
     except RecursionError:
         raise nested() from None
     return []
+
+
+def _integral(doc: Any) -> Any:
+    """``doc`` with every float that is a whole number written as an integer: JSON (and JSON
+    Schema) do not tell ``3.0`` from ``3``, so neither does strict validation."""
+    if isinstance(doc, float) and doc.is_integer() and abs(doc) < 2**64:
+        return int(doc)
+    if isinstance(doc, dict):
+        return {k: _integral(v) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [_integral(v) for v in doc]
+    return doc
 
 
 def _kind(v: Any) -> str:

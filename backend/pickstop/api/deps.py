@@ -62,29 +62,45 @@ WriteKey = Depends(write_key)
 ReadKey = Depends(read_key)
 
 
-def _is_json(content_type: str) -> bool:
-    media = content_type.split(";", 1)[0].strip().lower()
+def content_type(request: Request) -> tuple[str | None, str]:
+    """The request's media type (lower case, None if it gives none) and its charset (UTF-8
+    unless it names another); a charset Python cannot decode is a 415."""
+    header = request.headers.get("content-type")
+    if header is None:
+        return None, "utf-8"
+    media, _, params = header.partition(";")
+    charset = "utf-8"
+    for param in params.split(";"):
+        key, _, value = param.partition("=")
+        if key.strip().lower() == "charset" and value.strip():
+            charset = value.strip().strip('"').lower()
+    if not body.known_charset(charset):
+        raise Problem(415, "Unsupported media type", f"the charset {charset!r} is not one this "
+                      "server decodes (send UTF-8)", field="Content-Type")  # fmt: skip
+    return media.strip().lower(), charset
+
+
+def _is_json(media: str) -> bool:
     return media == "application/json" or (
         media.startswith("application/") and media.endswith("+json")
     )
 
 
 async def json_body(request: Request) -> Any:
-    """The request's JSON document, decoded off the event loop (415 unless it says JSON)."""
-    ctype = request.headers.get("content-type")
-    if ctype is None or not _is_json(ctype):
-        raw = await request.body()
-        if ctype is not None or raw.strip():
-            raise Problem(
-                415,
-                "Unsupported media type",
-                f"the body must be application/json, not {ctype or 'untyped'}",
-                field="Content-Type",
-                headers={"Accept-Post": "application/json"},
-            )
-    else:
-        raw = await request.body()
-    return await run_in_threadpool(body.decode, raw)
+    """The request's JSON document, decoded off the event loop in the charset its content
+    type names (415 unless it says JSON)."""
+    media, charset = content_type(request)
+    raw = await request.body()
+    # A request without a content type and without a body reads as an empty JSON body.
+    if not (media is None and not raw.strip()) and (media is None or not _is_json(media)):
+        raise Problem(
+            415,
+            "Unsupported media type",
+            f"the body must be application/json, not {media or 'untyped'}",
+            field="Content-Type",
+            headers={"Accept-Post": "application/json"},
+        )
+    return await run_in_threadpool(body.decode, raw, charset)
 
 
 JsonBody = Annotated[Any, Depends(json_body)]
@@ -92,17 +108,24 @@ JsonBody = Annotated[Any, Depends(json_body)]
 YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml")
 
 
-async def config_body(request: Request) -> Any:
-    """A config document, JSON or YAML by its content type, decoded off the event loop."""
-    ctype = (request.headers.get("content-type") or "").split(";", 1)[0].strip().lower()
-    if ctype in YAML_TYPES:
-        return await run_in_threadpool(body.decode_yaml, await request.body())
+async def config_body(request: Request, service: ServiceDep) -> Any:
+    """A config document, JSON or YAML by its content type, decoded off the event loop (YAML
+    in a child process, and at most ``max_yaml_bytes`` of it)."""
+    media, charset = content_type(request)
+    if media in YAML_TYPES:
+        raw = await request.body()
+        limit = service.settings.max_yaml_bytes
+        if len(raw) > limit:
+            raise Problem(413, "Request too large", f"a YAML body may hold {limit} bytes, this "
+                          f"one holds {len(raw)}; send JSON for more", kind="too-large",
+                          field="body")  # fmt: skip
+        return await run_in_threadpool(body.decode_yaml, raw, charset)
     try:
         return await json_body(request)
     except Problem as e:
-        if e.status == 415:
+        if e.status == 415 and e.field == "Content-Type" and "charset" not in e.detail:
             e.detail = (
-                f"the body must be application/json or application/yaml, not {ctype or 'untyped'}"
+                f"the body must be application/json or application/yaml, not {media or 'untyped'}"
             )
             e.headers = {**(e.headers or {}), "Accept-Post": "application/json, application/yaml"}
         raise
@@ -120,3 +143,13 @@ def scene_row(scene_id: str, service: ServiceDep) -> dict[str, Any]:
 
 
 SceneRow = Annotated[dict[str, Any], Depends(scene_row)]
+
+
+def robot_name(name: str, service: ServiceDep) -> str:
+    """The name of a preset or registered robot (404 if there is none)."""
+    if not service.robots.exists(name):
+        raise Problem(404, "Not found", f"no robot {name!r}", field="name")
+    return name
+
+
+RobotName = Annotated[str, Depends(robot_name)]

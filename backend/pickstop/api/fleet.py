@@ -94,7 +94,14 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
     def _problem(e: PickStopError) -> Problem:
         return Problem(422, "Invalid input", e.message, kind="validation", field=e.field)
 
-    @r.get("/plans/{plan_id}/export", tags=["fleet"], dependencies=R)
+    @r.get(
+        "/plans/{plan_id}/export",
+        tags=["fleet"],
+        dependencies=R,
+        responses={200: {"description": "the order or goal: JSON, or YAML for nav2_format=yaml",
+                         "content": {"application/json": {"schema": {"type": "object"}},
+                                     "application/yaml": {"schema": {"type": "object"}}}}},
+    )  # fmt: skip
     async def export_plan(
         request: Request,
         plan_id: str,

@@ -5,7 +5,9 @@ state survives a restart: a job cut off by one is marked interrupted when the ne
 starts. One process of a worker pool runs the jobs; it takes those other processes queued from
 the records, and a cancel that reaches another process is passed on through the job's record.
 Every job has a deadline (``job_deadline``); a cancelled or late job is stopped where it is
-(:class:`pickstop.api.work.Work`).
+(:class:`pickstop.api.work.Work`). A build runs in a process group of its own
+(:mod:`pickstop.api.build_process`), ended with the job and with the runner; a cancelled
+build leaves no database behind.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from pickstop.api.build_process import BuildProcess, error_of
 from pickstop.api.registry import RobotRegistry
 from pickstop.api.work import Cancelled, Work
 from pickstop.errors import InputError, PickStopError
@@ -52,14 +55,35 @@ class JobRunner:
         self._cancel: set[str] = set()
         self._running: tuple[str, Work] | None = None
         self._running_lock = threading.Lock()
+        self._children: dict[str, BuildProcess] = {}  # job id -> its build's process group
+        self._closing = False
         self._thread = threading.Thread(target=self._loop, name="pickstop-jobs", daemon=True)
         if start:
             self._thread.start()
 
     def close(self) -> None:
-        if self.runs_jobs:
-            self._queue.put(None)
-            self._thread.join(timeout=10)
+        """Stop the running job (it is recorded interrupted) and every process it started,
+        then the runner."""
+        if not self.runs_jobs:
+            return
+        self._closing = True
+        self._queue.put(None)
+        with self._running_lock:
+            if self._running is not None:
+                self._running[1].stop()
+            children = list(self._children.values())
+        for child in children:
+            child.stop()
+        self._thread.join(timeout=10)
+
+    def adopt(self, job_id: str, child: BuildProcess) -> None:
+        """``child`` runs the job ``job_id``: :meth:`close` ends it if the job has not."""
+        with self._running_lock:
+            self._children[job_id] = child
+
+    def disown(self, job_id: str) -> None:
+        with self._running_lock:
+            self._children.pop(job_id, None)
 
     def submit(self, kind: str, params: dict[str, Any]) -> dict[str, Any]:
         job = self.store.add_job(kind, params)
@@ -133,6 +157,9 @@ class JobRunner:
         except (JobCancelled, Cancelled):
             if job_id in self._cancel:
                 self.store.set_job(job_id, state="cancelled", error="cancelled while running")
+            elif self._closing:
+                self.store.set_job(job_id, state="interrupted", error="the service stopped "
+                                   "while it ran; submit it again to resume it")  # fmt: skip
             else:
                 self.store.set_job(job_id, state="failed", error="the job passed its "
                                    f"deadline of {self.settings.job_deadline:g} s")  # fmt: skip
@@ -159,28 +186,43 @@ class JobRunner:
 
 
 # -- the kinds of job ----------------------------------------------------------------------
-def build_job(robots: RobotRegistry, data_dir: Path) -> JobKind:
-    """A database build: ``{"robot", **BuildParams}`` -> the new database's id and size."""
+def build_job(
+    robots: RobotRegistry, data_dir: Path, after: Callable[[str | None, bool], object]
+) -> JobKind:
+    """A database build: ``{"robot", **BuildParams}`` -> the new database's id and size,
+    built in a process group of its own; ``after(db_id, cancelled)`` tidies up once it ends
+    (a cancelled build's database is removed)."""
 
     def run(runner: JobRunner, job_id: str, params: dict[str, Any]) -> dict[str, Any]:
         from pickstop.reach.build import BuildParams
-        from pickstop.store.reach_build import build
 
-        robot = robots.model(params.pop("robot"))
+        config, root = robots.config(params.pop("robot"))
         bp = BuildParams(**params)
         bp.validate()
-        last = [0.0]
-
-        def progress(done: int, total: int) -> None:
-            runner.check_cancel(job_id)
-            frac = done / total if total else 1.0
-            if frac - last[0] >= 0.01 or done == total:
-                last[0] = frac
-                runner.store.set_job(job_id, progress=frac)
-
-        # Two worker processes at lower priority: interactive requests come first.
-        row = build(robot, bp, data_dir, workers=2, progress=progress, nice=10)
-        return {"database": row["id"], "robot": robot.name, "samples": row["samples"]}
+        child = BuildProcess(config, root, bp, data_dir)
+        runner.adopt(job_id, child)
+        db_id, last = None, 0.0
+        try:
+            for msg in child.messages():
+                if "database" in msg:
+                    db_id = msg["database"]
+                elif "progress" in msg:
+                    runner.check_cancel(job_id)
+                    done, total = msg["progress"]
+                    frac = done / total if total else 1.0
+                    if frac - last >= 0.01 or done == total:
+                        last = frac
+                        runner.store.set_job(job_id, progress=frac)
+                elif "result" in msg:
+                    result: dict[str, Any] = msg["result"]
+                    return result
+                elif "error" in msg:
+                    raise error_of(msg)
+            raise PickStopError(f"the build stopped (exit code {child.proc.poll()})")
+        finally:
+            child.stop()
+            runner.disown(job_id)
+            after(db_id, runner.cancelled(job_id))
 
     return run
 

@@ -8,7 +8,6 @@ The same limits are published at ``GET /api/v1/limits`` so a client can check be
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, Field
@@ -20,6 +19,7 @@ class Limits(BaseModel):
     """What one request may ask for; larger requests are refused (422, or 413 for a body)."""
 
     max_body_bytes: int = Field(description="request body [bytes]")
+    max_yaml_bytes: int = Field(description="YAML request body (robot configs) [bytes]")
     max_trays: int = Field(description="trays per scene")
     max_parts_per_tray: int = Field(description="parts per tray")
     max_parts: int = Field(description="parts per scene")
@@ -36,6 +36,7 @@ class Limits(BaseModel):
     def of(cls, s: Settings) -> Limits:
         return cls(
             max_body_bytes=s.max_body_bytes,
+            max_yaml_bytes=s.max_yaml_bytes,
             max_trays=s.max_trays,
             max_parts_per_tray=s.max_parts_per_tray,
             max_parts=s.max_parts,
@@ -132,21 +133,6 @@ def mesh_geometries(doc: Any) -> list[tuple[str, dict[str, Any]]]:
             if isinstance(g, dict) and g.get("shape") == "mesh":
                 out.append((f"trays.{i}.parts.{k}.geometry", g))
     return out
-
-
-def mesh_triangles(path: Path) -> int:
-    """Triangles of a mesh file, counted without loading it: binary STL from its header, ASCII
-    STL and OBJ by their facet lines, other formats estimated from the size (50 bytes each)."""
-    size = path.stat().st_size
-    with path.open("rb") as f:
-        head = f.read(84)
-        if path.suffix.lower() == ".stl" and not head.lstrip().startswith(b"solid"):
-            return int.from_bytes(head[80:84], "little") if len(head) == 84 else 0
-        if path.suffix.lower() in (".stl", ".obj"):
-            f.seek(0)
-            marker = b"facet" if path.suffix.lower() == ".stl" else b"f "
-            return sum(line.lstrip().startswith(marker) for line in f)
-    return size // 50
 
 
 def check_body_int(value: Any, field: str, limit: int, what: str) -> Problems:

@@ -1,18 +1,73 @@
-"""ASGI middleware: the body size limit and the stored-plan fast path.
+"""ASGI middleware: HEAD, unexpected errors, the body size limit and the stored-plan fast path.
 
-Both run before routing, so they see every request, chunked or not, and never compute.
+They run before routing, so they see every request, chunked or not, and never compute.
 """
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
-from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from pickstop.api.problems import Problem, problem_response
 from pickstop.settings import Settings
 
 API = "/api/v1"
+log = logging.getLogger("pickstop.api")
+
+
+class Head:
+    """``HEAD`` answered as ``GET`` without the body (RFC 9110: what GET would answer, headers
+    only), so that every resource whose ``Allow`` lists HEAD serves it."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["method"] != "HEAD":
+            await self.app(scope, receive, send)
+            return
+
+        async def headers_only(msg: Message) -> None:
+            if msg["type"] == "http.response.body":
+                if msg.get("more_body", False):
+                    return
+                msg = {"type": "http.response.body", "body": b""}
+            await send(msg)
+
+        await self.app({**scope, "method": "GET"}, receive, headers_only)
+
+
+class ErrorGuard:
+    """An unexpected error answers 500 (a problem document, logged) and leaves the connection
+    usable: Starlette's last-resort handler answers and then raises again, and the server
+    drops a connection whose request raised, unannounced. Once an answer has begun nothing
+    can be said; the error goes on and the server closes the connection."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def watch(msg: Message) -> None:
+            nonlocal started
+            started = started or msg["type"] == "http.response.start"
+            await send(msg)
+
+        try:
+            await self.app(scope, receive, watch)
+        except Exception as exc:
+            if started:
+                raise
+            log.exception("unexpected error on %s", scope.get("path"))
+            p = Problem(500, "Internal error", f"{type(exc).__name__}: the request failed",
+                        kind="internal")  # fmt: skip
+            await problem_response(p, scope.get("path"))(scope, receive, send)
 
 
 class BodyLimit:
@@ -25,12 +80,15 @@ class BodyLimit:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        # The rest of the body is not read: the connection is closed after the answer, and
+        # says so.
         too_big = Problem(
             413,
             "Request too large",
             f"the request body exceeds {self.limit} bytes",
             kind="too-large",
             field="body",
+            headers={"Connection": "close"},
         )
         for k, v in scope.get("headers", []):
             if k == b"content-length" and v.isdigit() and int(v) > self.limit:
@@ -44,9 +102,8 @@ class BodyLimit:
             if msg["type"] == "http.request":
                 seen += len(msg.get("body", b""))
                 if seen > self.limit:
-                    raise _TooLarge(
-                        413, too_big.title, too_big.detail, kind="too-large", field="body"
-                    )
+                    raise _TooLarge(413, too_big.title, too_big.detail, kind="too-large",
+                                    field="body", headers=too_big.headers)  # fmt: skip
             return msg
 
         try:

@@ -71,6 +71,7 @@ def install(app: FastAPI, settings: Settings, models: dict[str, type[BaseModel]]
             schemas[name] = js
         _link(doc)
         _limits(schemas, settings)
+        _rules(schemas)
         comps.setdefault("securitySchemes", {})["bearer"] = {"type": "http", "scheme": "bearer"}
         for path, ops in doc["paths"].items():
             for method, op in ops.items():
@@ -95,10 +96,60 @@ def _limits(schemas: dict[str, Any], s: Settings) -> None:
     bound("Scene", "obstacles", maxItems=s.max_obstacles)
     bound("Tray", "parts", maxItems=s.max_parts_per_tray)
     bound("BuildRequest", "samples", maximum=s.max_samples)
+    samples = schemas.get("BuildRequest", {}).get("properties", {}).get("samples", {})
+    if "default" in samples:
+        samples["default"] = min(samples["default"], s.max_samples)
     samples = schemas.get("PlanOptions", {}).get("properties", {}).get("samples", {})
     for branch in [samples, *samples.get("anyOf", []), *samples.get("allOf", [])]:
         if "maximum" in branch:
             branch["maximum"] = min(branch["maximum"], s.max_mc_samples)
+
+
+def _rules(schemas: dict[str, Any]) -> None:
+    """The rules between fields that the models check, in the schemas too (or, where JSON
+    Schema cannot say them, in the descriptions)."""
+    one_of = [
+        {"required": ["scene_id"], "properties": {"scene_id": {"type": "string"}}},
+        {"required": ["scene"], "properties": {"scene": {"type": "object"}}},
+    ]
+    for name in ("BatchItem", "PlanRequest"):
+        if name in schemas:
+            schemas[name]["oneOf"] = one_of
+            schemas[name]["description"] = "give exactly one of scene_id and scene"
+    zero = {"type": "array", "items": {"const": 0}}
+    hand = schemas.get("Hand", {}).get("properties", {})
+    config = schemas.get("RobotConfig", {}).get("properties", {})
+    for props, axis in ((hand, "approach_axis"), (hand, "closing_axis"), (config, "approach_axis")):
+        if axis in props:
+            props[axis]["not"] = zero
+            props[axis]["description"] = (
+                "a non-zero direction in the grasp point's frame; closing_axis is "
+                "perpendicular to approach_axis (to 0.06 deg)"
+            )
+    extent = schemas.get("Extent")
+    if extent is not None:
+        extent["description"] = "a rectangle on the floor [m]: min below max in x and in y"
+
+
+#: Where what a POST creates is read: (path suffix, status) -> (operation id, parameter).
+CREATED = {
+    ("/scenes", "201"): ("get_scene_api_v1_scenes__scene_id__get", "scene_id"),
+    ("/plans", "201"): ("get_plan_api_v1_plans__plan_id__get", "plan_id"),
+    ("/databases", "202"): ("job_api_v1_jobs__job_id__get", "job_id"),
+    ("/jobs/batch", "202"): ("job_api_v1_jobs__job_id__get", "job_id"),
+}
+
+
+def _links(op: dict[str, Any], method: str, path: str) -> None:
+    """OpenAPI links from a creating POST to the resource it made (a database build makes a
+    job, not yet a database)."""
+    if method != "post":
+        return
+    for (suffix, status), (target, param) in CREATED.items():
+        answer = op.get("responses", {}).get(status)
+        if path.endswith(suffix) and answer is not None:
+            link = {"operationId": target, "parameters": {param: "$response.body#/id"}}
+            answer["links"] = {"created": link}
 
 
 def _link(node: Any) -> None:
@@ -138,12 +189,20 @@ def _operation(op: dict[str, Any], method: str, path: str, settings: Settings) -
         codes[422] = BODY[422]
     if method in ("put", "delete") and "scenes/{" in path:
         codes[412], codes[428] = TEXT[412], TEXT[428]
+        for param in op.get("parameters", []):
+            if param.get("in") == "header" and param.get("name", "").lower() == "if-match":
+                # Required: without it the answer is 428 (RFC 6585), not a plain 422.
+                param["required"] = True
+                param["schema"] = {"type": "string", "minLength": 1}
     if path.endswith("/plans") or path.endswith("/regions") or path.endswith("/batch"):
         codes[409], codes[504] = TEXT[409], TEXT[504]
     if path.endswith("/dispatch"):
         codes[409] = "no MQTT broker is configured on this server (PICKSTOP_MQTT_BROKER)"
     if path.endswith("/check") or path.endswith("/model"):
         codes[504] = TEXT[504]
+    if method == "post" and path.endswith("/robots"):
+        codes[409] = "a robot of that name exists already"
+    _links(op, method, path)
     codes[405] = TEXT[405]
     for code, text in codes.items():
         responses.setdefault(

@@ -15,8 +15,11 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from pickstop.errors import (
+    CorruptShardError,
+    DatabaseError,
     DatabaseMismatchError,
     DatabaseNotFoundError,
+    ExistsError,
     InputError,
     PickStopError,
     UnavailableError,
@@ -96,6 +99,11 @@ def from_error(e: PickStopError) -> Problem:
         return Problem(409, "No reachability database", e.message, kind="no-database")
     if isinstance(e, DatabaseMismatchError):
         return Problem(409, "Database mismatch", e.message)
+    if isinstance(e, DatabaseError) and not isinstance(e, CorruptShardError):
+        # incomplete, being built, or of an older format: the request may succeed later
+        return Problem(409, "Database not usable", e.message, kind="database-unusable")
+    if isinstance(e, ExistsError):
+        return Problem(409, "Conflict", e.message, kind="exists", field=e.field)
     if isinstance(e, InputError):
         problems = getattr(e, "problems", None)
         errors = [{"field": f, "message": m} for f, m in problems] if problems else None

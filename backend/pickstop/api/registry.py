@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from pickstop.api.body import type_errors
-from pickstop.errors import InputError, RobotConfigError
+from pickstop.errors import ExistsError, InputError, RobotConfigError
 from pickstop.pool import PlannerPool
 from pickstop.robot.config import (
     RobotConfig,
@@ -20,7 +20,7 @@ from pickstop.robot.config import (
     parse_config,
     preset_names,
 )
-from pickstop.robot.model import RobotModel, _mesh_refs, resolve_path
+from pickstop.robot.model import RobotModel
 from pickstop.store.records import ServiceStore
 
 
@@ -59,6 +59,10 @@ class RobotRegistry:
         self.confine(config)  # at every open: a file swapped for a symlink since is refused
         return config, self.robot_dir
 
+    def exists(self, name: str) -> bool:
+        """Whether ``name`` is a preset or a registered robot."""
+        return name in preset_names() or self.store.robot(name) is not None
+
     def model(self, name: str) -> RobotModel:
         """The loaded robot ``name`` (from the planner pool: loaded once per config)."""
         return self.planners.robot(*self.config(name))
@@ -70,54 +74,55 @@ class RobotRegistry:
             raise RobotConfigError("; ".join(f"{f}: {m}" for f, m in strict), field=strict[0][0])
         config = parse_config(data, "robot")
         if config.name in preset_names() or self.store.robot(config.name) is not None:
-            raise InputError(f"robot {config.name!r} already exists", field="name")
+            raise ExistsError(f"robot {config.name!r} already exists", field="name")
         self.confine(config)
         robot = self.planners.robot(config, self.robot_dir)
         self.store.add_robot(config.name, config.model_dump(mode="json"))
         return robot
 
     def confine(self, config: RobotConfig) -> None:
-        """Refuse any file of the config (URDF, SRDF, meshes, package dirs) outside the allowed
-        folders: relative paths start at the data folder's robots/, package:// resolves only to
+        """Refuse any file of the config (URDF, SRDF, package dirs, and every mesh its URDF
+        names, visual or collision) outside the allowed folders: relative paths start at the
+        data folder's robots/ (a mesh's at its URDF's folder), package:// resolves only to
         allowed roots. Real paths are compared (symlinks resolved), and a file that is missing
         gets the same answer as one outside, so the answer tells nothing about the server."""
-        roots = self.allowed_roots()
-
-        def inside(p: Path) -> bool:
-            rp = p.resolve()
-            return any(rp.is_relative_to(r) for r in roots)
-
-        def refuse(what: str, ref: str, field: str) -> RobotConfigError:
-            return RobotConfigError(
-                f"{what} {ref!r} lies outside the allowed folders or is not a file there",
-                field=field,
-            )
-
         pkg = []
         for i, d in enumerate(config.package_dirs):
-            p = (self.robot_dir / d).resolve()
-            if not inside(p):
-                raise refuse(f"package_dirs[{i}]", d, f"package_dirs.{i}")
-            pkg.append(str(p))
-        pkg.append(str(example_robot_data_share()))
+            p = self._inside(self.robot_dir / d)
+            if p is None:
+                raise _refuse(f"package_dirs[{i}]", d, f"package_dirs.{i}")
+            pkg.append(p)
+        pkg.append(example_robot_data_share().resolve())
         for what, ref in (("urdf", config.urdf), ("srdf", config.srdf)):
             if ref is None:
                 continue
-            if not ref.startswith("package://") and not inside(self.robot_dir / ref):
-                raise refuse(what, ref, what)
-            try:
-                path = resolve_path(ref, self.robot_dir, pkg, what)
-            except RobotConfigError:
-                raise refuse(what, ref, what) from None
-            if not inside(path):
-                raise refuse(what, ref, what)
+            path = self._file(ref, self.robot_dir, pkg)
+            if path is None:
+                raise _refuse(what, ref, what)
             if what == "urdf":
-                for mesh in _mesh_refs(path, pkg)[1]:
-                    if not inside(mesh):
-                        raise RobotConfigError(
-                            f"mesh {mesh.name!r} of the URDF lies outside the allowed folders",
-                            field="urdf",
-                        )
+                for link, mesh in _urdf_meshes(path, ref):
+                    if self._file(mesh.removeprefix("file://"), path.parent, pkg) is None:
+                        raise _refuse(f"mesh of link {link!r} in the URDF", mesh, "urdf")
+
+    def _inside(self, p: Path) -> Path | None:
+        """``p``'s real path if it lies in an allowed folder (whether or not it exists)."""
+        try:
+            real = p.resolve()
+        except (OSError, ValueError):  # a name too long, a NUL, a symlink loop
+            return None
+        return real if any(real.is_relative_to(r) for r in self.allowed_roots()) else None
+
+    def _file(self, ref: str, root: Path, pkg: list[Path]) -> Path | None:
+        """The real path of the file ``ref`` names (package://, absolute, or relative to
+        ``root``) as the robot loader finds it, if it is a file in an allowed folder."""
+        if ref.startswith("package://"):
+            rel = ref[len("package://") :]
+            found = [d / rel for d in pkg if _is_file(d / rel)]
+            candidate = found[0] if found else None
+        else:
+            candidate = root / ref
+        real = None if candidate is None else self._inside(candidate)
+        return real if real is not None and _is_file(real) else None
 
     def listing(self) -> list[dict[str, Any]]:
         """Every robot by name: the presets, then the registered ones."""
@@ -127,3 +132,31 @@ class RobotRegistry:
             for r in self.store.robots()
         ]
         return out
+
+
+def _refuse(what: str, ref: str, field: str) -> RobotConfigError:
+    return RobotConfigError(
+        f"{what} {ref!r} lies outside the allowed folders or is not a file there", field=field
+    )
+
+
+def _is_file(p: Path) -> bool:
+    try:
+        return p.is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def _urdf_meshes(urdf: Path, ref: str) -> list[tuple[str, str]]:
+    """(link, mesh filename) of every mesh a URDF names, visual and collision."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(urdf).getroot()
+    except ET.ParseError as e:
+        raise RobotConfigError(f"urdf {ref!r}: not well-formed XML ({e})", field="urdf") from None
+    return [
+        (str(link.get("name")), mesh.get("filename", ""))
+        for link in root.iter("link")
+        for mesh in link.iter("mesh")
+    ]

@@ -18,6 +18,7 @@ from pickstop.api.registry import RobotRegistry
 from pickstop.errors import InputError, RobotConfigError
 from pickstop.scene.checks import CheckedScenes
 from pickstop.scene.load import parse_scene
+from pickstop.scene.mesh_file import MeshFileError, MeshFiles, claimed_triangles
 from pickstop.scene.model import Scene, SceneError, resolve_mesh_paths
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.store.records import ServiceStore
@@ -34,6 +35,7 @@ class SceneChecks:
         self.store = store
         self.robots = robots
         self.checked = CheckedScenes()  # the geometry checks of the last layouts
+        self.mesh_files = MeshFiles()  # what each mesh file was found to be
 
     def parse(self, doc: Any, loc: str = "") -> Scene:
         """A scene from a request, every check passed; ``loc`` prefixes the fields named in
@@ -50,15 +52,7 @@ class SceneChecks:
             resolved = resolve_mesh_paths(doc, meshes, [meshes])
         except SceneError as e:
             raise SceneError([(loc + f, m) for f, m in e.problems]) from None
-        triangles = 0
-        for where, geom in lim.mesh_geometries(resolved):
-            path = geom.get("path")
-            if isinstance(path, str) and Path(path).is_file():  # else the model names it
-                triangles += lim.mesh_triangles(Path(path))
-            if triangles > self.limits.max_mesh_triangles:
-                raise SceneError([(f"{loc}{where}.path", f"the scene's meshes hold {triangles} "
-                                   f"triangles up to this one, over the limit of "
-                                   f"{self.limits.max_mesh_triangles}")])  # fmt: skip
+        self._check_meshes(resolved, loc)
         try:
             scene = parse_scene(resolved, "scene", self.checked)
         except SceneError as e:
@@ -74,6 +68,27 @@ class SceneChecks:
         except InputError as e:
             raise SceneError([(f"{loc}{e.field or 'robot.preset'}", e.message)]) from None
         return scene
+
+    def _check_meshes(self, resolved: Any, loc: str) -> None:
+        """Every mesh file of a scene checked (:func:`pickstop.scene.mesh_file.check_mesh`),
+        and all their triangles together within the limit."""
+        limit, triangles = self.limits.max_mesh_triangles, 0
+        for where, geom in lim.mesh_geometries(resolved):
+            path, field = geom.get("path"), f"{loc}{where}.path"
+            if not (isinstance(path, str) and Path(path).is_file()):
+                continue  # the model names it
+            claimed = claimed_triangles(Path(path))
+            if claimed is None or triangles + claimed <= limit:
+                scale = geom.get("scale", 1.0)
+                scale = scale if isinstance(scale, int | float) and scale > 0 else 1.0
+                try:
+                    claimed = self.mesh_files.check(Path(path), limit, scale).triangles
+                except MeshFileError as e:
+                    raise SceneError([(field, f"mesh {Path(path).name!r}: {e.message}")]) from None
+            triangles += claimed
+            if triangles > limit:
+                raise SceneError([(field, f"the scene's meshes hold {triangles} triangles up to "
+                                   f"this one, over the limit of {limit}")])  # fmt: skip
 
     def check_options(self, options: PlanOptions, loc: str = "options.") -> None:
         if options.samples > self.limits.max_mc_samples:

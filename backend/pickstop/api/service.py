@@ -16,6 +16,7 @@ CPU-heavy work (regions, plans) runs off the event loop: in a planner process
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -29,7 +30,7 @@ from pickstop.api.planner_process import PlannerProcess
 from pickstop.api.planning import Planning
 from pickstop.api.registry import RobotRegistry
 from pickstop.api.scene_checks import SceneChecks
-from pickstop.errors import InputError
+from pickstop.errors import DatabaseBusyError, InputError
 from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 from pickstop.store import reach_catalog
@@ -52,7 +53,7 @@ class Service:
         self.planners = (
             planners
             if planners is not None
-            else PlannerPool(self.data_dir, settings.region_processes)
+            else PlannerPool(self.data_dir, settings.region_processes, settings.default_databases)
         )
         self.robots = RobotRegistry(self.store, self.data_dir, self.planners)
         self.scenes = SceneChecks(self.limits, self.data_dir, self.store, self.robots)
@@ -65,10 +66,12 @@ class Service:
         )
         self.bodies = PlanBodies(self.store)
         kinds = {
-            "build": build_job(self.robots, self.data_dir),
+            "build": build_job(self.robots, self.data_dir, self.after_build),
             "batch": batch_job(self.scenes.parse, self.planning.plan),
         }
         self.jobs = JobRunner(self.store, settings, kinds, start=job_runner)
+        if job_runner:
+            self.purge_interrupted()
 
     def close(self) -> None:
         self.jobs.close()
@@ -93,6 +96,8 @@ class Service:
     def submit_build(self, body: Any) -> dict[str, Any]:
         from pickstop.reach.build import BuildParams
 
+        if "samples" not in body.model_fields_set:  # the default, within this server's limit
+            body = body.model_copy(update={"samples": min(body.samples, self.settings.max_samples)})
         if body.samples > self.settings.max_samples:
             raise InputError(f"samples {body.samples} exceeds the limit of "
                              f"{self.settings.max_samples}", field="samples")  # fmt: skip
@@ -105,14 +110,46 @@ class Service:
         return self.jobs.submit("build", params)
 
     def delete_database(self, db_id: str) -> bool:
-        """Delete a reachability database: its planners, its catalog rows and its files."""
+        """Delete a reachability database: its planners, its catalog rows and its files;
+        False if there is none. One being built is refused (cancel its build first)."""
         cat = self.store.catalog
-        if reach_catalog.database_row(cat, db_id) is None:
+        row = reach_catalog.database_row(cat, db_id)
+        if row is None:
             return False
+        if row["state"] == "building" and reach_catalog.builder_alive(row.get("builder")):
+            raise DatabaseBusyError(f"database {db_id} is being built: cancel its build job "
+                                    "first")  # fmt: skip
         self.planners.drop_database(db_id)
         reach_catalog.delete_database(cat, db_id)
         shutil.rmtree(self.data_dir / "reach" / db_id, ignore_errors=True)
         return True
+
+    def after_build(self, db_id: str | None, cancelled: bool) -> None:
+        """Once a build job ends: a cancelled build's unfinished database is removed, and so is
+        any database left interrupted for longer than the retention."""
+        if cancelled and db_id is not None:
+            row = reach_catalog.database_row(self.store.catalog, db_id)
+            if row is not None and row["state"] != "complete":
+                with contextlib.suppress(DatabaseBusyError):
+                    self.delete_database(db_id)
+        self.purge_interrupted()
+
+    def purge_interrupted(self) -> list[str]:
+        """Delete the databases whose build was interrupted (a restart, a stopped command) more
+        than ``interrupted_retention`` seconds after it began; their ids."""
+        from datetime import UTC, datetime
+
+        now = datetime.now(UTC)
+        gone = []
+        for row in reach_catalog.list_databases(self.data_dir):
+            if row["state"] != "interrupted" or not row.get("created"):
+                continue
+            age = (now - datetime.fromisoformat(row["created"])).total_seconds()
+            if age >= self.settings.interrupted_retention:
+                with contextlib.suppress(DatabaseBusyError):
+                    if self.delete_database(row["id"]):
+                        gone.append(row["id"])
+        return gone
 
 
 def planner_child(fd: int) -> None:

@@ -52,7 +52,9 @@ class WorkerPool:
 
         # With planner processes, each worker's child loads its own planners (the database is
         # memory-mapped, so shared all the same); without, the workers inherit the parent's.
-        planners = PlannerPool(Path(settings.data_dir), settings.region_processes)
+        planners = PlannerPool(
+            Path(settings.data_dir), settings.region_processes, settings.default_databases
+        )
         if settings.planner_processes == 0:
             with suppress(PickStopError):  # each worker's start-up says why (serving without)
                 planners.preload()

@@ -21,6 +21,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from pickstop.errors import RobotConfigError
 
 PRESET_DIR = Path(__file__).parent / "presets"
+#: A file path or package:// URI in a config: printable, at most 1,024 characters.
+ConfigPath = Annotated[str, Field(min_length=1, max_length=1024, pattern=r"^[^\x00-\x1f\x7f]+$")]
 
 
 def example_robot_data_share() -> Path:
@@ -162,9 +164,9 @@ class RobotConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     name: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")]
-    urdf: str = Field(description="URDF path or package:// URI")
-    package_dirs: list[str] = Field(default_factory=list)
-    srdf: str | None = Field(
+    urdf: ConfigPath = Field(description="URDF path or package:// URI")
+    package_dirs: list[ConfigPath] = Field(default_factory=list)
+    srdf: ConfigPath | None = Field(
         default=None, description="optional SRDF giving disabled collision pairs"
     )
     arm_joints: list[str] = Field(

@@ -27,6 +27,19 @@ Finite = Annotated[float, Field(allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Ident = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$")]
+# Bounds that keep a scene's geometry well-conditioned in floating point: every size at least
+# 0.1 mm and every coordinate within 10 km, so that no outline collapses to a point or a line.
+MIN_SIZE, MAX_SIZE, MAX_COORD = 1e-4, 1e3, 1e4  # [m]
+MAX_YAW = 4 * math.pi  # [rad]: two turns either way; more is a unit mistake (degrees)
+Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
+Size = Annotated[float, Field(ge=MIN_SIZE, le=MAX_SIZE, allow_inf_nan=False)]
+Yaw = Annotated[float, Field(ge=-MAX_YAW, le=MAX_YAW, allow_inf_nan=False)]
+# Names are shown to people: no control characters, no bidirectional overrides (which make a
+# name read as another); a description may break lines.
+_HIDDEN = r"\u202a-\u202e\u2066-\u2069"
+Name = Annotated[str, Field(max_length=200, pattern=f"^[^\\x00-\\x1f\\x7f{_HIDDEN}]*$")]
+Text = Annotated[str, Field(pattern=f"^[^\\x00-\\x08\\x0b\\x0c\\x0e-\\x1f\\x7f{_HIDDEN}]*$")]
+FilePath = Annotated[str, Field(min_length=1, max_length=1024, pattern=r"^[^\x00-\x1f\x7f]+$")]
 
 
 class SceneError(InputError):
@@ -47,35 +60,35 @@ class _Strict(BaseModel):
 class Pose(_Strict):
     """Position [m] and yaw about the vertical [rad]."""
 
-    x: Finite = 0.0
-    y: Finite = 0.0
-    z: Finite = 0.0
-    yaw: Finite = 0.0
+    x: Coord = 0.0
+    y: Coord = 0.0
+    z: Coord = 0.0
+    yaw: Yaw = 0.0
 
 
 class BasePose(_Strict):
     """A base pose on the floor: ``(x, y)`` [m] and yaw [rad]."""
 
-    x: Finite
-    y: Finite
-    yaw: Finite = 0.0
+    x: Coord
+    y: Coord
+    yaw: Yaw = 0.0
 
 
 class Box(_Strict):
     shape: Literal["box"] = "box"
-    size: tuple[Positive, Positive, Positive]  # full extents along x, y, z [m]
+    size: tuple[Size, Size, Size]  # full extents along x, y, z [m]
 
 
 class Cylinder(_Strict):
     shape: Literal["cylinder"] = "cylinder"
-    radius: Positive
-    height: Positive
+    radius: Size
+    height: Size
 
 
 class Mesh(_Strict):
     shape: Literal["mesh"] = "mesh"
-    path: str  # relative to the scene file
-    scale: Positive = 1.0
+    path: FilePath  # relative to the scene file
+    scale: Annotated[float, Field(ge=1e-4, le=1e4, allow_inf_nan=False)] = 1.0
 
 
 Shape = Annotated[Box | Cylinder | Mesh, Field(discriminator="shape")]
@@ -85,7 +98,7 @@ class Obstacle(_Strict):
     """A static obstacle; its pose is the centre of its base face on the floor-up axis."""
 
     id: Ident
-    name: str = ""
+    name: Name = ""
     geometry: Shape
     pose: Pose  # centre of the bounding box bottom [m], yaw [rad]
 
@@ -110,7 +123,7 @@ class Part(_Strict):
     """A part lying in its tray; ``pose`` is its bottom centre in the tray frame."""
 
     id: Ident
-    name: str = ""
+    name: Name = ""
     geometry: Shape
     pose: Pose = Pose()
     grasps: list[Grasp] | None = None  # override generated grasps
@@ -136,13 +149,13 @@ class Tray(_Strict):
     ``inner_size[0]``, z along the floor's normal (tilted with the tray)."""
 
     id: Ident
-    name: str = ""
+    name: Name = ""
     pose: Pose  # inner floor centre in the world [m], yaw [rad]
     tilt: Tilt | None = None  # about the tray's own x or y axis, after the yaw
-    inner_size: tuple[Positive, Positive]  # [m]
-    wall_height: Positive = defaults.TRAY_WALL_HEIGHT
-    wall_thickness: Positive = defaults.TRAY_WALL_THICKNESS
-    floor_thickness: NonNegative = defaults.TRAY_FLOOR_THICKNESS
+    inner_size: tuple[Size, Size]  # [m]
+    wall_height: Size = defaults.TRAY_WALL_HEIGHT
+    wall_thickness: Size = defaults.TRAY_WALL_THICKNESS
+    floor_thickness: Annotated[NonNegative, Field(le=MAX_SIZE)] = defaults.TRAY_FLOOR_THICKNESS
     parts: list[Part] = Field(default_factory=list)
     color: str | None = None
 
@@ -200,8 +213,8 @@ def gripper_notes(scene: Scene) -> list[str]:
 class YawPolicy(_Strict):
     """One fixed base yaw (the paper) or a small set to search [rad]."""
 
-    fixed: Finite | None = 0.0
-    candidates: list[Finite] | None = None
+    fixed: Yaw | None = 0.0
+    candidates: list[Yaw] | None = None
 
     @model_validator(mode="after")
     def _one(self) -> YawPolicy:
@@ -217,8 +230,10 @@ class YawPolicy(_Strict):
 
 
 class Extent(_Strict):
-    min: tuple[Finite, Finite]
-    max: tuple[Finite, Finite]
+    """A rectangle on the floor [m]: ``min`` below ``max`` in x and in y."""
+
+    min: tuple[Coord, Coord]
+    max: tuple[Coord, Coord]
 
     @model_validator(mode="after")
     def _ordered(self) -> Extent:
@@ -254,24 +269,24 @@ class RobotRef(_Strict):
 class Motion(_Strict):
     """Time model parameters of the base and the arm."""
 
-    max_speed: Positive = 0.5  # [m/s]
-    max_acceleration: Positive = 0.5  # [m/s^2]
-    stop_time: NonNegative = 8.0  # decelerate, dock, relocalise [s]
-    pick_time: NonNegative = 6.0  # per part [s]
+    max_speed: Annotated[float, Field(ge=0.01, le=10)] = 0.5  # [m/s]
+    max_acceleration: Annotated[float, Field(ge=0.01, le=50)] = 0.5  # [m/s^2]
+    stop_time: Annotated[float, Field(ge=0, le=3600)] = 8.0  # decelerate, dock, relocalise [s]
+    pick_time: Annotated[float, Field(ge=0, le=3600)] = 6.0  # per part [s]
 
 
 class ErrorModel(_Strict):
     """Base positioning error: bounded disc of radius sigma, or Gaussian with mean error sigma."""
 
     kind: Literal["bounded", "gaussian"] = "gaussian"
-    yaw_sigma: NonNegative = 0.0  # [rad]
+    yaw_sigma: Annotated[float, Field(ge=0, le=math.pi)] = 0.0  # [rad]
 
 
 class Scene(_Strict):
     format: Literal["pickstop.scene"] = "pickstop.scene"
     version: Literal[1] = 1
-    name: str = ""
-    description: str = ""
+    name: Name = ""
+    description: Text = ""
     floor: Extent
     # Every robot link, the hand's included, keeps this far above the floor [m].
     floor_clearance: Annotated[float, Field(ge=0, le=MAX_CLEARANCE)] = FLOOR_CLEARANCE

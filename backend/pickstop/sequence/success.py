@@ -36,10 +36,12 @@ def disc_probability(kind: Kind, sigma: float, r: float) -> float:
     """P(|e| <= r): the success rate a stop with inscribed radius r guarantees (yaw aside)."""
     if sigma <= 0.0:
         return 1.0
+    # Ratios first: sigma may be as small as a subnormal number, whose square is 0.
     if kind == "bounded":
-        return min(1.0, (r / sigma) ** 2)
-    s = rayleigh_scale(sigma)
-    return 1.0 - math.exp(-(r * r) / (2.0 * s * s))
+        q = r / sigma
+        return min(1.0, q * q)
+    q = r / rayleigh_scale(sigma)
+    return 1.0 - math.exp(-0.5 * q * q)
 
 
 def radius_for(kind: Kind, sigma: float, target: float) -> float:

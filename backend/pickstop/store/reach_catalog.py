@@ -277,10 +277,15 @@ def verify_databases(data_dir: Path, db_id: str | None = None) -> list[dict[str,
         cat.close()
 
 
-def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -> dict[str, Any]:
-    """The catalog row to use for ``robot``: ``db_id`` if given (checked), else the complete
-    database with the most configurations (the newest of equals)."""
+def find_database(
+    data_dir: Path, robot: RobotModel, db_id: str | None = None, default: str | None = None
+) -> dict[str, Any]:
+    """The catalog row to use for ``robot``: ``db_id`` if given (checked), else its default:
+    ``default`` if given (the service's setting, checked as a named one), else
+    :func:`default_row`."""
     rows = list_databases(data_dir)
+    if db_id is None and default is not None:
+        db_id = default
     if db_id is not None:
         match = [r for r in rows if r["id"] == db_id or r["id"].startswith(db_id)]
         if not match:
@@ -300,10 +305,8 @@ def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -
                 "`pickstop reach build` again to resume it"
             )
         return row
-    ok = [r for r in rows if r["robot_hash"] == robot.robot_hash and r["state"] == "complete"]
-    # The most capable database first (most stored configurations), the newest among equals.
-    ok.sort(key=lambda r: -(r["stored"] or 0))  # stable: rows come newest first
-    if not ok:
+    row = default_row(rows, robot.robot_hash)
+    if row is None:
         same_name = [r["id"] for r in rows if r["robot"] == robot.name]
         hint = (
             f" (databases {', '.join(same_name)} are named {robot.name!r} but were built for "
@@ -315,16 +318,41 @@ def find_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -
             f"no complete reachability database for robot {robot.name!r} in {data_dir}{hint}; "
             f"build one with `pickstop reach build --robot {robot.source or robot.name}`"
         )
-    return ok[0]
+    return row
 
 
-def open_database(data_dir: Path, robot: RobotModel, db_id: str | None = None) -> ReachDatabase:
-    """Open a complete database of ``robot``: map its voxel index read-only.
+def default_params(row: dict[str, Any]) -> bool:
+    """Whether a database was built with the default build parameters (any sample count)."""
+    from pickstop.reach.build import BuildParams
+
+    base = BuildParams(samples=1000)
+    return all(
+        row.get(k) == getattr(base, k)
+        for k in ("resolution", "orientation", "seed", "chunk_size", "thinning", "floor_clearance")
+    )
+
+
+def default_row(rows: list[dict[str, Any]], robot_hash: str) -> dict[str, Any] | None:
+    """The database a robot's plans use when they name none: the first one completed with the
+    default build parameters, else the first completed at all. Later builds never take its
+    place, whatever they hold: a default changes only by deleting it or by the setting."""
+    ok = [r for r in rows if r["robot_hash"] == robot_hash and r["state"] == "complete"]
+    preferred = [r for r in ok if default_params(r)] or ok
+    if not preferred:
+        return None
+    return min(preferred, key=lambda r: (r.get("completed") or r.get("created") or "", r["id"]))
+
+
+def open_database(
+    data_dir: Path, robot: RobotModel, db_id: str | None = None, default: str | None = None
+) -> ReachDatabase:
+    """Open a complete database of ``robot`` (``db_id``, else its default: ``default`` if
+    given, see :func:`find_database`): map its voxel index read-only.
 
     Nothing is decoded or recomputed; only files whose size or modification time changed
     since they were last verified are hashed (a corrupted one is refused)."""
     data_dir = Path(data_dir)
-    row = find_database(data_dir, robot, db_id)
+    row = find_database(data_dir, robot, db_id, default)
     if row.get("index_format") != INDEX_FORMAT:
         raise DatabaseError(
             f"database {row['id']} has no voxel index of the format this PickStop reads "

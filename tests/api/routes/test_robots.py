@@ -83,7 +83,7 @@ def test_register_a_robot_from_the_bundled_data(client):
     assert r.json()["dof"] == 8
     names = [x["name"] for x in client.get("/api/v1/robots").json()]
     assert "tiago" in names and "tiago_copy" in names
-    titled_problem(client.post("/api/v1/robots", json=pr2, headers=AUTH), 422)  # exists already
+    titled_problem(client.post("/api/v1/robots", json=pr2, headers=AUTH), 409)  # exists already
 
 
 YAML_CONFIG = """\
@@ -120,3 +120,79 @@ def test_register_a_robot_as_yaml(client):
         "/api/v1/robots", content="x", headers={**AUTH, "Content-Type": "text/plain"}
     )
     assert other.status_code == 415 and "application/yaml" in other.json()["detail"]
+
+
+BASE_STL = "package://example-robot-data/robots/tiago_description/meshes/pmb2/base/base.stl"
+BASE_COLLISION = BASE_STL.replace("base.stl", "base_collision.stl")
+
+
+def _urdf_with(api_settings, name: str, old: str, new: str) -> str:
+    """A copy of TIAGo's URDF in the data folder's robots/ with the mesh ``old`` now ``new``."""
+    text = TIAGO_URDF.read_text()
+    assert old in text
+    (api_settings.data_dir / "robots" / name).write_text(text.replace(old, new, 1))
+    return name
+
+
+def test_a_urdf_mesh_outside_answers_the_same_whether_or_not_it_exists(client, api_settings):
+    details = []
+    for i, mesh in enumerate(("/etc/passwd", "/etc/no_such_file_here")):
+        urdf = _urdf_with(api_settings, f"leak{i}.urdf", BASE_COLLISION, mesh)
+        r = client.post("/api/v1/robots", json=_config(f"leak{i}", urdf), headers=AUTH)
+        body = problem(r, 422, "urdf")
+        details.append(body["detail"].replace(mesh, "<mesh>").replace(urdf, "<urdf>"))
+    assert details[0] == details[1]
+    assert "outside the allowed folders or is not a file" in details[0]
+
+
+def test_a_visual_mesh_outside_the_allowed_folders_is_refused(client, api_settings):
+    urdf = _urdf_with(api_settings, "visual.urdf", BASE_STL + '"', '/etc/passwd"')
+    body = problem(client.post("/api/v1/robots", json=_config("visual", urdf), headers=AUTH),
+                   422, "urdf")  # fmt: skip
+    assert "outside the allowed folders" in body["detail"]
+    assert "visual" not in [r["name"] for r in client.get("/api/v1/robots").json()]
+
+
+@pytest.mark.parametrize("urdf", ["robot\0.urdf", "x" * 5000 + ".urdf", "a/" * 600 + "r.urdf"])
+def test_a_urdf_path_no_file_system_takes_is_refused(client, urdf):
+    titled_problem(client.post("/api/v1/robots", json=_config("odd", urdf), headers=AUTH), 422)
+
+
+def test_a_path_component_too_long_for_the_file_system_is_refused(client):
+    body = problem(client.post("/api/v1/robots", json=_config("long", "y" * 1000 + ".urdf"),
+                               headers=AUTH), 422, "urdf")  # fmt: skip
+    assert "outside the allowed folders or is not a file" in body["detail"]
+
+
+@pytest.mark.parametrize(
+    ("line", "field"),
+    [
+        ("name: !!binary dGlhZ28=", "body"),
+        ("name: !!set {tiago: null}", "body"),
+        ("? !!binary dGlhZ28=\n: 1\nname: tiago_k", "body"),
+        ("name: " + "9" * 5000, "body"),
+        ("name: 2024-13-45", None),  # an invalid date: a name like any other
+    ],
+)
+def test_yaml_beyond_json_never_fails_the_server(client, line, field):
+    text = YAML_CONFIG.replace("name: tiago_yaml", line)
+    headers = {**AUTH, "Content-Type": "application/yaml"}
+    r = client.post("/api/v1/robots", content=text, headers=headers)
+    if field is None:
+        assert r.status_code == 201, r.text
+    else:
+        problem(r, 422, field)
+
+
+def test_a_yaml_date_is_the_string_it_reads_as(client):
+    headers = {**AUTH, "Content-Type": "application/yaml"}
+    text = YAML_CONFIG.replace("name: tiago_yaml", "name: 2024-01-01")
+    r = client.post("/api/v1/robots", content=text, headers=headers)
+    assert r.status_code == 201, r.text
+    assert r.json()["name"] == "2024-01-01"
+
+
+def test_a_yaml_body_over_its_limit_is_413(client, api_settings):
+    headers = {**AUTH, "Content-Type": "application/yaml"}
+    big = YAML_CONFIG + "#" * api_settings.max_yaml_bytes
+    problem(client.post("/api/v1/robots", content=big, headers=headers), 413, "body")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import json
 import time
 
 import pytest
@@ -231,3 +232,127 @@ def test_the_regions_endpoint_and_a_plan_judge_every_candidate_alike(
             assert c["status"] == "rejected" and c["reason"] == p["reason"], (c, p)
     if split:
         assert rejected_by_rule > 0  # the case is not vacuous
+
+
+def test_regions_and_plans_take_any_sigma_with_the_success_rule(client):
+    sid = client.post(SCENES, json=paper(), headers=AUTH).json()["id"]
+    r = client.get(f"{SCENES}/{sid}/regions", params={"sigma": 1e-300, "rule": "success"})
+    assert r.status_code == 200, r.text
+    assert all(f["properties"]["predicted_success"] == 1.0
+               for f in r.json()["intersections"]["features"])  # fmt: skip
+    body = {"scene_id": sid, "options": {"sigma": 1e-300, "rule": "success", "samples": 0},
+            "store": False}  # fmt: skip
+    r = client.post("/api/v1/plans", json=body, headers=AUTH)
+    assert r.status_code == 200, r.text
+
+
+def _with(change):
+    doc = paper()
+    change(doc)
+    return doc
+
+
+def _obstacle(geometry, **pose):
+    def change(doc):
+        doc["obstacles"].append({"id": "odd", "geometry": geometry, "pose": {"x": 4.5, **pose}})
+
+    return change
+
+
+def _set(*path_value):
+    """A change setting ``doc[k1][k2]...[kn] = value`` (made if missing)."""
+    *path, last, value = path_value
+
+    def change(doc):
+        for k in path:
+            doc = doc.setdefault(k, {}) if isinstance(k, str) else doc[k]
+        doc[last] = value
+
+    return change
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (_set("trays", 0, "parts", 0, "geometry", {"shape": "box", "size": [1e-20, 0.02, 0.02]}),
+         "trays.0.parts.0.geometry.box.size.0"),
+        (_obstacle({"shape": "cylinder", "radius": 1e-20, "height": 1}),
+         "obstacles.2.geometry.cylinder.radius"),
+        (_set("trays", 0, "wall_thickness", 1e-20), "trays.0.wall_thickness"),
+        (_obstacle({"shape": "box", "size": [1, 1, 1]}, y=1e17), "obstacles.2.pose.y"),
+        (_set("trays", 0, "pose", "yaw", 1e308), "trays.0.pose.yaw"),
+        (_set("motion", "max_speed", 1e-308), "motion.max_speed"),
+        (_set("error_model", "yaw_sigma", 1e308), "error_model.yaw_sigma"),
+    ],
+)  # fmt: skip
+def test_geometry_no_plan_can_hold_is_refused_when_stored(client, change, field):
+    """Sizes of 1e-20 m and coordinates of 1e17 m collapse outlines to points in floating
+    point; absurd yaws and speeds give absurd plans: refused, naming the field."""
+    before = count(client, SCENES)
+    problem(client.post(SCENES, json=_with(change), headers=AUTH), 422, field)
+    assert count(client, SCENES) == before
+
+
+@pytest.mark.parametrize("name", ["a\0b", "tray\u202eevil", "x\u2066y", "line\nbreak"])
+def test_names_with_control_or_bidi_override_characters_are_refused(client, name):
+    problem(client.post(SCENES, json={**paper(), "name": name}, headers=AUTH), 422, "name")
+    doc = paper()
+    doc["trays"][1]["name"] = name
+    problem(client.post(SCENES, json=doc, headers=AUTH), 422, "trays.1.name")
+
+
+def test_a_declared_charset_is_honoured_and_an_unknown_one_refused(client):
+    raw = json.dumps({**paper(), "name": "caf\u00e9"}, ensure_ascii=False).encode("latin-1")
+    ctype = {"Content-Type": "application/json; charset=ISO-8859-1"}
+    r = client.post(SCENES, content=raw, headers={**AUTH, **ctype})
+    assert r.status_code == 201, r.text
+    assert r.json()["name"] == "caf\u00e9"
+    ctype = {"Content-Type": "application/json; charset=klingon"}
+    problem(client.post(SCENES, content=raw, headers={**AUTH, **ctype}), 415, "Content-Type")
+
+
+def _mesh_scene(client, api_settings, name: str, content: bytes):
+    meshes = api_settings.data_dir / "meshes"
+    meshes.mkdir(exist_ok=True)
+    (meshes / name).write_bytes(content)
+    doc = paper()
+    doc["obstacles"].append({"id": "m", "geometry": {"shape": "mesh", "path": name},
+                             "pose": {"x": 4.5, "y": -0.5}})  # fmt: skip
+    return client.post(SCENES, json=doc, headers=AUTH)
+
+
+def _binary_stl(claimed: int, triangles: int, extra: bytes = b"") -> bytes:
+    import struct
+
+    tri = struct.pack("<12fH", 0, 0, 1, 0, 0, 0, 0.2, 0, 0, 0, 0.2, 0.5, 0)
+    return b"\0" * 80 + claimed.to_bytes(4, "little") + tri * triangles + extra
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "words"),
+    [
+        ("more.stl", _binary_stl(100, 100, b"\0" * 1_000_000), "header claims 100 triangles"),
+        ("none.stl", _binary_stl(199_000, 0), "header claims 199000 triangles"),
+        ("oneline.stl", b"solid x " + b"1" * 300_000, "a line of more than"),
+        ("cut.stl", b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n", "endsolid"),
+        ("lost.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "planner can read"),
+        ("flat.obj", b"v 0 0 0\nv 1 0 0\nv 2 0 1\nf 1 2 3\n", "flatter than"),
+    ],
+)
+def test_a_mesh_file_that_lies_is_refused_when_stored(client, api_settings, name, content, words):
+    before = count(client, SCENES)
+    body = problem(_mesh_scene(client, api_settings, name, content), 422,
+                   "obstacles.2.geometry.path")  # fmt: skip
+    assert words in body["detail"], body["detail"]
+    assert count(client, SCENES) == before
+
+
+def test_a_true_mesh_file_is_stored_and_planned(client, api_settings, tmp_path):
+    from tests.scene.test_scene_model import write_box_stl
+
+    write_box_stl(tmp_path / "pillar.stl", 0.3, 0.3, 1.5)
+    r = _mesh_scene(client, api_settings, "pillar.stl", (tmp_path / "pillar.stl").read_bytes())
+    assert r.status_code == 201, r.text
+    r = client.post("/api/v1/plans", json={"scene_id": r.json()["id"],
+                    "options": {"samples": 0}, "store": False}, headers=AUTH)  # fmt: skip
+    assert r.status_code == 200, r.text

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import FileResponse
 
 from pickstop.api import robot_views
-from pickstop.api.deps import ConfigBody, ReadKey, ServiceDep, WriteKey
+from pickstop.api.deps import ConfigBody, ReadKey, RobotName, ServiceDep, WriteKey
 from pickstop.api.openapi import json_request
 from pickstop.api.problems import Problem
 from pickstop.api.schemas import RegisteredRobot, RobotInfo
@@ -38,7 +38,7 @@ def register_robot(service: ServiceDep, config: ConfigBody) -> RegisteredRobot:
 
 
 @router.get("/robots/{name}/check", dependencies=[ReadKey])
-async def robot_check(service: ServiceDep, request: Request, name: str) -> dict[str, Any]:
+async def robot_check(service: ServiceDep, request: Request, name: RobotName) -> dict[str, Any]:
     """What PickStop makes of the robot (``pickstop robot check``): the resolved tool, hand,
     footprint, self-collision pairs and their source, the screen's false rejection, and each
     step's time. Made once per config."""
@@ -53,7 +53,7 @@ async def robot_check(service: ServiceDep, request: Request, name: str) -> dict[
 
 
 @router.get("/robots/{name}/model", dependencies=[ReadKey])
-async def robot_model(service: ServiceDep, request: Request, name: str) -> dict[str, Any]:
+async def robot_model(service: ServiceDep, request: Request, name: RobotName) -> dict[str, Any]:
     """The robot's URDF (mesh references ``files/<id>``), its arm joints and the values of
     every other joint (locked, or the hand's pre-grasp), for drawing it."""
     return await compute(
@@ -67,7 +67,7 @@ async def robot_model(service: ServiceDep, request: Request, name: str) -> dict[
 
 
 @router.get("/robots/{name}/files/{file_id}", dependencies=[ReadKey])
-def robot_file(service: ServiceDep, name: str, file_id: str) -> FileResponse:
+def robot_file(service: ServiceDep, name: RobotName, file_id: str) -> FileResponse:
     """One mesh of the robot's model (only files its own URDF references)."""
     path = robot_views.file_of(service.robots, name, file_id)
     if path is None:

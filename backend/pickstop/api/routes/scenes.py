@@ -50,7 +50,7 @@ def _conflict(c: Conflict) -> Problem:
 
 
 def _require(if_match: str | None, what: str) -> str:
-    if if_match is None:
+    if if_match is None or not if_match.strip():
         raise Problem(
             428,
             "Precondition required",
