@@ -333,7 +333,7 @@ class OwnVerdicts:
         lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
         for _, heights in hands:
             for _, h, _ in heights:
-                if h is not None:
+                if h is not None and len(h.lo):
                     lo, hi = np.minimum(lo, h.lo.min(0)), np.maximum(hi, h.hi.max(0))
         return OwnVerdicts(at, hands, lo, hi, self.yaw + turn)
 
@@ -360,7 +360,8 @@ def own_verdicts(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> OwnVe
                 verdict = "part"
             else:
                 verdict = "ok"
-                lo, hi = np.minimum(lo, at.lo.min(0)), np.maximum(hi, at.hi.max(0))
+                if len(at.lo):  # a hand of no geometry (no hand links) has no bounds
+                    lo, hi = np.minimum(lo, at.lo.min(0)), np.maximum(hi, at.hi.max(0))
             heights.append((T_part_tcp, at if verdict == "ok" else None, verdict))
         cands.append((kind, tuple(heights)))
     at0 = np.array([tray.pose.x, tray.pose.y, 0.0])
