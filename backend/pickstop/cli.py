@@ -47,9 +47,10 @@ class _Progress:
     def __init__(self, enabled: bool) -> None:
         self.enabled = enabled
         self.bar: Any = None
+        self.closed = False
 
     def __call__(self, done: int, total: int) -> None:
-        if not self.enabled:
+        if not self.enabled or self.closed:
             return
         if self.bar is None:
             from tqdm import tqdm
@@ -65,10 +66,13 @@ class _Progress:
             )
         else:
             self.bar.update(done - self.bar.n)
+        if done >= total:  # what follows (indexing) draws its own line
+            self.close()
 
     def close(self) -> None:
-        if self.bar is not None:
+        if self.bar is not None and not self.closed:
             self.bar.close()
+            self.closed = True
 
 
 def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
@@ -99,6 +103,11 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
         "index_seconds",
     ]
     out = {k: row.get(k) for k in keep}
+    if row.get("screen_false_rejection") is not None:
+        from pickstop.robot.artifacts import FALSE_REJECTION_BOUND
+
+        out["screen_bound"] = FALSE_REJECTION_BOUND
+        out["screen_meets_bound"] = row["screen_false_rejection"] <= FALSE_REJECTION_BOUND
     if row.get("samples") and row.get("state") == "complete":
         out["stored_fraction"] = round((row.get("stored") or 0) / row["samples"], 4)
     shards = row.get("shards")
@@ -116,6 +125,7 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def cmd_reach_build(args: argparse.Namespace) -> int:
+    from pickstop.progress import StepLines
     from pickstop.reach.build import BuildParams
     from pickstop.robot.model import load
     from pickstop.settings import data_dir
@@ -135,6 +145,7 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
     robot = load(args.robot)
     folder = data_dir(args.data_dir)
     bar = _Progress(not args.quiet)
+    steps = None if args.quiet else StepLines("reach build")
     t0 = time.perf_counter()
     client = None
     runner = None
@@ -144,9 +155,12 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
         client = client_for(args.dask)
         runner = dask_runner(client)
     try:
-        row = build(robot, params, folder, workers=args.workers, progress=bar, runner=runner)
+        row = build(robot, params, folder, workers=args.workers, progress=bar, runner=runner,
+                    steps=steps)  # fmt: skip
     finally:
         bar.close()
+        if steps is not None:
+            steps.close()
         if client is not None:
             client.close()
     elapsed = time.perf_counter() - t0
@@ -160,20 +174,33 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
             f"({info['screen_samples']:,} random configurations checked exactly with coal)",
             file=sys.stderr,
         )
+    if out.get("screen_meets_bound") is False:  # said even with --quiet
+        from pickstop.robot.artifacts import bound_missed
+
+        missed = bound_missed({"false_rejection": info["screen_false_rejection"]})
+        print(f"pickstop: warning: {missed}", file=sys.stderr)
     _emit(out)
     return 0
 
 
 def cmd_robot_check(args: argparse.Namespace) -> int:
+    from pickstop.progress import StepLines
     from pickstop.robot.check import check_robot, format_report
-    from pickstop.settings import cache_dir, data_dir
+    from pickstop.settings import cache_dir
 
-    report = check_robot(args.config, cache_dir(data_dir(args.data_dir)))
+    steps = None if args.quiet else StepLines("robot check")
+    try:
+        report = check_robot(args.config, cache_dir(), steps)
+    finally:
+        if steps is not None:
+            steps.close()
     if args.json:
         _emit(report)
     else:
         print(format_report(report))
-    return 0
+    for warning in report["warnings"]:
+        print(f"pickstop: warning: {warning}", file=sys.stderr)
+    return STRICT_EXIT if args.strict and report["warnings"] else 0
 
 
 def cmd_reach_info(args: argparse.Namespace) -> int:
@@ -779,6 +806,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rc.add_argument("config", help="preset name or robot config file (YAML or JSON)")
     rc.add_argument("--json", action="store_true", help="the report as JSON")
+    rc.add_argument("--quiet", action="store_true", help="no progress lines")
+    rc.add_argument(
+        "--strict",
+        action="store_true",
+        help=f"exit {STRICT_EXIT} if the check warns (a screen over its false-rejection bound, "
+        "a hand that rules out grasps)",
+    )
     rc.set_defaults(func=cmd_robot_check)
 
     reach = sub.add_parser("reach", help="reachability databases").add_subparsers(

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from pickstop.errors import InputError
+from pickstop.progress import Steps
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
 from pickstop.robot.floor import (
@@ -231,12 +232,15 @@ def _run_chunk(chunk: int, data_dir: Path, db_id: str) -> ChunkResult:
     return compute_chunk(_WORKER_KERNEL, chunk, data_dir, db_id)
 
 
-def make_kernel(robot: RobotModel, params: BuildParams, data_dir: Path) -> BuildKernel:
-    """The build kernel of ``robot``: its chain, floor and self-collision screens, voxel grid."""
+def make_kernel(
+    robot: RobotModel, params: BuildParams, data_dir: Path, steps: Steps | None = None
+) -> BuildKernel:
+    """The build kernel of ``robot``: its chain, floor and self-collision screens, voxel grid
+    (``steps``: told how making a screen not yet cached goes)."""
     from pickstop.robot.artifacts import self_collision
     from pickstop.settings import cache_dir
 
-    _, spheres = self_collision(robot, cache_dir(data_dir))
+    _, spheres = self_collision(robot, cache_dir(data_dir), steps)
     return BuildKernel(
         chain=Chain.from_robot(robot),
         spheres=spheres,

@@ -26,7 +26,7 @@ import coal
 import numpy as np
 
 from pickstop.frames import R_z, transform
-from pickstop.robot.hand import HandShape
+from pickstop.robot.hand import TOP_DOWN_CLEARANCE, HandShape
 from pickstop.scene.model import Box, Cylinder, Gripper, Mesh, Part, Scene, Tray
 from pickstop.scene.world import (
     TOUCH,
@@ -42,7 +42,7 @@ from pickstop.scene.world import (
     world_part_transform,
 )
 
-FLOOR_CLEARANCE = 0.003  # [m] between the lowest point of a top-down hand and the tray floor
+FLOOR_CLEARANCE = TOP_DOWN_CLEARANCE  # [m] the lowest point of a top-down hand to the tray floor
 PART_CLEARANCE = 0.0005  # [m] between the open hand and the part it is to grasp, on approach
 LIFT_STEP = 0.005  # [m] a top-down grasp blocked by its own part is raised by this much
 MIN_HOLD = 0.005  # [m] a raised grasp point stays at least this far below the part's top
