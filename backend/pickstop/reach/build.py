@@ -36,6 +36,7 @@ from pickstop.robot.floor import (
     MAX_CLEARANCE,
     FloorSpheres,
     below_floor,
+    floor_identity,
 )
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa, manipulability_soa
 from pickstop.robot.model import RobotModel
@@ -244,12 +245,23 @@ def make_kernel(
     return BuildKernel(
         chain=Chain.from_robot(robot),
         spheres=spheres,
-        floor=FloorSpheres.of(robot),
+        floor=floor_spheres(robot, cache_dir(data_dir)),
         voxel=VoxelGrid(params.resolution, params.orientation),
         lower=robot.lower,
         upper=robot.upper,
         params=params,
     )
+
+
+def floor_spheres(robot: RobotModel, cache_dir: Path | None) -> FloorSpheres:
+    """:meth:`FloorSpheres.of` ``robot``, kept in the cache: the links it covers depend on the
+    hand's set-up too (stand-in boxes leave the hand links out), which the name holds."""
+    from pickstop.robot.cache import derived
+
+    hand = robot.config.hand
+    what = json.dumps([floor_identity(robot), hand.geometry, hand.links])
+    name = f"floor-spheres-{hashlib.sha256(what.encode()).hexdigest()[:12]}"
+    return derived(robot, cache_dir, name, lambda: FloorSpheres.of(robot))
 
 
 def screen_figures(robot: RobotModel, data_dir: Path) -> dict[str, Any]:

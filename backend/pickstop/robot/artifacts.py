@@ -10,15 +10,14 @@ belongs to another robot, is made again.
 from __future__ import annotations
 
 import pickle
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 from pickstop.progress import Steps, step
-from pickstop.robot.cache import COMPUTED, making, robots_folder, write_atomic
+from pickstop.robot.cache import COMPUTED, derived, making, robots_folder, write_atomic
 from pickstop.robot.model import RobotModel
 
-T = TypeVar("T")
+__all__ = ["derived", "screen_quality", "self_collision", "tightened_screen"]
 
 _FORMAT = 2
 _SCREEN = "self_collision"  # robot.memo entry: (DisabledPairs, SphereModel, quality figures)
@@ -64,37 +63,6 @@ def _read_screen(path: Path | None, robot: RobotModel) -> tuple[Any, dict[str, f
     if stored_hash != robot.robot_hash or not isinstance(model, SphereModel):
         return None
     return model, quality
-
-
-def derived(robot: RobotModel, cache_dir: Path | None, name: str, make: Callable[[], T]) -> T:
-    """``make()``, a value that depends on nothing but ``robot`` (and ``name``, which says what
-    and how it is made), kept on disk per robot hash in ``<cache>/robots/``; a cache file that
-    does not load, or belongs to another robot or kind, is made again."""
-    folder = robots_folder(cache_dir)
-    path = None if folder is None else folder / f"{name}-{robot.robot_hash[:24]}-v{_FORMAT}.pkl"
-    found, value = _read_derived(path, robot, name)
-    if found:
-        return value  # type: ignore[no-any-return]
-    with making(path):
-        found, value = _read_derived(path, robot, name)
-        if found:
-            return value  # type: ignore[no-any-return]
-        value = make()
-        COMPUTED[name] += 1
-        if path is not None:
-            write_atomic(path, pickle.dumps((robot.robot_hash, name, value), protocol=5))
-    return value
-
-
-def _read_derived(path: Path | None, robot: RobotModel, name: str) -> tuple[bool, Any]:
-    if path is None or not path.is_file():
-        return False, None
-    try:
-        with open(path, "rb") as f:
-            stored_hash, stored_name, value = pickle.load(f)
-    except Exception:  # an unreadable cache is rebuilt, never trusted
-        return False, None
-    return stored_hash == robot.robot_hash and stored_name == name, value
 
 
 def tightened_screen(

@@ -10,11 +10,16 @@ counts what this process made rather than read.
 from __future__ import annotations
 
 import os
+import pickle
 import tempfile
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+_FORMAT = 2
 
 #: Entries this process computed (rather than read from memory or the cache), by kind.
 COMPUTED: Counter[str] = Counter()
@@ -57,3 +62,35 @@ def making(path: Path | None) -> Iterator[None]:
             yield
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def derived(robot: Any, cache_dir: Path | str | None, name: str, make: Callable[[], T]) -> T:
+    """``make()``, a value that depends on nothing but ``robot`` (a loaded robot: its
+    ``robot_hash``) and ``name`` (which says what and how it is made), kept on disk per robot
+    hash in ``<cache>/robots/``; a cache file that does not load, or belongs to another robot
+    or kind, is made again. Counted in :data:`COMPUTED` under ``name`` when made."""
+    folder = robots_folder(cache_dir)
+    path = None if folder is None else folder / f"{name}-{robot.robot_hash[:24]}-v{_FORMAT}.pkl"
+    found, value = _read_derived(path, robot.robot_hash, name)
+    if found:
+        return value  # type: ignore[no-any-return]
+    with making(path):  # another process making it: wait, then read it
+        found, value = _read_derived(path, robot.robot_hash, name)
+        if found:
+            return value  # type: ignore[no-any-return]
+        value = make()
+        COMPUTED[name] += 1
+        if path is not None:
+            write_atomic(path, pickle.dumps((robot.robot_hash, name, value), protocol=5))
+    return value
+
+
+def _read_derived(path: Path | None, robot_hash: str, name: str) -> tuple[bool, Any]:
+    if path is None or not path.is_file():
+        return False, None
+    try:
+        with open(path, "rb") as f:
+            stored_hash, stored_name, value = pickle.load(f)
+    except Exception:  # an unreadable cache is rebuilt, never trusted
+        return False, None
+    return stored_hash == robot_hash and stored_name == name, value

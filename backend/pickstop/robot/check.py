@@ -280,12 +280,13 @@ def _hand_lines(hand: dict[str, Any]) -> list[str]:
     if "reach" not in hand:
         return []
     low, below = hand["top_down_min_height"], hand["side_below"]
+    walls = low / 2 - below
     lines = [
         f"  open hand: top-down grasps take parts from {low:.3f} m up (lower ones would put the "
         f"hand on the tray floor); sideways it reaches {below:.3f} m below the grasp point, so "
         f"a side grasp of a part h high clears tray walls up to h/2 - {below:.3f} m: a part "
-        f"lower than {low:.3f} m in a tray with walls over {max(0.0, low / 2 - below):.3f} m "
-        "has no grasp"
+        f"lower than {low:.3f} m has no grasp in "
+        + (f"a tray with walls over {walls:.3f} m" if walls > 0 else "a tray with walls")
     ]
     sug = hand.get("suggested_tool_offset")
     if sug is None:
