@@ -205,3 +205,26 @@ def test_robot_option_overrides_the_scenes_robot(tmp_path, capsys, monkeypatch):
         assert code == 5 and "--robot tiago" in _hint(err)
         code, _, err = _run(capsys, *data, *argv, "--robot", "nowhere.yaml")
         assert code == 2 and "nowhere.yaml: robot config file not found" in err
+
+
+def test_ui_robot_option_registers_a_config_with_the_api(tmp_path):
+    import httpx
+
+    from pickstop.cli import _api_robot
+    from pickstop_ui.client import PickStopClient
+    from tests.robot.synthetic import write_dense_robot
+
+    config = write_dense_robot(tmp_path, triangles=500, arm_mesh=False)
+    posted = []
+
+    def api(request: httpx.Request) -> httpx.Response:
+        if request.method == "GET":
+            return httpx.Response(200, json=[{"name": "tiago"}])
+        posted.append((request.headers["content-type"], request.content))
+        return httpx.Response(201, json={"name": "dense_amr"})
+
+    client = PickStopClient("http://api")
+    client.http = httpx.Client(base_url="http://api", transport=httpx.MockTransport(api))
+    assert _api_robot(client, "tiago") == "tiago" and not posted  # a preset: as it is
+    assert _api_robot(client, str(config)) == "dense_amr"
+    assert posted == [("application/yaml", config.read_bytes())]

@@ -88,3 +88,24 @@ def test_a_screen_over_its_bound_is_said_and_strict_fails(tmp_path, monkeypatch,
     assert main([*data, "reach", "info"]) == 0
     (info,) = json.loads(capsys.readouterr().out)
     assert info["screen_meets_bound"] is False and info["screen_bound"] == 0.001
+
+
+def test_a_plan_refused_for_the_hands_reach_names_the_offset_and_the_check(
+    manipulator, tmp_path, capsys
+):
+    import re
+    import shlex
+    from pathlib import Path
+
+    data = ["--data-dir", str(tmp_path / "data")]
+    build = ["reach", "build", "--robot", str(manipulator), "--samples", "20000", "--quiet"]
+    assert main([*data, *build, "--workers", "1"]) == 0
+    capsys.readouterr()
+    scene = Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.json"
+    assert main([*data, "plan", str(scene), "--robot", str(manipulator)]) == 3
+    err = capsys.readouterr().err
+    assert "the open hand reaches 0.031 m past its grasp point" in err
+    assert "hand.tool_offset places the grasp point" in err
+    (command,) = set(re.findall(r"`(pickstop robot check [^`]+)`", err))
+    assert main([*shlex.split(command)[1:], "--quiet"]) == 0  # runs as printed
+    assert "hand.tool_offset: {position: [0.016, 0, 0]}" in capsys.readouterr().out

@@ -37,3 +37,13 @@ def test_build_job_and_limits(client):
     assert info["state"] == "complete" and info["samples"] == 30_000
     assert client.delete(f"/api/v1/databases/{db_id}", headers=AUTH).status_code == 204
     titled_problem(client.get(f"/api/v1/databases/{db_id}"), 404)
+
+
+def test_database_info_says_whether_the_screen_meets_its_bound():
+    from pickstop.api.schemas import DatabaseInfo
+
+    ok = DatabaseInfo.of({"id": "a", "screen_false_rejection": 0.03})
+    over = DatabaseInfo.of({"id": "b", "screen_false_rejection": 0.07})
+    assert ok.screen_meets_bound is True and ok.screen_bound == 0.05
+    assert over.screen_meets_bound is False and over.screen_false_rejection == 0.07
+    assert DatabaseInfo.of({"id": "c"}).screen_meets_bound is None  # not measured
