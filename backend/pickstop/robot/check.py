@@ -52,10 +52,9 @@ def check_config(
 ) -> dict[str, Any]:
     """The report of a parsed robot config whose relative paths start at ``root``."""
     from pickstop.robot.artifacts import bound_missed, screen_quality, self_collision
-    from pickstop.robot.link_geometry import DENSE_TRIANGLES, collision_links
+    from pickstop.robot.link_geometry import collision_links
 
     seconds: dict[str, float] = {"config": parse_s}
-    ref = label
 
     def timed(name: str, what: str, fn: Callable[[], T]) -> T:
         report_step(steps, what)
@@ -76,8 +75,41 @@ def check_config(
     )
     quality = screen_quality(robot, cache_dir)
     report: dict[str, Any] = {
+        **_describe(robot, links, label),
+        "self_collision": {
+            "source": disabled.source,
+            "counts": disabled.counts(),
+            "disabled": [[p.link1, p.link2, p.reason] for p in disabled.pairs],
+        },
+        "screen": _screen(quality),
+        "seconds": seconds,
+        "warnings": [],
+    }
+    if robot.srdf_path is not None:
+        report["self_collision"]["disagreements"] = timed(
+            "computed_pairs",
+            "the SRDF against the pairs MoveIt's setup assistant would compute",
+            lambda: _srdf_disagreements(robot, disabled, cache_dir, steps),
+        )
+    missed = bound_missed(quality)
+    if missed:
+        report["warnings"].append(missed)
+    report["warnings"] += _hand_warnings(report["hand"])
+    report_step(steps, "")
+    report["cache"] = {
+        "folder": None if cache_dir is None else str(cache_dir),
+        "computed": sorted((COMPUTED - before).elements()),  # the rest was read from it
+    }
+    return report
+
+
+def _describe(robot: RobotModel, links: Any, label: str) -> dict[str, Any]:
+    """What the config resolves to: files, joints, tool, hand, footprint, collision links."""
+    from pickstop.robot.link_geometry import DENSE_TRIANGLES
+
+    return {
         "robot": robot.name,
-        "config": ref,
+        "config": label,
         "urdf": robot.urdf_path.name,
         "srdf": robot.srdf_path.name if robot.srdf_path else None,
         "robot_hash": robot.robot_hash,
@@ -99,31 +131,7 @@ def check_config(
             }
             for lk in links
         ],
-        "self_collision": {
-            "source": disabled.source,
-            "counts": disabled.counts(),
-            "disabled": [[p.link1, p.link2, p.reason] for p in disabled.pairs],
-        },
-        "screen": _screen(quality),
-        "seconds": seconds,
-        "warnings": [],
     }
-    if robot.srdf_path is not None:
-        report["self_collision"]["disagreements"] = timed(
-            "computed_pairs",
-            "the SRDF against the pairs MoveIt's setup assistant would compute",
-            lambda: _srdf_disagreements(robot, disabled, cache_dir, steps),
-        )
-    missed = bound_missed(quality)
-    if missed:
-        report["warnings"].append(missed)
-    report["warnings"] += _hand_warnings(robot, report["hand"])
-    report_step(steps, "")
-    report["cache"] = {
-        "folder": None if cache_dir is None else str(cache_dir),
-        "computed": sorted((COMPUTED - before).elements()),  # the rest was read from it
-    }
-    return report
 
 
 def _screen(quality: dict[str, float]) -> dict[str, Any]:
@@ -233,7 +241,7 @@ def _hand(robot: RobotModel, links: Any) -> dict[str, Any]:
 SMALL_PART = 0.03
 
 
-def _hand_warnings(robot: RobotModel, hand: dict[str, Any]) -> list[str]:
+def _hand_warnings(hand: dict[str, Any]) -> list[str]:
     """What to warn of in the hand's set-up: patterns matching no link, no hand geometry, a
     grasp point well behind the pads' inner edge."""
     out = []
@@ -364,16 +372,7 @@ def format_report(report: dict[str, Any]) -> str:
         )
         lines += [f"    srdf only: {a} - {b}" for a, b in d["srdf_only"][:20]]
         lines += [f"    computed only: {a} - {b} ({r})" for a, b, r in d["computed_only"][:20]]
-    lines.append(
-        f"  screen: drops {100 * scr['false_rejection']:.1f}% of valid configurations, flags "
-        f"{100 * scr['flagged']:.1f}% ({int(scr['n']):,} checked with coal, "
-        f"{int(scr['rounds'])} tightening rounds): "
-        + (
-            f"within its {100 * scr.get('bound', 0.05):g}% bound"
-            if scr.get("meets_bound", True)
-            else f"OVER its {100 * scr.get('bound', 0.05):g}% bound"
-        )
-    )
+    lines.append(_screen_line(scr))
     lines.append("  seconds: " + ", ".join(f"{k} {v}" for k, v in sec.items()))
     lines += [f"WARNING: {w}" for w in report.get("warnings", [])]
     cache = report.get("cache") or {}
@@ -381,10 +380,17 @@ def format_report(report: dict[str, Any]) -> str:
         made = cache["computed"]
         lines.append(
             f"  cache {cache['folder']}: "
-            + (
-                f"computed {', '.join(made)} (kept for every later check, build and plan)"
-                if made
-                else "everything read from it"
-            )
-        )
+            + (f"computed {', '.join(made)} (kept for every later check, build and plan)"
+               if made else "everything read from it")
+        )  # fmt: skip
     return "\n".join(lines)
+
+
+def _screen_line(scr: dict[str, Any]) -> str:
+    bound = f"{100 * scr.get('bound', 0.05):g}% bound"
+    return (
+        f"  screen: drops {100 * scr['false_rejection']:.1f}% of valid configurations, flags "
+        f"{100 * scr['flagged']:.1f}% ({int(scr['n']):,} checked with coal, "
+        f"{int(scr['rounds'])} tightening rounds): "
+        + (f"within its {bound}" if scr.get("meets_bound", True) else f"OVER its {bound}")
+    )
