@@ -392,7 +392,7 @@ def _pool(args: argparse.Namespace) -> Any:
 def _plan_one(pool: Any, path: Path, args: argparse.Namespace, options: Any) -> Any:
     from pickstop.scene.load import load_scene
 
-    scene = _with_robot(load_scene(path), args.robot)
+    scene = _with_robot(load_scene(path), getattr(args, "robot", None))
     slot = pool.scene_slot(scene, path.resolve().parent, args.db)
     slot.regions.workers = args.workers
     return slot.planner.plan(scene, options)

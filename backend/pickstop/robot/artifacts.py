@@ -14,10 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from pickstop.progress import Steps, step
-from pickstop.robot.cache import COMPUTED, derived, making, robots_folder, write_atomic
+from pickstop.robot.cache import COMPUTED, making, robots_folder, write_atomic
+from pickstop.robot.cache import derived as derived  # where callers have found it
 from pickstop.robot.model import RobotModel
-
-__all__ = ["derived", "screen_quality", "self_collision", "tightened_screen"]
 
 _FORMAT = 2
 _SCREEN = "self_collision"  # robot.memo entry: (DisabledPairs, SphereModel, quality figures)
