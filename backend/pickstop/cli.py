@@ -674,10 +674,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
     folder = data_dir(args.data_dir)
     robot = load("tiago")
     bar = _Progress(True)
+    from pickstop.progress import StepLines
+
+    steps = StepLines("demo")
     try:
-        build(robot, BuildParams(samples=args.samples), folder, progress=bar)
+        build(robot, BuildParams(samples=args.samples), folder, progress=bar, steps=steps)
     finally:
         bar.close()
+        steps.close()
     overrides: dict[str, Any] = {"data_dir": folder, "ui_port": args.ui_port}
     if args.port is not None:
         overrides["port"] = args.port
