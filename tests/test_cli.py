@@ -132,9 +132,9 @@ def test_query_without_database_explains(tmp_path, capsys):
         "0",
         "0",
     )
-    assert code == 1
+    assert code == 5  # no database: its own exit code, documented in docs/cli.md
     assert "no complete reachability database for robot 'tiago'" in err
-    assert "pickstop reach build" in err
+    assert f"`pickstop --data-dir {tmp_path.resolve()} reach build --robot tiago`" in err
 
 
 def test_console_script_installed(tmp_path):
@@ -145,3 +145,86 @@ def test_console_script_installed(tmp_path):
         timeout=120,
     )
     assert proc.returncode == 0 and json.loads(proc.stdout) == []
+
+
+def _scene_naming(folder, robot_block):
+    """The paper-like scene in ``folder``, naming its robot by ``robot_block``."""
+    from pathlib import Path
+
+    src = Path(__file__).parents[1] / "examples" / "scenes" / "paper_experiment.json"
+    doc = json.loads(src.read_text())
+    doc["robot"] = robot_block
+    path = folder / "scene.json"
+    path.write_text(json.dumps(doc))
+    return path, doc["trays"][0]["id"]
+
+
+def _hint(err):
+    import re
+
+    (command,) = re.findall(r"`(pickstop [^`]+)`", err)
+    return command
+
+
+def test_missing_database_hint_for_a_config_robot_runs_as_printed(tmp_path, capsys, monkeypatch):
+    import shlex
+
+    import pickstop.cli
+    from tests.robot.synthetic import write_dense_robot
+
+    config = write_dense_robot(tmp_path / "robot", triangles=500, arm_mesh=False)
+    monkeypatch.chdir(tmp_path)  # the hint names the config relative to the working folder
+    scene, tray = _scene_naming(tmp_path, {"config": "robot/dense_amr.yaml"})
+    data = ["--data-dir", str(tmp_path / "data")]
+    code, _, err = _run(capsys, *data, "regions", str(scene), "--tray", tray)
+    assert code == 5, err
+    command = _hint(err)
+    assert "--robot robot/dense_amr.yaml" in command and "dense_amr.yaml" in str(config)
+    # Run as printed (the default sample count made small for a test).
+    monkeypatch.setattr(pickstop.cli, "DEFAULT_SAMPLES", 20_000)
+    code, out, err = _run(capsys, *shlex.split(command)[1:], "--quiet")
+    assert code == 0, err
+    assert json.loads(out)["state"] == "complete"
+    code, out, err = _run(capsys, *data, "regions", str(scene), "--tray", tray)
+    assert code == 0, err
+    assert json.loads(out)["database"]
+
+
+def test_robot_option_overrides_the_scenes_robot(tmp_path, capsys, monkeypatch):
+    from tests.robot.synthetic import write_dense_robot
+
+    config = write_dense_robot(tmp_path / "robot", triangles=500, arm_mesh=False)
+    monkeypatch.chdir(tmp_path)
+    scene, tray = _scene_naming(tmp_path, {"preset": "tiago"})
+    data = ["--data-dir", str(tmp_path / "data")]
+    for argv in (["plan", str(scene)], ["regions", str(scene), "--tray", tray]):
+        code, _, err = _run(capsys, *data, *argv, "--robot", str(config))
+        assert code == 5, err  # the config robot has no database: it, not TIAGo, was asked for
+        assert "robot 'dense_amr'" in err and "--robot robot/dense_amr.yaml" in _hint(err)
+        code, _, err = _run(capsys, *data, *argv, "--robot", "tiago")
+        assert code == 5 and "--robot tiago" in _hint(err)
+        code, _, err = _run(capsys, *data, *argv, "--robot", "nowhere.yaml")
+        assert code == 2 and "nowhere.yaml: robot config file not found" in err
+
+
+def test_ui_robot_option_registers_a_config_with_the_api(tmp_path):
+    import httpx
+
+    from pickstop.cli import _api_robot
+    from pickstop_ui.client import PickStopClient
+    from tests.robot.synthetic import write_dense_robot
+
+    config = write_dense_robot(tmp_path, triangles=500, arm_mesh=False)
+    posted = []
+
+    def api(request: httpx.Request) -> httpx.Response:
+        if request.method == "GET":
+            return httpx.Response(200, json=[{"name": "tiago"}])
+        posted.append((request.headers["content-type"], request.content))
+        return httpx.Response(201, json={"name": "dense_amr"})
+
+    client = PickStopClient("http://api")
+    client.http = httpx.Client(base_url="http://api", transport=httpx.MockTransport(api))
+    assert _api_robot(client, "tiago") == "tiago" and not posted  # a preset: as it is
+    assert _api_robot(client, str(config)) == "dense_amr"
+    assert posted == [("application/yaml", config.read_bytes())]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import sys
 import time
 from collections.abc import Sequence
@@ -18,6 +19,11 @@ from pickstop.errors import CorruptShardError, InputError, PickStopError
 from pickstop.robot.floor import FLOOR_CLEARANCE
 
 DEFAULT_SAMPLES = 2_000_000
+STRICT_EXIT = 6  # robot check --strict: the check warns
+_ROBOT_HELP = (
+    "plan with this robot instead of the scene's: a preset name or a robot config file "
+    "(YAML or JSON, relative to the working folder)"
+)
 
 
 def _emit(obj: Any) -> None:
@@ -41,9 +47,10 @@ class _Progress:
     def __init__(self, enabled: bool) -> None:
         self.enabled = enabled
         self.bar: Any = None
+        self.closed = False
 
     def __call__(self, done: int, total: int) -> None:
-        if not self.enabled:
+        if not self.enabled or self.closed:
             return
         if self.bar is None:
             from tqdm import tqdm
@@ -59,10 +66,13 @@ class _Progress:
             )
         else:
             self.bar.update(done - self.bar.n)
+        if done >= total:  # what follows (indexing) draws its own line
+            self.close()
 
     def close(self) -> None:
-        if self.bar is not None:
+        if self.bar is not None and not self.closed:
             self.bar.close()
+            self.closed = True
 
 
 def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
@@ -93,6 +103,11 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
         "index_seconds",
     ]
     out = {k: row.get(k) for k in keep}
+    if row.get("screen_false_rejection") is not None:
+        from pickstop.robot.artifacts import FALSE_REJECTION_BOUND
+
+        out["screen_bound"] = FALSE_REJECTION_BOUND
+        out["screen_meets_bound"] = row["screen_false_rejection"] <= FALSE_REJECTION_BOUND
     if row.get("samples") and row.get("state") == "complete":
         out["stored_fraction"] = round((row.get("stored") or 0) / row["samples"], 4)
     shards = row.get("shards")
@@ -110,6 +125,7 @@ def _db_summary(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def cmd_reach_build(args: argparse.Namespace) -> int:
+    from pickstop.progress import StepLines
     from pickstop.reach.build import BuildParams
     from pickstop.robot.model import load
     from pickstop.settings import data_dir
@@ -129,6 +145,7 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
     robot = load(args.robot)
     folder = data_dir(args.data_dir)
     bar = _Progress(not args.quiet)
+    steps = None if args.quiet else StepLines("reach build")
     t0 = time.perf_counter()
     client = None
     runner = None
@@ -138,9 +155,12 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
         client = client_for(args.dask)
         runner = dask_runner(client)
     try:
-        row = build(robot, params, folder, workers=args.workers, progress=bar, runner=runner)
+        row = build(robot, params, folder, workers=args.workers, progress=bar, runner=runner,
+                    steps=steps)  # fmt: skip
     finally:
         bar.close()
+        if steps is not None:
+            steps.close()
         if client is not None:
             client.close()
     elapsed = time.perf_counter() - t0
@@ -154,20 +174,33 @@ def cmd_reach_build(args: argparse.Namespace) -> int:
             f"({info['screen_samples']:,} random configurations checked exactly with coal)",
             file=sys.stderr,
         )
+    if out.get("screen_meets_bound") is False:  # said even with --quiet
+        from pickstop.robot.artifacts import bound_missed
+
+        missed = bound_missed({"false_rejection": info["screen_false_rejection"]})
+        print(f"pickstop: warning: {missed}", file=sys.stderr)
     _emit(out)
     return 0
 
 
 def cmd_robot_check(args: argparse.Namespace) -> int:
+    from pickstop.progress import StepLines
     from pickstop.robot.check import check_robot, format_report
-    from pickstop.settings import cache_dir, data_dir
+    from pickstop.settings import cache_dir
 
-    report = check_robot(args.config, cache_dir(data_dir(args.data_dir)))
+    steps = None if args.quiet else StepLines("robot check")
+    try:
+        report = check_robot(args.config, cache_dir(), steps)
+    finally:
+        if steps is not None:
+            steps.close()
     if args.json:
         _emit(report)
     else:
         print(format_report(report))
-    return 0
+    for warning in report["warnings"]:
+        print(f"pickstop: warning: {warning}", file=sys.stderr)
+    return STRICT_EXIT if args.strict and report["warnings"] else 0
 
 
 def cmd_reach_info(args: argparse.Namespace) -> int:
@@ -191,9 +224,15 @@ def cmd_reach_verify(args: argparse.Namespace) -> int:
     _emit(reports)
     bad = [f["path"] for r in reports for f in r["files"] if not f["ok"]]
     if bad:
+        from pickstop.store.reach_catalog import folder_flag
+
+        flag = folder_flag(data_dir(args.data_dir))
+        info = ["pickstop", *(["--data-dir", str(flag)] if flag else []), "reach", "info", "--id"]
+        ids = [r["id"] for r in reports if not r["ok"]]
         print(
             f"pickstop: error: {len(bad)} file(s) failed verification ({', '.join(bad)}); "
-            "run the database's `pickstop reach build` command again to repair it",
+            "the `pickstop reach build` command of each database repairs it: "
+            + "; ".join(f"`{shlex.join([*info, i])}` shows its parameters" for i in ids),
             file=sys.stderr,
         )
         return CorruptShardError.exit_code
@@ -261,13 +300,38 @@ def cmd_reach_query(args: argparse.Namespace) -> int:
     return 0
 
 
+def _robot_ref(robot: str) -> dict[str, str]:
+    """The scene's ``robot`` block naming what ``--robot`` gives: a preset, or a config file
+    (by its absolute path, so that it does not depend on the scene's folder)."""
+    from pickstop.errors import RobotConfigError
+    from pickstop.robot.config import preset_names, robot_config_file
+
+    if robot in preset_names():
+        return {"preset": robot}
+    path = robot_config_file(robot)  # an unknown name is refused here, naming the presets
+    if not path.is_file():
+        raise RobotConfigError(f"--robot {robot}: robot config file not found", field="robot")
+    return {"config": str(path.resolve())}
+
+
+def _with_robot(scene: Any, robot: str | None) -> Any:
+    """``scene`` planned with the robot ``--robot`` names instead of its own (None: its own)."""
+    if robot is None:
+        return scene
+    from pickstop.scene.model import RobotRef
+
+    ref = _robot_ref(robot)
+    block = RobotRef(preset=ref.get("preset"), config=ref.get("config"))
+    return scene.model_copy(update={"robot": block})
+
+
 def cmd_regions(args: argparse.Namespace) -> int:
     from pickstop.pool import PlannerPool
     from pickstop.regions.geojson import regions_geojson
     from pickstop.scene.load import load_scene
     from pickstop.settings import data_dir
 
-    scene = load_scene(args.scene)
+    scene = _with_robot(load_scene(args.scene), args.robot)
     trays = args.tray or scene.task_trays
     known = {t.id for t in scene.trays}
     for t in trays:
@@ -328,7 +392,7 @@ def _pool(args: argparse.Namespace) -> Any:
 def _plan_one(pool: Any, path: Path, args: argparse.Namespace, options: Any) -> Any:
     from pickstop.scene.load import load_scene
 
-    scene = load_scene(path)
+    scene = _with_robot(load_scene(path), getattr(args, "robot", None))
     slot = pool.scene_slot(scene, path.resolve().parent, args.db)
     slot.regions.workers = args.workers
     return slot.planner.plan(scene, options)
@@ -412,8 +476,13 @@ def _plan_batch(folder: Path, args: argparse.Namespace, options: Any) -> int:
         _emit(rows)
     else:
         _print_table(rows)
-    # Exit: 2 if any scene is invalid, else 3 if any is infeasible, else 1 for other failures.
-    return next((c for c in (2, 3) if c in codes), 1 if codes else 0)
+    return _batch_exit(codes)
+
+
+def _batch_exit(codes: set[int]) -> int:
+    """A folder's exit code: 2 if any scene is invalid, else 5 if a robot has no database,
+    else 3 if any is infeasible, else 1 for other failures (0: every scene planned)."""
+    return next((c for c in (2, 5, 3) if c in codes), 1 if codes else 0)
 
 
 def _plan_batch_dask(
@@ -434,6 +503,8 @@ def _plan_batch_dask(
             codes.add(2)
             rows[k] = {"scene": path.name, "status": "error", "error": f"not valid JSON: {e}"}
             continue
+        if args.robot is not None and isinstance(doc, dict):
+            doc["robot"] = _robot_ref(args.robot)
         items.append((k, path, doc))
     client = client_for(args.dask)
     try:
@@ -455,7 +526,7 @@ def _plan_batch_dask(
         _emit(done)
     else:
         _print_table(done)
-    return next((c for c in (2, 3) if c in codes), 1 if codes else 0)
+    return _batch_exit(codes)
 
 
 def _print_table(rows: list[dict[str, Any]]) -> None:
@@ -520,7 +591,20 @@ def cmd_ui(args: argparse.Namespace) -> int:
         load_scene(args.scene_file)  # a bad file fails here, with its field
         doc = json.loads(Path(args.scene_file).read_text(encoding="utf-8"))
         try:
-            scene_id = PickStopClient(args.api, key).create_scene(doc).id
+            client = PickStopClient(args.api, key)
+            if args.robot is not None:
+                doc["robot"] = {"preset": _api_robot(client, args.robot)}
+            scene_id = client.create_scene(doc).id
+        except ApiProblem as e:
+            raise PickStopError(f"{args.api}: {e.title}: {e.detail}") from None
+    elif scene_id and args.robot is not None:  # a copy of the stored scene with that robot
+        try:
+            client = PickStopClient(args.api, key)
+            doc = {
+                **client.scene(scene_id).doc,
+                "robot": {"preset": _api_robot(client, args.robot)},
+            }
+            scene_id = client.create_scene(doc).id
         except ApiProblem as e:
             raise PickStopError(f"{args.api}: {e.title}: {e.detail}") from None
     if not scene_id:
@@ -537,6 +621,32 @@ def cmd_ui(args: argparse.Namespace) -> int:
             time.sleep(3600)
     finally:
         app.close()
+
+
+def _api_robot(client: Any, robot: str) -> str:
+    """The name the API knows the robot ``--robot`` names by: a preset or a registered
+    robot's name as it is; a config file is registered first under its ``name`` (the API
+    accepts it when its files lie in the API's ``<data>/robots/`` folder)."""
+    from pickstop.robot.config import load_config, preset_names
+    from pickstop_ui.client import API, ApiProblem
+
+    path = Path(robot)
+    if robot in preset_names() or not path.is_file():
+        return robot  # a name: the API refuses one it does not know, listing those it does
+    config, _ = load_config(path)  # a bad config fails here, naming its field
+    r = client.http.get(f"{API}/robots")
+    if r.status_code < 400 and config.name in {x.get("name") for x in r.json()}:
+        return config.name
+    yaml = path.suffix.lower() in {".yaml", ".yml"}
+    r = client.http.post(
+        f"{API}/robots",
+        content=path.read_bytes(),
+        headers={"Content-Type": "application/yaml" if yaml else "application/json"},
+    )
+    if r.status_code >= 400:
+        body = r.json() if r.headers.get("content-type", "").endswith("json") else {}
+        raise ApiProblem(r.status_code, body.get("title", "Error"), body.get("detail", r.text))
+    return config.name
 
 
 def cmd_api_key(args: argparse.Namespace) -> int:
@@ -564,10 +674,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
     folder = data_dir(args.data_dir)
     robot = load("tiago")
     bar = _Progress(True)
+    from pickstop.progress import StepLines
+
+    steps = StepLines("demo")
     try:
-        build(robot, BuildParams(samples=args.samples), folder, progress=bar)
+        build(robot, BuildParams(samples=args.samples), folder, progress=bar, steps=steps)
     finally:
         bar.close()
+        steps.close()
     overrides: dict[str, Any] = {"data_dir": folder, "ui_port": args.ui_port}
     if args.port is not None:
         overrides["port"] = args.port
@@ -616,6 +730,7 @@ def build_parser() -> argparse.ArgumentParser:
     rg.add_argument("--out", help="write the GeoJSON FeatureCollection here")
     rg.add_argument("--tray", action="append", help="only this tray (repeatable)")
     rg.add_argument("--db", help="reachability database id (default: newest for the robot)")
+    rg.add_argument("--robot", help=_ROBOT_HELP)
     rg.set_defaults(func=cmd_regions)
 
     pl = sub.add_parser("plan", help="plan stops and route for a scene (or a folder of scenes)")
@@ -636,6 +751,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--db", help="reachability database id (default: the largest for the robot)")
     pl.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1)
     pl.add_argument("--dask", help="folder: one Dask task per scene ('local' or tcp://host:8786)")
+    pl.add_argument("--robot", help=_ROBOT_HELP)
     pl.set_defaults(func=cmd_plan)
 
     sv = sub.add_parser("serve", help="run the REST API (uvicorn)")
@@ -675,6 +791,12 @@ def build_parser() -> argparse.ArgumentParser:
         "draws the previews that follow a drag (default 0.35, about an eighth of the pixels; "
         "1: full resolution throughout)",
     )
+    ui.add_argument(
+        "--robot",
+        help="plan with this robot instead of the scene's: a preset, a robot the API has "
+        "registered, or a config file (registered with the API first; its files must lie in "
+        "the API's <data>/robots/ folder); with --scene, a copy of the scene is stored",
+    )
     ui.set_defaults(func=cmd_ui)
 
     ak = sub.add_parser("api-key", help="make a new API key and print its hash for the settings")
@@ -688,6 +810,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rc.add_argument("config", help="preset name or robot config file (YAML or JSON)")
     rc.add_argument("--json", action="store_true", help="the report as JSON")
+    rc.add_argument("--quiet", action="store_true", help="no progress lines")
+    rc.add_argument(
+        "--strict",
+        action="store_true",
+        help=f"exit {STRICT_EXIT} if the check warns (a screen over its false-rejection bound, "
+        "a hand that rules out grasps)",
+    )
     rc.set_defaults(func=cmd_robot_check)
 
     reach = sub.add_parser("reach", help="reachability databases").add_subparsers(

@@ -38,11 +38,16 @@ class DatabaseError(PickStopError):
 
 
 class DatabaseNotFoundError(DatabaseError):
-    """No complete database matches the request."""
+    """No complete database matches the request (the message names the command that builds
+    it)."""
+
+    exit_code = 5
 
 
 class DatabaseMismatchError(DatabaseError):
     """A database was built for another robot or robot config than the one given."""
+
+    exit_code = 2  # the database named does not fit the robot named: bad input
 
 
 class DatabaseBusyError(DatabaseError):

@@ -60,6 +60,22 @@ def scene_robot(
     return configs.load(path)
 
 
+def scene_robot_source(scene: Scene, scene_root: Path | None) -> str:
+    """What ``--robot`` takes to name the robot a scene names: the preset, or the config
+    file's path (relative to the working folder when it lies inside it, else absolute)."""
+    ref = scene.robot
+    if ref.config is None:
+        return ref.ref
+    path = Path(ref.config)
+    if not path.is_absolute() and scene_root is not None:
+        path = scene_root / path
+    path = path.resolve()
+    try:
+        return str(path.relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
 def config_key(config: RobotConfig, root: Path) -> str:
     """The identity of a robot config by value: its content and the folder its paths start
     from (the same text elsewhere names other files)."""
@@ -115,14 +131,17 @@ class PlannerPool:
         self.configs = ConfigFiles()  # robot config files, parsed once per text
 
     # -- the chain ---------------------------------------------------------------------------
-    def robot(self, config: RobotConfig, root: Path) -> RobotModel:
+    def robot(self, config: RobotConfig, root: Path, source: str = "") -> RobotModel:
         """The robot model of ``config`` (paths from ``root``), built once: parsing the URDF and
-        meshes takes about 50 ms, too much for every request."""
+        meshes takes about 50 ms, too much for every request. ``source``: what ``--robot``
+        takes to name it (a preset or a config path), for the commands errors print."""
         key = config_key(config, root)
         with self._lock:
             robot = self._robots.get(key)
             if robot is None:
                 robot = self._robots[key] = load_robot(config, root)
+            if source and not robot.source:
+                robot.source = source
             return robot
 
     def database(self, robot: RobotModel, db_id: str | None = None) -> ReachDatabase:
@@ -160,7 +179,9 @@ class PlannerPool:
         self, scene: Scene, scene_root: Path | None, db_id: str | None = None
     ) -> PlannerSlot:
         """The planners of the robot a scene file names (see :func:`scene_robot`)."""
-        return self.slot(self.robot(*scene_robot(scene, scene_root, self.configs)), db_id)
+        config, root = scene_robot(scene, scene_root, self.configs)
+        robot = self.robot(config, root, scene_robot_source(scene, scene_root))
+        return self.slot(robot, db_id)
 
     def region_planner(
         self, scene: Scene, scene_root: Path | None, db_id: str | None = None

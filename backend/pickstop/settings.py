@@ -23,7 +23,10 @@ class Settings(BaseSettings):
 
     data_dir: Path = Field(default_factory=_default_data_dir, description="where databases live")
     cache_dir: Path | None = Field(
-        default=None, description="derived per-robot data (default: <data_dir>/cache)"
+        default=None,
+        description="derived per-robot data (self-collision pairs and screen, hulls, outline), "
+        "one cache for every data folder and process (default: $XDG_CACHE_HOME/pickstop or "
+        "~/.cache/pickstop)",
     )
     # -- the REST service -----------------------------------------------------------------
     host: str = Field(default="127.0.0.1", description="address the API listens on")
@@ -108,7 +111,18 @@ def data_dir(override: str | Path | None = None) -> Path:
     return path
 
 
-def cache_dir(data: Path) -> Path:
-    """Where per-robot derived data is cached: ``$PICKSTOP_CACHE_DIR`` or ``<data>/cache``."""
+def user_cache_dir() -> Path:
+    """The user's cache folder for PickStop: ``$XDG_CACHE_HOME/pickstop`` or
+    ``~/.cache/pickstop``."""
+    import os
+
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "pickstop"
+
+
+def cache_dir(data: Path | None = None) -> Path:
+    """Where per-robot derived data is cached: ``$PICKSTOP_CACHE_DIR``, else the user's cache
+    folder (:func:`user_cache_dir`). One cache serves every data folder (``data`` does not
+    change it): a robot's derived data depends on the robot alone, keyed by its hash."""
     configured = Settings().cache_dir
-    return configured if configured is not None else Path(data) / "cache"
+    return configured if configured is not None else user_cache_dir()

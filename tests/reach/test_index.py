@@ -167,7 +167,10 @@ def test_database_without_index_asks_to_index_then_is_indexed(tmp_path, tiago):
     shutil.rmtree(tmp_path / "reach" / row["id"] / "index")
     with pytest.raises(DatabaseError, match="no voxel index") as e:
         open_database(tmp_path, tiago, row["id"])
-    assert "pickstop reach build --robot tiago --samples 20000" in e.value.message
+    assert (
+        f"pickstop --data-dir {tmp_path.resolve()} reach build --robot tiago --samples 20000"
+        in (e.value.message)
+    )
     assert "--seed 4 --chunk-size 10000" in e.value.message
     again = build(tiago, params, tmp_path, workers=1)
     assert again["state"] == "complete" and again["index_format"] == 1

@@ -121,13 +121,28 @@ class DatabaseInfo(BaseModel):
     rejected_floor: int | None = None
     shards: int | None = None
     bytes: int | None = None
+    screen_false_rejection: float | None = Field(
+        default=None, description="valid configurations the self-collision screen dropped"
+    )
+    screen_bound: float | None = Field(default=None, description="the bound it is held to")
+    screen_meets_bound: bool | None = Field(
+        default=None,
+        description="whether the screen meets its bound (false: the database lacks that share "
+        "of the robot's reachable configurations)",
+    )
 
     @classmethod
     def of(cls, row: dict[str, Any]) -> DatabaseInfo:
-        out = {k: row.get(k) for k in cls.model_fields if k not in ("shards", "bytes")}
+        derived = ("shards", "bytes", "screen_bound", "screen_meets_bound")
+        out = {k: row.get(k) for k in cls.model_fields if k not in derived}
         shards = row.get("shards")
         if shards is not None:
             out["shards"], out["bytes"] = len(shards), sum(s["bytes"] for s in shards)
+        if row.get("screen_false_rejection") is not None:
+            from pickstop.robot.artifacts import FALSE_REJECTION_BOUND
+
+            out["screen_bound"] = FALSE_REJECTION_BOUND
+            out["screen_meets_bound"] = row["screen_false_rejection"] <= FALSE_REJECTION_BOUND
         return cls.model_validate(out)
 
 

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from pickstop.errors import InputError
+from pickstop.progress import Steps
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.reach.voxels import VoxelGrid
 from pickstop.robot.floor import (
@@ -35,6 +36,7 @@ from pickstop.robot.floor import (
     MAX_CLEARANCE,
     FloorSpheres,
     below_floor,
+    floor_identity,
 )
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa, manipulability_soa
 from pickstop.robot.model import RobotModel
@@ -231,21 +233,35 @@ def _run_chunk(chunk: int, data_dir: Path, db_id: str) -> ChunkResult:
     return compute_chunk(_WORKER_KERNEL, chunk, data_dir, db_id)
 
 
-def make_kernel(robot: RobotModel, params: BuildParams, data_dir: Path) -> BuildKernel:
-    """The build kernel of ``robot``: its chain, floor and self-collision screens, voxel grid."""
+def make_kernel(
+    robot: RobotModel, params: BuildParams, data_dir: Path, steps: Steps | None = None
+) -> BuildKernel:
+    """The build kernel of ``robot``: its chain, floor and self-collision screens, voxel grid
+    (``steps``: told how making a screen not yet cached goes)."""
     from pickstop.robot.artifacts import self_collision
     from pickstop.settings import cache_dir
 
-    _, spheres = self_collision(robot, cache_dir(data_dir))
+    _, spheres = self_collision(robot, cache_dir(data_dir), steps)
     return BuildKernel(
         chain=Chain.from_robot(robot),
         spheres=spheres,
-        floor=FloorSpheres.of(robot),
+        floor=floor_spheres(robot, cache_dir(data_dir)),
         voxel=VoxelGrid(params.resolution, params.orientation),
         lower=robot.lower,
         upper=robot.upper,
         params=params,
     )
+
+
+def floor_spheres(robot: RobotModel, cache_dir: Path | None) -> FloorSpheres:
+    """:meth:`FloorSpheres.of` ``robot``, kept in the cache: the links it covers depend on the
+    hand's set-up too (stand-in boxes leave the hand links out), which the name holds."""
+    from pickstop.robot.cache import derived
+
+    hand = robot.config.hand
+    what = json.dumps([floor_identity(robot), hand.geometry, hand.links])
+    name = f"floor-spheres-{hashlib.sha256(what.encode()).hexdigest()[:12]}"
+    return derived(robot, cache_dir, name, lambda: FloorSpheres.of(robot))
 
 
 def screen_figures(robot: RobotModel, data_dir: Path) -> dict[str, Any]:

@@ -14,6 +14,7 @@ import json
 import shlex
 from dataclasses import dataclass
 from functools import cached_property
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -236,10 +237,34 @@ class ReachDatabase:
         return IKSeedSet(offsets=offsets, rows=rows.astype(np.int64))
 
 
-def build_command(row: dict[str, Any], robot: RobotModel) -> str:
-    """The ``pickstop reach build`` command that builds (or resumes, or indexes) ``row``."""
-    args = ["pickstop", "reach", "build", "--robot", robot.source or robot.name, "--samples",
-            str(row["samples"]), "--resolution", str(row["resolution"]), "--orientation",
-            str(row["orientation"]), "--seed", str(row["seed"]), "--chunk-size",
-            str(row["chunk_size"]), "--thinning", str(row["thinning"])]  # fmt: skip
+_BUILD_FLAGS = (
+    ("--samples", "samples"),
+    ("--resolution", "resolution"),
+    ("--orientation", "orientation"),
+    ("--seed", "seed"),
+    ("--chunk-size", "chunk_size"),
+    ("--thinning", "thinning"),
+)
+
+
+def robot_arg(robot: RobotModel) -> str:
+    """What ``--robot`` takes to load ``robot`` again: the preset name or the config file path
+    it was loaded from (its name when it was loaded by name, as the API's robots are)."""
+    return robot.source or robot.name
+
+
+def build_command(
+    row: dict[str, Any] | None, robot: RobotModel, data_dir: Path | str | None = None
+) -> str:
+    """The ``pickstop reach build`` command that builds (or resumes, or indexes) ``row``
+    (None: a first database with the default parameters); ``data_dir``: the data folder to
+    name with ``--data-dir`` (None: the default one)."""
+    args = ["pickstop", *(["--data-dir", str(data_dir)] if data_dir is not None else [])]
+    args += ["reach", "build", "--robot", robot_arg(robot)]
+    if row is not None:
+        for flag, column in _BUILD_FLAGS:
+            args += [flag, str(row[column])]
+        clearance = row.get("floor_clearance")
+        if clearance is not None:
+            args += ["--floor-clearance", str(clearance)]
     return shlex.join(args)

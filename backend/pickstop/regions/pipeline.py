@@ -237,12 +237,7 @@ def ungraspable(
     every part has one)."""
     for gs in grasp_sets:
         if len(gs.Ts_world_tool) == 0:
-            low = (
-                f"; no top-down grasp: the open hand reaches {planner.hand.reach:.3f} m past "
-                "its grasp point, which would put it below the tray floor for a part this low"
-                if gs.too_low
-                else ""
-            )
+            low = _too_low(planner) if gs.too_low else ""
             return (
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
                 "fits the robot's open hand without touching the tray, a neighbour or a table, "
@@ -250,6 +245,21 @@ def ungraspable(
                 f"({gs.near_floor} of them too close to the floor)" + low
             )
     return None
+
+
+def _too_low(planner: RegionKit) -> str:
+    """Why a part has no top-down grasp, and what in the robot config sets it."""
+    import shlex
+
+    from pickstop.reach.database import robot_arg
+
+    check = shlex.join(["pickstop", "robot", "check", robot_arg(planner.robot)])
+    return (
+        f"; no top-down grasp: the open hand reaches {planner.hand.reach:.3f} m past its grasp "
+        "point, which would put it below the tray floor for a part this low; the robot "
+        "config's hand.tool_offset places the grasp point (nearer the fingertips, the hand "
+        f"reaches less past it): `{check}` shows the hand's reach and suggests an offset"
+    )
 
 
 def no_cell_grasps(part_id: str, tray: Tray, cells: int) -> str:

@@ -13,14 +13,18 @@ from __future__ import annotations
 import fnmatch
 import math
 import time
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
 
+from pickstop.progress import Steps
+from pickstop.progress import step as report_step
+from pickstop.robot.cache import COMPUTED, robots_folder
 from pickstop.robot.config import RobotConfig, resolve_robot
-from pickstop.robot.hand import hand_joints, hand_shape
+from pickstop.robot.hand import hand_fit, hand_joints
 from pickstop.robot.model import RobotModel, load_robot
 
 T = TypeVar("T")
@@ -30,37 +34,82 @@ T = TypeVar("T")
 CHECK_SAMPLES = 10_000
 
 
-def check_robot(ref: str, cache_dir: Any = None) -> dict[str, Any]:
-    """The report of the robot ``ref`` (a preset name or a config file) as plain data."""
+def check_robot(ref: str, cache_dir: Any = None, steps: Steps | None = None) -> dict[str, Any]:
+    """The report of the robot ``ref`` (a preset name or a config file) as plain data;
+    ``steps``: told of each step as it goes (:mod:`pickstop.progress`)."""
     t0 = time.perf_counter()
     config, root = resolve_robot(ref)
-    return check_config(config, root, ref, cache_dir, round(time.perf_counter() - t0, 3))
+    return check_config(config, root, ref, cache_dir, round(time.perf_counter() - t0, 3), steps)
 
 
 def check_config(
-    config: RobotConfig, root: Path, label: str, cache_dir: Any = None, parse_s: float = 0.0
+    config: RobotConfig,
+    root: Path,
+    label: str,
+    cache_dir: Any = None,
+    parse_s: float = 0.0,
+    steps: Steps | None = None,
 ) -> dict[str, Any]:
     """The report of a parsed robot config whose relative paths start at ``root``."""
-    from pickstop.robot.artifacts import screen_quality, self_collision
-    from pickstop.robot.link_geometry import DENSE_TRIANGLES, collision_links
-    from pickstop.robot.selfcollision import disabled_pairs
+    from pickstop.robot.artifacts import bound_missed, screen_quality, self_collision
+    from pickstop.robot.link_geometry import collision_links
 
     seconds: dict[str, float] = {"config": parse_s}
-    ref = label
 
-    def step(name: str, fn: Callable[[], T]) -> T:
+    def timed(name: str, what: str, fn: Callable[[], T]) -> T:
+        report_step(steps, what)
         t0 = time.perf_counter()
         out = fn()
         seconds[name] = round(time.perf_counter() - t0, 3)
         return out
 
-    robot: RobotModel = step("model", lambda: load_robot(config, root))
-    links = step("collision_links", lambda: collision_links(robot))
-    disabled, _ = step("screen", lambda: self_collision(robot, cache_dir))
+    before = Counter(COMPUTED)
+    robot: RobotModel = timed(
+        "model",
+        "loading the URDF, its meshes and the base outline",
+        lambda: load_robot(config, root),
+    )
+    links = timed("collision_links", "grouping the collision links", lambda: collision_links(robot))
+    disabled, _ = timed(
+        "screen", "the self-collision screen", lambda: self_collision(robot, cache_dir, steps)
+    )
     quality = screen_quality(robot, cache_dir)
     report: dict[str, Any] = {
+        **_describe(robot, links, label),
+        "self_collision": {
+            "source": disabled.source,
+            "counts": disabled.counts(),
+            "disabled": [[p.link1, p.link2, p.reason] for p in disabled.pairs],
+        },
+        "screen": _screen(quality),
+        "seconds": seconds,
+        "warnings": [],
+    }
+    if robot.srdf_path is not None:
+        report["self_collision"]["disagreements"] = timed(
+            "computed_pairs",
+            "the SRDF against the pairs MoveIt's setup assistant would compute",
+            lambda: _srdf_disagreements(robot, disabled, cache_dir, steps),
+        )
+    missed = bound_missed(quality)
+    if missed:
+        report["warnings"].append(missed)
+    report["warnings"] += _hand_warnings(report["hand"])
+    report_step(steps, "")
+    report["cache"] = {
+        "folder": None if cache_dir is None else str(cache_dir),
+        "computed": sorted((COMPUTED - before).elements()),  # the rest was read from it
+    }
+    return report
+
+
+def _describe(robot: RobotModel, links: Any, label: str) -> dict[str, Any]:
+    """What the config resolves to: files, joints, tool, hand, footprint, collision links."""
+    from pickstop.robot.link_geometry import DENSE_TRIANGLES
+
+    return {
         "robot": robot.name,
-        "config": ref,
+        "config": label,
         "urdf": robot.urdf_path.name,
         "srdf": robot.srdf_path.name if robot.srdf_path else None,
         "robot_hash": robot.robot_hash,
@@ -82,26 +131,41 @@ def check_config(
             }
             for lk in links
         ],
-        "self_collision": {
-            "source": disabled.source,
-            "counts": disabled.counts(),
-            "disabled": [[p.link1, p.link2, p.reason] for p in disabled.pairs],
-        },
-        "screen": {k: quality[k] for k in ("false_rejection", "flagged", "n", "rounds")},
-        "seconds": seconds,
     }
-    if robot.srdf_path is not None:
-        # What the setup assistant would compute, beside what the SRDF says.
-        computed = step(
-            "computed_pairs", lambda: disabled_pairs(_without_srdf(robot), samples=CHECK_SAMPLES)
-        )
-        srdf = {(p.link1, p.link2) for p in disabled.pairs}
-        mine = {(p.link1, p.link2): p.reason for p in computed.pairs}
-        report["self_collision"]["disagreements"] = {
-            "srdf_only": sorted([a, b] for a, b in srdf - set(mine)),
-            "computed_only": sorted([a, b, mine[(a, b)]] for a, b in set(mine) - srdf),
-        }
-    return report
+
+
+def _screen(quality: dict[str, float]) -> dict[str, Any]:
+    """The screen's figures, with the bound it is held to and whether it meets it."""
+    from pickstop.robot.artifacts import FALSE_REJECTION_BOUND
+
+    out: dict[str, Any] = {k: quality[k] for k in ("false_rejection", "flagged", "n", "rounds")}
+    out["bound"] = quality.get("bound", FALSE_REJECTION_BOUND)
+    out["meets_bound"] = quality["false_rejection"] <= out["bound"]
+    return out
+
+
+def _srdf_disagreements(
+    robot: RobotModel, disabled: Any, cache_dir: Any, steps: Steps | None
+) -> dict[str, list[list[str]]]:
+    """Where the SRDF's pairs and those MoveIt's setup assistant would compute differ (the
+    computed ones kept in the cache like the rest)."""
+    from pickstop.robot.selfcollision import disabled_pairs
+
+    def told(name: str, done: int, total: int) -> None:
+        report_step(steps, f"SRDF comparison, {name}" if name else "", done, total)
+
+    computed = disabled_pairs(
+        _without_srdf(robot),
+        samples=CHECK_SAMPLES,
+        cache_dir=robots_folder(cache_dir),
+        steps=told if steps is not None else None,
+    )
+    srdf = {(p.link1, p.link2) for p in disabled.pairs}
+    mine = {(p.link1, p.link2): p.reason for p in computed.pairs}
+    return {
+        "srdf_only": sorted([a, b] for a, b in srdf - set(mine)),
+        "computed_only": sorted([a, b, mine[(a, b)]] for a, b in set(mine) - srdf),
+    }
 
 
 def _without_srdf(robot: RobotModel) -> RobotModel:
@@ -157,8 +221,92 @@ def _hand(robot: RobotModel, links: Any) -> dict[str, Any]:
         "pregrasp": hand_joints(robot),  # every joint moving a hand link, as the hand is checked
     }
     if not unmatched:
-        out["reach"] = round(hand_shape(robot).reach, 6)  # past the grasp point [m]
+        fit = hand_fit(robot)
+        out["reach"] = round(fit.reach, 6)  # past the grasp point [m]
+        out["top_down_min_height"] = round(fit.top_down_min, 6)
+        out["side_below"] = round(fit.side_below, 6)
+        if fit.pad_tip is not None and fit.tool_offset is not None:
+            out["pad_tip"] = round(fit.pad_tip, 6)
+            out["pad_gap"] = round(fit.pad_gap or 0.0, 6)
+            out["suggested_tool_offset"] = {
+                "position": [round(v, 6) for v in fit.tool_offset],
+                "rpy": list(cfg.tool_offset.rpy),
+                "reach": round(fit.reach_at_pads or 0.0, 6),
+            }
     return out
+
+
+#: [m] A small part (the example scenes' lowest, in trays with 5 cm walls): a hand whose
+#: top-down grasps cannot take it is warned of.
+SMALL_PART = 0.03
+
+
+def _hand_warnings(hand: dict[str, Any]) -> list[str]:
+    """What to warn of in the hand's set-up: patterns matching no link, no hand geometry, a
+    grasp point well behind the pads' inner edge."""
+    out = []
+    if hand["patterns_matching_nothing"]:
+        out.append(
+            "hand.links patterns matching no collision link: "
+            + ", ".join(hand["patterns_matching_nothing"])
+        )
+    elif not hand["links"] and hand["geometry"] == "links":
+        out.append(
+            "no hand links: grasps are checked against no hand geometry at all; name them in "
+            "hand.links, or let boxes stand in for them (hand.geometry: boxes)"
+        )
+    gap, opening = hand.get("pad_gap"), hand["max_opening"]
+    if gap is not None and abs(gap - opening) > max(0.002, 0.1 * opening):
+        out.append(
+            f"hand.max_opening is {opening} m but the open pads are {gap:.3f} m apart: "
+            "max_opening is the free gap between the pads when open (grasps are generated for "
+            "parts up to that wide)"
+        )
+    if hand.get("top_down_min_height", 0.0) > SMALL_PART:
+        fix = "move the grasp point towards the fingertips with hand.tool_offset"
+        sug = hand.get("suggested_tool_offset")
+        if sug is not None and hand["pad_tip"] > 0:
+            fix = (
+                f"hand.tool_offset: {{position: {_vec(sug['position'])}}} puts the grasp point "
+                f"at the pads' inner edge, {1000 * hand['pad_tip']:.1f} mm further along the "
+                f"approach (the hand then reaches {sug['reach']:.3f} m past it)"
+            )
+        out.append(
+            f"the open hand reaches {hand['reach']:.3f} m past the grasp point: top-down grasps "
+            f"take no part lower than {hand['top_down_min_height']:.3f} m, and a "
+            f"{100 * SMALL_PART:.0f} cm part in a tray with walls has no grasp; {fix}"
+        )
+    return out
+
+
+def _vec(v: list[float]) -> str:
+    return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+
+
+def _hand_lines(hand: dict[str, Any]) -> list[str]:
+    """What the open hand rules out, and the tool offset at the pads' inner edge."""
+    if "reach" not in hand:
+        return []
+    low, below = hand["top_down_min_height"], hand["side_below"]
+    walls = low / 2 - below
+    lines = [
+        f"  open hand: top-down grasps take parts from {low:.3f} m up (lower ones would put the "
+        f"hand on the tray floor); sideways it reaches {below:.3f} m below the grasp point, so "
+        f"a side grasp of a part h high clears tray walls up to h/2 - {below:.3f} m: a part "
+        f"lower than {low:.3f} m has no grasp in "
+        + (f"a tray with walls over {walls:.3f} m" if walls > 0 else "a tray with walls")
+    ]
+    sug = hand.get("suggested_tool_offset")
+    if sug is None:
+        lines.append("  pads: no finger geometry found on both sides of the closing axis")
+    else:
+        lines.append(
+            f"  pads: {hand['pad_gap']:.3f} m apart open (max_opening {hand['max_opening']} m); "
+            f"their inner edge {hand['pad_tip']:.4f} m past the grasp point: hand.tool_offset "
+            f"{{position: {_vec(sug['position'])}}} puts the grasp point there (the open hand "
+            f"then reaches {sug['reach']:.3f} m past it)"
+        )
+    return lines
 
 
 def _footprint_line(fp: dict[str, Any]) -> str:
@@ -202,6 +350,7 @@ def format_report(report: dict[str, Any]) -> str:
         f"{hand['tool_offset']['rpy']}) in the tool frame; approach {hand['approach_axis']}, "
         f"closing {hand['closing_axis']}; opening {hand['max_opening']} m"
         + (f"; reaches {hand['reach']} m past the grasp point" if "reach" in hand else ""),
+        *_hand_lines(hand),
         "  pre-grasp posture: "
         + (", ".join(f"{k} {v:.4g}" for k, v in hand["pregrasp"].items()) or "none"),
         f"  footprint {_footprint_line(report['footprint'])}",
@@ -223,10 +372,25 @@ def format_report(report: dict[str, Any]) -> str:
         )
         lines += [f"    srdf only: {a} - {b}" for a, b in d["srdf_only"][:20]]
         lines += [f"    computed only: {a} - {b} ({r})" for a, b, r in d["computed_only"][:20]]
-    lines.append(
+    lines.append(_screen_line(scr))
+    lines.append("  seconds: " + ", ".join(f"{k} {v}" for k, v in sec.items()))
+    lines += [f"WARNING: {w}" for w in report.get("warnings", [])]
+    cache = report.get("cache") or {}
+    if cache.get("folder"):
+        made = cache["computed"]
+        lines.append(
+            f"  cache {cache['folder']}: "
+            + (f"computed {', '.join(made)} (kept for every later check, build and plan)"
+               if made else "everything read from it")
+        )  # fmt: skip
+    return "\n".join(lines)
+
+
+def _screen_line(scr: dict[str, Any]) -> str:
+    bound = f"{100 * scr.get('bound', 0.05):g}% bound"
+    return (
         f"  screen: drops {100 * scr['false_rejection']:.1f}% of valid configurations, flags "
         f"{100 * scr['flagged']:.1f}% ({int(scr['n']):,} checked with coal, "
-        f"{int(scr['rounds'])} tightening rounds)"
+        f"{int(scr['rounds'])} tightening rounds): "
+        + (f"within its {bound}" if scr.get("meets_bound", True) else f"OVER its {bound}")
     )
-    lines.append("  seconds: " + ", ".join(f"{k} {v}" for k, v in sec.items()))
-    return "\n".join(lines)

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pinocchio as pin
 
+from pickstop.progress import Steps, step
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa
 from pickstop.robot.link_geometry import collision_links
 from pickstop.robot.model import RobotModel
@@ -119,16 +120,28 @@ class ScreenTrial:
 
 
 def screen_trial(
-    robot: RobotModel, disabled: DisabledPairs, sphere_model: SphereModel, n: int, seed: int
+    robot: RobotModel,
+    disabled: DisabledPairs,
+    sphere_model: SphereModel,
+    n: int,
+    seed: int,
+    steps: Steps | None = None,
+    what: str = "self-collision screen",
 ) -> ScreenTrial:
-    """:func:`screen` and :class:`ExactSelfCollision` on ``n`` uniform random configurations."""
+    """:func:`screen` and :class:`ExactSelfCollision` on ``n`` uniform random configurations
+    (``steps``: told of the exact checks as they go, as ``what``)."""
     th = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (n, robot.dof))
     chain = Chain.from_robot(robot)
     flagged = np.empty(n, dtype=bool)
     for s in range(0, n, BLOCK):
         _, _, frames = fk_soa(chain, np.ascontiguousarray(th[s : s + BLOCK].T), frames=True)
         flagged[s : s + BLOCK] = screen(sphere_model, frames)
-    return ScreenTrial(th, flagged, ExactSelfCollision(robot, disabled).colliding(th))
+    exact = ExactSelfCollision(robot, disabled)
+    colliding = np.empty(n, dtype=bool)
+    for s in range(0, n, 200):
+        step(steps, f"{what}: exact checks with coal", s, n)
+        colliding[s : s + 200] = exact.colliding(th[s : s + 200])
+    return ScreenTrial(th, flagged, colliding)
 
 
 def false_rejection_rate(
@@ -144,22 +157,29 @@ def false_rejection_rate(
 
 
 def responsible_links(
-    robot: RobotModel, disabled: DisabledPairs, trial: ScreenTrial, near: float = 0.03
+    robot: RobotModel,
+    disabled: DisabledPairs,
+    trial: ScreenTrial,
+    near: float = 0.03,
+    most: int = 300,
 ) -> list[str]:
-    """Links that make the screen reject valid configurations: among the configurations of
-    ``trial`` that the screen flags but coal finds free, the links of the enabled pairs closer
-    than ``near`` [m], most frequent first (those covering half the cases, at least one)."""
+    """Links that make the screen reject valid configurations: among (at most ``most`` of)
+    the configurations of ``trial`` that the screen flags but coal finds free, the links of
+    the enabled pairs closer than ``near`` [m] (coal collisions with that security margin),
+    most frequent first (those covering half the cases, at least one)."""
     exact = ExactSelfCollision(robot, disabled)
-    false = trial.thetas[trial.flagged & ~trial.colliding]
+    false = trial.thetas[trial.flagged & ~trial.colliding][:most]  # random already
     by_geom = {g: lk.name for lk in collision_links(robot) for g in lk.geometry_ids}
     gm, data = exact.geom_model, exact._data
-    gd = pin.GeometryData(gm)
+    gd = _geometry_data(gm)
+    for req in gd.collisionRequests:
+        req.security_margin = near
     counts: dict[str, int] = {}
     for theta in false:
-        pin.computeDistances(robot.model, data, gm, gd, robot.angles_to_q(theta))
+        pin.computeCollisions(robot.model, data, gm, gd, robot.angles_to_q(theta), False)
         close = set()
-        for cp, res in zip(gm.collisionPairs, gd.distanceResults, strict=True):
-            if res.min_distance < near:
+        for cp, res in zip(gm.collisionPairs, gd.collisionResults, strict=True):
+            if res.isCollision():
                 close |= {by_geom[cp.first], by_geom[cp.second]}
         for name in close:
             counts[name] = counts.get(name, 0) + 1

@@ -230,3 +230,121 @@ def _make_shape(robot: RobotModel) -> HandShape:
         inverse(T_tool_tcp),
         hand_joints(robot),
     )
+
+
+#: [m] A top-down grasp keeps the open hand this far above the tray floor (see
+#: :func:`pickstop.scene.grasps.top_height`): parts lower than the hand's reach plus this
+#: have no top-down grasp.
+TOP_DOWN_CLEARANCE = 0.003
+#: [m] A pad's face is followed along the approach while it stays within this of where it
+#: meets the closing axis through the grasp point.
+PAD_TOLERANCE = 0.001
+_PROBE = 0.0005  # [m] cross-section of the probes along the closing axis, and their step
+
+
+@dataclass(frozen=True)
+class HandFit:
+    """How the open hand meets a tray, from its shape in the grasp point's frame [m].
+
+    reach: how far it extends past the grasp point along the approach; top_down_min: the
+    lowest part a top-down grasp takes (reach plus :data:`TOP_DOWN_CLEARANCE`); side_below:
+    how far it reaches below the grasp point on a side grasp (closing horizontally or
+    vertically, whichever reaches less), so a side grasp of a part of height h clears walls
+    lower than ``h / 2 - side_below``;
+    pad_tip: where the pads' gripping faces end towards the fingertips, along the approach
+    (None: no finger geometry found on both sides of the closing axis); pad_gap: the free gap
+    between the open pads, across the closing axis (compare ``max_opening``);
+    tool_offset: the ``hand.tool_offset`` position [m] that puts the grasp point at pad_tip.
+    """
+
+    reach: float
+    top_down_min: float
+    side_below: float
+    pad_tip: float | None
+    pad_gap: float | None
+    tool_offset: tuple[float, float, float] | None
+
+    @property
+    def reach_at_pads(self) -> float | None:
+        """How far the open hand reaches past a grasp point at :attr:`pad_tip` [m]."""
+        return None if self.pad_tip is None else max(0.0, self.reach - self.pad_tip)
+
+
+def hand_points(shape: HandShape) -> np.ndarray:
+    """``(N, 3)`` points in the TCP frame whose convex hulls (per geometry) hold the hand."""
+    pts = [geometry_points(g) @ T[:3, :3].T + T[:3, 3] for _, g, T in shape.geometries]
+    return np.concatenate(pts) if pts else np.zeros((0, 3))
+
+
+def _probe_hits(shape: HandShape, a: float, side: float, length: float) -> bool:
+    """Does a thin box along the closing axis, from the line through the grasp point at
+    ``a`` [m] along the approach out to ``length`` [m] on ``side`` (+1 or -1), meet the open
+    hand's geometry (coal, exact)?"""
+    up = np.cross(shape.approach, shape.closing)
+    R = np.column_stack([shape.approach, shape.closing, up])
+    box = coal.Box(_PROBE, length, _PROBE)
+    T = coal.Transform3s(R, a * shape.approach + side * (length / 2) * shape.closing)
+    req = coal.CollisionRequest()
+    for _, geom, T_tcp_geom in shape.geometries:
+        Tg = coal.Transform3s(T_tcp_geom[:3, :3], T_tcp_geom[:3, 3])
+        if coal.collide(box, T, geom, Tg, req, coal.CollisionResult()):
+            return True
+    return False
+
+
+def pads(shape: HandShape, across: float = 0.5) -> tuple[float, float] | None:
+    """``(tip, gap)`` of the open hand's pads [m]: the faces the closing axis through the grasp
+    point meets on either side, their free gap, and where they end towards the fingertips
+    along the approach (the nearer of the two; each followed while it stays within
+    :data:`PAD_TOLERANCE` of the closing axis's hit, at most to the hand's reach). None if the
+    axis meets nothing within ``across`` [m] on a side."""
+    depth = []
+    for side in (1.0, -1.0):
+        if not _probe_hits(shape, 0.0, side, across):
+            return None
+        lo, hi = 0.0, across
+        while hi - lo > 1e-5:  # the shortest probe that meets the hand: the face
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if _probe_hits(shape, 0.0, side, mid) else (mid, hi)
+        depth.append(hi)
+    tip = 0.0
+    while tip < shape.reach and all(
+        _probe_hits(shape, tip + _PROBE, side, d + PAD_TOLERANCE)
+        for side, d in zip((1.0, -1.0), depth, strict=True)
+    ):
+        tip += _PROBE
+    return tip, depth[0] + depth[1]
+
+
+def pad_tip(shape: HandShape) -> float | None:
+    """Where the pads' gripping faces end towards the fingertips (:func:`pads`) [m]."""
+    found = pads(shape)
+    return None if found is None else found[0]
+
+
+def hand_fit(robot: RobotModel) -> HandFit:
+    """The :class:`HandFit` of ``robot``'s configured hand."""
+    return fit_of(hand_shape(robot), tool_offset_matrix(robot.config.hand))
+
+
+def fit_of(shape: HandShape, T_tool_tcp: np.ndarray) -> HandFit:
+    """The :class:`HandFit` of an open hand whose grasp point sits at ``T_tool_tcp (4, 4)``
+    in the tool frame."""
+    pts = hand_points(shape)
+    # Side grasps close horizontally (a x c up) or vertically (c up): the shallower one.
+    up = np.cross(shape.approach, shape.closing)
+    below = max(0.0, min(-(pts @ up).min(), -(pts @ shape.closing).min())) if len(pts) else 0.0
+    found = pads(shape) if len(pts) else None
+    tip, gap = (None, None) if found is None else found
+    offset = None
+    if tip is not None:
+        moved = T_tool_tcp[:3, 3] + T_tool_tcp[:3, :3] @ (tip * shape.approach)
+        offset = (float(moved[0]), float(moved[1]), float(moved[2]))
+    return HandFit(
+        reach=shape.reach,
+        top_down_min=shape.reach + TOP_DOWN_CLEARANCE,
+        side_below=float(below),
+        pad_tip=tip,
+        pad_gap=gap,
+        tool_offset=offset,
+    )

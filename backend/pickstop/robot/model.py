@@ -357,10 +357,24 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
         joints=tuple(joints),
         robot_hash=_hash(config, files),
     )
+    robot.footprint = _footprint(robot, config.footprint)
+    return robot
+
+
+def _footprint(robot: RobotModel, footprint: Any) -> Any:
+    """The config's footprint, or the base's outline derived from its collision geometry
+    (kept in the cache per robot hash and footprint settings)."""
     from pickstop.robot.base_outline import derived_footprint
 
-    robot.footprint = derived_footprint(robot, config.footprint)
-    return robot
+    if footprint.radius is not None or footprint.polygon is not None:
+        return footprint
+    from pickstop.robot.cache import derived
+    from pickstop.settings import cache_dir
+
+    key = hashlib.sha256(footprint.model_dump_json().encode()).hexdigest()[:12]
+    return derived(
+        robot, cache_dir(), f"outline-{key}", lambda: derived_footprint(robot, footprint)
+    )
 
 
 def _without_ignored(geom: Any, patterns: list[str], urdf_path: Path) -> Any:

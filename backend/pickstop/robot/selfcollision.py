@@ -20,8 +20,6 @@ among them) are re-exported here.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import time
 import xml.etree.ElementTree as ET
 from collections import defaultdict
@@ -31,6 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from pickstop.errors import InputError, RobotConfigError
+from pickstop.progress import Steps, step
+from pickstop.robot.cache import COMPUTED, making, write_atomic
 from pickstop.robot.exact import ExactSelfCollision, PairChecker, false_rejection_rate
 from pickstop.robot.kinematics import BLOCK, Chain, fk_soa
 from pickstop.robot.link_geometry import CollisionLink, collision_links
@@ -152,7 +152,9 @@ def home_thetas(robot: RobotModel) -> np.ndarray:
     return np.clip(np.zeros(robot.dof), robot.lower, robot.upper)
 
 
-def _compute(robot: RobotModel, samples: int, seed: int) -> tuple[DisabledPair, ...]:
+def _compute(
+    robot: RobotModel, samples: int, seed: int, steps: Steps | None = None
+) -> tuple[DisabledPair, ...]:
     links = collision_links(robot)
     cands = candidate_pairs(links)
     reasons: dict[tuple[str, str], Reason] = {}
@@ -177,6 +179,7 @@ def _compute(robot: RobotModel, samples: int, seed: int) -> tuple[DisabledPair, 
         0,
         seed,
     )
+    step(steps, "disabled pairs: covering the links")
     spheres = SphereModel.from_robot(robot, partial, excess=0.015, step=0.02, per_pair=True)
     model_pairs = [(spheres.link_names[i], spheres.link_names[j]) for i, j in spheres.pairs]
     col = {p: k for k, p in enumerate(rest)}
@@ -189,6 +192,7 @@ def _compute(robot: RobotModel, samples: int, seed: int) -> tuple[DisabledPair, 
     chain = Chain.from_robot(robot)
     rng = np.random.default_rng(seed)
     for s in range(0, samples, BLOCK):
+        step(steps, "disabled pairs: random configurations", s, samples)
         n = min(BLOCK, samples - s)
         th = rng.uniform(robot.lower, robot.upper, (n, robot.dof))
         _, _, frames = fk_soa(chain, np.ascontiguousarray(th.T), frames=True)
@@ -270,11 +274,7 @@ def _write_cache(path: Path, dp: DisabledPairs) -> None:
         "seconds": dp.seconds,
         "pairs": [[p.link1, p.link2, p.reason] for p in dp.pairs],
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(doc, f, indent=1)
-    os.replace(tmp, path)
+    write_atomic(path, json.dumps(doc, indent=1).encode())
 
 
 def disabled_pairs(
@@ -282,6 +282,7 @@ def disabled_pairs(
     samples: int = DEFAULT_SAMPLES,
     seed: int = 0,
     cache_dir: Path | None = None,
+    steps: Steps | None = None,
 ) -> DisabledPairs:
     """The link pairs to skip: from the robot's SRDF if it has one, else computed.
 
@@ -289,6 +290,7 @@ def disabled_pairs(
     seed: seed of their generator.
     cache_dir: folder for a JSON cache keyed by ``robot.robot_hash``, samples and seed (None:
     no cache); a corrupt or mismatching file is recomputed and replaced.
+    steps: told how the computation goes (:mod:`pickstop.progress`).
     """
     if samples < 1:
         raise InputError(f"samples must be >= 1, got {samples}", field="samples")
@@ -298,14 +300,20 @@ def disabled_pairs(
         cached = _read_cache(path, robot, links, samples, seed)
         if cached is not None:
             return cached
-    t0 = time.perf_counter()
-    if robot.srdf_path is not None:
-        pairs = _from_srdf(robot, links)
-        dp = DisabledPairs(robot.robot_hash, links, pairs, "srdf", 0, seed)
-    else:
-        pairs = _compute(robot, samples, seed)
-        dp = DisabledPairs(robot.robot_hash, links, pairs, "computed", samples, seed)
-    dp = replace(dp, seconds=time.perf_counter() - t0)
-    if path is not None:
-        _write_cache(path, dp)
+    with making(path):  # another process computing them: wait, then read them
+        if path is not None:
+            cached = _read_cache(path, robot, links, samples, seed)
+            if cached is not None:
+                return cached
+        t0 = time.perf_counter()
+        if robot.srdf_path is not None:
+            pairs = _from_srdf(robot, links)
+            dp = DisabledPairs(robot.robot_hash, links, pairs, "srdf", 0, seed)
+        else:
+            pairs = _compute(robot, samples, seed, steps)
+            dp = DisabledPairs(robot.robot_hash, links, pairs, "computed", samples, seed)
+            COMPUTED["pairs"] += 1
+        dp = replace(dp, seconds=time.perf_counter() - t0)
+        if path is not None:
+            _write_cache(path, dp)
     return dp

@@ -26,7 +26,7 @@ import coal
 import numpy as np
 
 from pickstop.frames import R_z, transform
-from pickstop.robot.hand import HandShape
+from pickstop.robot.hand import TOP_DOWN_CLEARANCE, HandShape
 from pickstop.scene.model import Box, Cylinder, Gripper, Mesh, Part, Scene, Tray
 from pickstop.scene.world import (
     TOUCH,
@@ -42,7 +42,7 @@ from pickstop.scene.world import (
     world_part_transform,
 )
 
-FLOOR_CLEARANCE = 0.003  # [m] between the lowest point of a top-down hand and the tray floor
+FLOOR_CLEARANCE = TOP_DOWN_CLEARANCE  # [m] the lowest point of a top-down hand to the tray floor
 PART_CLEARANCE = 0.0005  # [m] between the open hand and the part it is to grasp, on approach
 LIFT_STEP = 0.005  # [m] a top-down grasp blocked by its own part is raised by this much
 MIN_HOLD = 0.005  # [m] a raised grasp point stays at least this far below the part's top
@@ -333,7 +333,7 @@ class OwnVerdicts:
         lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
         for _, heights in hands:
             for _, h, _ in heights:
-                if h is not None:
+                if h is not None and len(h.lo):
                     lo, hi = np.minimum(lo, h.lo.min(0)), np.maximum(hi, h.hi.max(0))
         return OwnVerdicts(at, hands, lo, hi, self.yaw + turn)
 
@@ -360,7 +360,8 @@ def own_verdicts(scene: Scene, tray: Tray, part: Part, hand: HandShape) -> OwnVe
                 verdict = "part"
             else:
                 verdict = "ok"
-                lo, hi = np.minimum(lo, at.lo.min(0)), np.maximum(hi, at.hi.max(0))
+                if len(at.lo):  # a hand of no geometry (no hand links) has no bounds
+                    lo, hi = np.minimum(lo, at.lo.min(0)), np.maximum(hi, at.hi.max(0))
             heights.append((T_part_tcp, at if verdict == "ok" else None, verdict))
         cands.append((kind, tuple(heights)))
     at0 = np.array([tray.pose.x, tray.pose.y, 0.0])

@@ -17,6 +17,7 @@ from typing import Any
 
 import pickstop
 from pickstop.errors import DatabaseError
+from pickstop.progress import Steps, step
 from pickstop.reach.build import (
     FORMAT_VERSION,
     BuildParams,
@@ -103,11 +104,14 @@ def build(
     max_chunks: int | None = None,
     runner: ChunkRunner | None = None,
     nice: int = 0,
+    steps: Steps | None = None,
 ) -> dict[str, Any]:
     """Build (or resume) the database of ``robot`` with ``params``; return its catalog row.
 
-    progress: called with (samples done, samples total). max_chunks: stop after computing that
-    many chunks (the database stays 'building' and resumes on the next call).
+    progress: called with (samples done, samples total) once the screens are ready, then as
+    chunks come in. max_chunks: stop after computing that many chunks (the database stays
+    'building' and resumes on the next call). steps: told of what comes before and after the
+    chunks (the robot's screen on a first build, the index; :mod:`pickstop.progress`).
     """
     params.validate()
     data_dir = Path(data_dir)
@@ -132,15 +136,16 @@ def build(
     if max_chunks is not None:
         todo = todo[:max_chunks]
     samples_done = sum(params.chunk_samples(c) for c in done)
-    if progress:
-        progress(samples_done, params.samples)
     workers = workers or os.cpu_count() or 1
     run = runner or (
         lambda k, c, d, i: run_local(k, c, d, i, min(workers, max(len(c), 1)), nice=nice)
     )
     try:
-        kernel = make_kernel(robot, params, data_dir)
+        kernel = make_kernel(robot, params, data_dir, steps)
         rc.update_database(catalog, db_id, screen_figures(robot, data_dir))
+        step(steps, "")
+        if progress:
+            progress(samples_done, params.samples)
         for res in run(kernel, todo, data_dir, db_id):
             rc.record_shard(catalog, db_id, _shard_row(db_id, res))
             done.add(res.chunk)
@@ -150,10 +155,12 @@ def build(
         if len(done) == params.n_chunks:
             current = rc.database_row(catalog, db_id)
             assert current is not None
+            step(steps, "indexing the stored configurations")
             files, figures = index_database(
                 data_dir, current, rc.shards(catalog, db_id), kernel.chain, workers, nice
             )
             rc.record_index(catalog, db_id, files, figures)
+            step(steps, "")
     finally:
         # Whatever stopped it (Ctrl-C, an error, a chunk limit), an unfinished build is
         # 'interrupted' until the same command resumes it; a killed one is found out by

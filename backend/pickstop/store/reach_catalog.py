@@ -277,6 +277,15 @@ def verify_databases(data_dir: Path, db_id: str | None = None) -> list[dict[str,
         cat.close()
 
 
+def folder_flag(data_dir: Path) -> Path | None:
+    """``data_dir`` as a command's ``--data-dir`` names it: None for the default data folder
+    (``$PICKSTOP_DATA_DIR`` or the built-in one), which a command finds without it."""
+    from pickstop.settings import Settings
+
+    data_dir = Path(data_dir).resolve()
+    return None if data_dir == Path(Settings().data_dir).resolve() else data_dir
+
+
 def find_database(
     data_dir: Path, robot: RobotModel, db_id: str | None = None, default: str | None = None
 ) -> dict[str, Any]:
@@ -297,12 +306,13 @@ def find_database(
             raise DatabaseMismatchError(
                 f"database {row['id']} was built for robot {row['robot']!r} (config hash "
                 f"{row['robot_hash'][:12]}), not for {robot.name!r} (config hash "
-                f"{robot.robot_hash[:12]}); build one with `pickstop reach build --robot ...`"
+                f"{robot.robot_hash[:12]}); build one with "
+                f"`{build_command(None, robot, folder_flag(data_dir))}`"
             )
         if row["state"] != "complete":
-            raise DatabaseError(
-                f"database {row['id']} is still {row['state']}: run the same "
-                "`pickstop reach build` again to resume it"
+            raise DatabaseNotFoundError(
+                f"database {row['id']} is {row['state']}, not complete: resume it with "
+                f"`{build_command(row, robot, folder_flag(data_dir))}`"
             )
         return row
     row = default_row(rows, robot.robot_hash)
@@ -316,7 +326,7 @@ def find_database(
         )
         raise DatabaseNotFoundError(
             f"no complete reachability database for robot {robot.name!r} in {data_dir}{hint}; "
-            f"build one with `pickstop reach build --robot {robot.source or robot.name}`"
+            f"build one with `{build_command(None, robot, folder_flag(data_dir))}`"
         )
     return row
 
@@ -354,24 +364,30 @@ def open_database(
     data_dir = Path(data_dir)
     row = find_database(data_dir, robot, db_id, default)
     if row.get("index_format") != INDEX_FORMAT:
-        raise DatabaseError(
+        raise DatabaseNotFoundError(
             f"database {row['id']} has no voxel index of the format this PickStop reads "
             f"(it was built by {row['code_version']}); index it from its shards with "
-            f"`{build_command(row, robot)}` (about a second per million configurations)"
+            f"`{build_command(row, robot, folder_flag(data_dir))}` (about a second per "
+            "million configurations)"
         )
     cat = Catalog(data_dir)
     try:
         files = index_files(cat, row["id"])
     finally:
         cat.close()
-    arrays, stats = map_index(data_dir, row["id"], files)
+    try:
+        arrays, stats = map_index(data_dir, row["id"], files)
+    except CorruptShardError as e:
+        raise CorruptShardError(
+            f"{e.message}; for this database: `{build_command(row, robot, folder_flag(data_dir))}`"
+        ) from None
     if stats.verified:
         mark_verified(data_dir, row["id"], stats.verified)
     if len(arrays["manip"]) != row["stored"]:
         raise DatabaseError(
             f"database {row['id']}: its index holds {len(arrays['manip'])} configurations, "
             f"the catalog records {row['stored']}; index it again with "
-            f"`{build_command(row, robot)}`"
+            f"`{build_command(row, robot, folder_flag(data_dir))}`"
         )
     return ReachDatabase(
         row,

@@ -113,3 +113,13 @@ def test_interrupted_builds_are_deleted_after_the_retention(tmp_path):
         assert "being built" in body["detail"]
         assert c.delete("/api/v1/databases/recent", headers=AUTH).status_code == 204
         assert not (tmp_path / "reach" / "recent").exists()
+
+
+def test_database_info_says_whether_the_screen_meets_its_bound():
+    from pickstop.api.schemas import DatabaseInfo
+
+    ok = DatabaseInfo.of({"id": "a", "screen_false_rejection": 0.03})
+    over = DatabaseInfo.of({"id": "b", "screen_false_rejection": 0.07})
+    assert ok.screen_meets_bound is True and ok.screen_bound == 0.05
+    assert over.screen_meets_bound is False and over.screen_false_rejection == 0.07
+    assert DatabaseInfo.of({"id": "c"}).screen_meets_bound is None  # not measured
