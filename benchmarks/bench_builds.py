@@ -4,10 +4,10 @@
 
 Starts ``pickstop serve`` on 127.0.0.1 over a fresh data folder; each cycle starts a build
 (``--samples`` samples in chunks of 1,000, a new seed each time) and cancels it after a random
-0-3 s (starting, screening, or chunking); every ``--every`` cycles prints the service's process
-count and memory (its own and every descendant's), the databases it lists and the bytes of the
-data folder's ``reach/``. Then stops the service with SIGTERM and counts the processes it
-started that are still alive 1 and 10 s later.
+0-2 s (every other one once its pool computes chunks); every ``--every`` cycles prints the
+service's process count and memory (its own and every descendant's), the databases it lists
+and the bytes of the data folder's ``reach/``. Then stops the service with SIGTERM and counts
+the processes it started that are still alive 1 and 10 s later.
 """
 
 from __future__ import annotations
@@ -82,7 +82,12 @@ def main() -> int:
             r = c.post("/databases", json={"samples": args.samples, "chunk_size": 1000,
                        "seed": 1000 + k}, headers=AUTH)  # fmt: skip
             job_id = r.json()["id"]
-            time.sleep(rng.uniform(0.0, 3.0))
+            while k % 2 == 0:  # every other build is cancelled while its pool computes chunks
+                job = c.get(f"/jobs/{job_id}").json()
+                if job["state"] not in ("queued", "running") or job["progress"] > 0:
+                    break
+                time.sleep(0.1)
+            time.sleep(rng.uniform(0.0, 2.0))
             for p in psutil.Process(proc.pid).children(recursive=True):
                 seen.setdefault(p.pid, p)
             job = c.post(f"/jobs/{job_id}/cancel", headers=AUTH).json()

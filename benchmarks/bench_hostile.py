@@ -1,7 +1,7 @@
 """The REST service against hostile and careless clients: what each request gets, how long it
 takes, and how fast ``/health`` answers meanwhile.
 
-    python benchmarks/bench_hostile.py [--data-dir DIR] [--samples N]
+    python benchmarks/bench_hostile.py [--data-dir DIR] [--samples N] [--cases TEXT]
 
 Starts ``pickstop serve`` on 127.0.0.1 over a data folder (default: a fresh temporary one with
 a small TIAGo database built first) with a 20 MB body limit (``--max-body-bytes``; the default
@@ -235,6 +235,7 @@ def main() -> int:
     ap.add_argument("--samples", type=int, default=1_000_000, help="samples of that build")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each quick case (min-max)")
     ap.add_argument("--max-body-bytes", default="20000000", help="the service's body limit")
+    ap.add_argument("--cases", default="", help="only the cases whose name holds this text")
     args = ap.parse_args()
     folder = Path(args.data_dir or tempfile.mkdtemp(prefix="pickstop-hostile-"))
     if not args.data_dir:
@@ -263,10 +264,11 @@ def main() -> int:
             heavy_sid = heavy.json()["id"]
             limits = c.get("/api/v1/limits").json()
         print(f"limits: {json.dumps(limits)}")
-        rejections(url)
+        if not args.cases:
+            rejections(url)
         print(f"{'case':52} {'status':>6} {'field':24} {'time':>11} {'polls':>5} "
               f"{'health p50':>10} {'max':>8}")  # fmt: skip
-        for name, send in cases(sid, heavy_sid):
+        for name, send in [c for c in cases(sid, heavy_sid) if args.cases in c[0]]:
             runs = [measure(url, send) for _ in range(1 if "regions" in name or "20,000" in name
                                                       else args.repeat)]  # fmt: skip
             status, field = runs[-1][0], runs[-1][1]

@@ -79,3 +79,12 @@ def test_unknown_paths_are_problems(client):
     titled_problem(client.get("/api/v1/plans/nope"), 404)
     titled_problem(client.get("/api/v1/nothing"), 404)
     titled_problem(client.get("/api/v1/scenes", params={"limit": 0}), 422)
+
+
+def test_a_body_with_thousands_of_errors_lists_the_first_fifty(client):
+    config = {"name": "many", "urdf": "x.urdf", "arm_joints": ["a"], "tool_frame": "t",
+              "locked_joints": {f"j{i}": "not a number" for i in range(1000)}}  # fmt: skip
+    body = problem(client.post("/api/v1/robots", json=config, headers=AUTH), 422)
+    assert len(body["errors"]) == 50 and body["errors"][0]["field"].startswith("locked_joints.")
+    assert "the first 50 are listed" in body["detail"]
+    assert len(body["detail"]) < 2100

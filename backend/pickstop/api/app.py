@@ -11,6 +11,7 @@ while any of them is in flight.
 from __future__ import annotations
 
 import asyncio
+import gc
 import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -52,7 +53,13 @@ def create_app(
         if preload:
             await asyncio.to_thread(svc.planning.preload)
         app.state.service = svc
+        # What start-up made lives as long as the service: out of the cyclic collector's
+        # sight, a full collection (after a request that made many objects, a large body's)
+        # scans only what requests made since, in milliseconds rather than a tenth of a second.
+        gc.collect()
+        gc.freeze()
         yield
+        gc.unfreeze()
         svc.close()
 
     app = FastAPI(

@@ -1,7 +1,8 @@
 """Errors as RFC 9457 problem details (``application/problem+json``).
 
 Every error response carries ``type``, ``title``, ``status`` and ``detail``; validation errors
-add ``field`` (the first offending field, dotted) and ``errors`` (every field with its message).
+add ``field`` (the first offending field, dotted) and ``errors`` (each field with its message:
+the first :data:`MAX_ERRORS` of them, the detail saying how many there are).
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ from pickstop.errors import (
 from pickstop.sequence.cover import InfeasiblePlanError
 
 BASE = "https://pickstop.dev/problems/"
+MAX_ERRORS = 50  # listed in one answer: a body can hold thousands, each costing the server
+MAX_DETAIL = 2000  # [characters] of the detail
 MEDIA = "application/problem+json"
 
 
@@ -76,18 +79,23 @@ def scrub(text: str) -> str:
 
 
 def problem_response(p: Problem, instance: str | None = None) -> JSONResponse:
+    detail = scrub(p.detail)
+    if len(detail) > MAX_DETAIL:
+        detail = detail[: MAX_DETAIL - 3] + "..."
+    if p.errors and len(p.errors) > MAX_ERRORS:
+        detail += f" ({len(p.errors)} errors; the first {MAX_ERRORS} are listed)"
     body: dict[str, Any] = {
         "type": BASE + p.kind,
         "title": p.title,
         "status": p.status,
-        "detail": scrub(p.detail),
+        "detail": detail,
     }
     if instance:
         body["instance"] = instance
     if p.field:
         body["field"] = p.field
     if p.errors:
-        body["errors"] = [{**e, "message": scrub(e["message"])} for e in p.errors]
+        body["errors"] = [{**e, "message": scrub(e["message"])} for e in p.errors[:MAX_ERRORS]]
     return JSONResponse(body, status_code=p.status, media_type=MEDIA, headers=p.headers)
 
 

@@ -71,7 +71,10 @@ class RobotRegistry:
         """Validate a robot config whose files lie in the allowed folders, and keep it."""
         strict = type_errors(RobotConfig, data) if isinstance(data, dict) else []
         if strict:
-            raise RobotConfigError("; ".join(f"{f}: {m}" for f, m in strict), field=strict[0][0])
+            err = RobotConfigError("; ".join(f"{f}: {m}" for f, m in strict[:5]),
+                                   field=strict[0][0])  # fmt: skip
+            err.problems = strict  # type: ignore[attr-defined]
+            raise err
         config = parse_config(data, "robot")
         if config.name in preset_names() or self.store.robot(config.name) is not None:
             raise ExistsError(f"robot {config.name!r} already exists", field="name")
