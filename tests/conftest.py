@@ -11,7 +11,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def pytest_configure(config):
-    # Per-robot derived data (disabled pairs, screen) is shared by every test of a run.
+    # Per-robot derived data (disabled pairs, screen) is made once per run and shared by every
+    # test: the xdist workers start after this runs in the controller and inherit its
+    # environment; the cache's file locks keep two workers from making the same data twice.
     import tempfile
 
     os.environ.setdefault("PICKSTOP_CACHE_DIR", tempfile.mkdtemp(prefix="pickstop-cache-"))

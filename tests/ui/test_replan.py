@@ -21,12 +21,15 @@ class FakeApi:
         self.delay, self.fail = delay, fail or {}
         self.calls: list[tuple[int, int, bool]] = []  # (scene's n, samples, preview)
         self.gate: threading.Event | None = None
+        self.hold: dict[int, threading.Event] = {}  # scene's n -> answer once this is set
 
     def plan(self, scene: dict[str, Any], options: dict[str, Any], store: bool = False,
              preview: bool = False, cancel: threading.Event | None = None) -> Any:  # fmt: skip
         self.calls.append((scene["n"], options["samples"], preview))
         if self.gate is not None:
             self.gate.wait(5)
+        if scene["n"] in self.hold:
+            self.hold[scene["n"]].wait(5)
         time.sleep(self.delay)
         if (scene["n"], options["samples"]) in self.fail:
             raise self.fail[scene["n"], options["samples"]]
@@ -52,6 +55,13 @@ class Window:
     def success_rates_failed(self, req: Request, problem: ApiProblem) -> None:
         self.events.append(("mc failed", req.seq, problem))
         self.done.set()
+
+
+def _wait_for(cond, timeout: float = 5.0) -> None:
+    end = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.005)
 
 
 def _settle(r: Replanner, seconds: float = 0.6) -> None:
@@ -90,8 +100,9 @@ def test_requests_made_while_one_is_planned_collapse_into_the_newest(window):
     api = FakeApi()
     api.gate = threading.Event()
     r = Replanner(api, window, mc_quiet=10.0)
+    api.hold[7] = window.done  # 7 is answered once 1's answer is drawn (else it may replace it)
     r.submit({"n": 1}, {"samples": 0}, "a", preview=True)
-    time.sleep(0.1)  # the worker now waits on the API with request 1
+    _wait_for(lambda: api.calls)  # the worker now waits on the API with request 1
     for n in range(2, 8):
         r.submit({"n": n}, {"samples": 0}, "drag", preview=True)
     api.gate.set()
