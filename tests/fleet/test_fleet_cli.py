@@ -132,3 +132,53 @@ def test_verify_yaw_sets_each_stops_tolerance_from_exact_checks(
     nodes = [n for n in json.loads(out.read_text())["nodes"] if n["actions"]]
     assert nodes[0]["nodePosition"]["allowedDeviationTheta"] == pytest.approx(tol)
     assert main(["export", str(plan_file), "--format", "nav2", "--verify-yaw"]) == 2
+
+
+def test_export_and_dispatch_with_a_vehicle_types_file(
+    plan_file, example_plans, planner, mosquitto, tmp_path, capsys
+):
+    """``--vehicle-types``: the export renames the pick; a dispatch to a vehicle that calls it
+    ``pickPart`` exits 3 naming the missing action without the file, and runs with it."""
+    import jsonschema
+    import yaml
+
+    from pickstop.fleet import published
+    from pickstop.fleet.execution import vehicle_for
+    from pickstop.fleet.factsheet import Body
+    from pickstop.fleet.pickcheck import PickChecker
+    from pickstop.fleet.sim_node import VehicleNode
+    from pickstop.fleet.vehicle_types import parse_vehicle_types
+    from tests.fleet.test_vehicle_types import TYPES
+
+    types = tmp_path / "vehicles.yaml"
+    types.write_text(yaml.safe_dump(TYPES))
+    out = tmp_path / "order.json"
+    args = ["export", str(plan_file), "--format", "vda5050", "--vda-version", "2.0",
+            "--vehicle-types", str(types), "--vehicle-type", "mm1", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    order = json.loads(out.read_text())
+    jsonschema.validate(order, published.schema("order", "2.0.0"))
+    acts = [a for n in order["nodes"] for a in n["actions"]]
+    assert acts and {a["actionType"] for a in acts} == {"pickPart"}
+    assert main([*args[:-2], "--vehicle-type", "nope"]) == 2
+
+    scene, plan = example_plans["paper_experiment"]
+    veh = vehicle_for(plan, PickChecker(planner, scene), seed=0, version="2.0.0")
+    veh.manufacturer, veh.serial_number = "acme", "mm-3"
+    veh.pick = parse_vehicle_types(TYPES).vehicle_types[0].pick
+    veh.body = Body(series_name="MM-1")
+    veh.forced_error = (0.0, 0.0, 0.0)
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=0).start()
+    base = ["dispatch", str(plan_file), "--broker", mosquitto.broker.url, "--manufacturer",
+            "acme", "--serial", "mm-3", "--vda-version", "2.0", "--quiet"]  # fmt: skip
+    try:
+        capsys.readouterr()
+        assert main(base) == 3
+        err = capsys.readouterr().err
+        assert "cannot run order" in err and "lists no action 'pick'" in err
+        assert veh.order_id == ""
+        assert main([*base, "--vehicle-types", str(types)]) == 0
+        summary = json.loads(capsys.readouterr().out)
+        assert summary["done"] and summary["actions_finished"] == summary["actions"] > 0
+    finally:
+        node.stop()

@@ -4,20 +4,16 @@ guaranteed radius fails its pick (exact check) with the reason."""
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import jsonschema
 import numpy as np
 import pytest
 
 from pickstop.fleet import order as od
+from pickstop.fleet import published
 from pickstop.fleet import vda5050 as v
 from pickstop.fleet.execution import vehicle_for
 from pickstop.fleet.pickcheck import PickChecker
 from pickstop.fleet.tracker import OrderTracker
-
-SCHEMAS = Path(v.__file__).parent / "schemas"
 
 
 @pytest.fixture(scope="module")
@@ -40,14 +36,14 @@ def drive(veh, order, tracker, schema=None, max_dt=2.0):
     return states
 
 
-@pytest.mark.parametrize("version", ["2.1.0", "3.0.0"])
+@pytest.mark.parametrize("version", ["2.0.0", "2.1.0", "3.0.0"])
 def test_an_order_runs_to_the_end_and_every_state_is_valid(paper, version):
     scene, plan, check = paper
     veh = vehicle_for(plan, check, seed=1, version=version)
     veh.forced_error = (0.0, 0.0, 0.0)  # exactly at the stops: every pick is feasible
     order = od.build_order(plan, od.OrderOptions(version=version))
     tracker = OrderTracker(order)
-    schema = json.loads((SCHEMAS / f"state-{version}.schema.json").read_text())
+    schema = published.schema("state", version)
     drive(veh, order, tracker, schema)
     s = tracker.summary()
     assert s["done"] and s["nodes_reached"] == len(order.nodes)

@@ -9,6 +9,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -66,6 +67,13 @@ def _yaw_tolerance(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
     )
 
 
+def _vehicle_types(args: argparse.Namespace) -> Any:
+    from pickstop.fleet.vehicle_types import VehicleTypes, load_vehicle_types
+
+    path = getattr(args, "vehicle_types", None)
+    return VehicleTypes() if path is None else load_vehicle_types(path)
+
+
 def _order_options(
     args: argparse.Namespace, scene: Any, plan: pm.Plan | None = None
 ) -> orders.OrderOptions:
@@ -99,7 +107,11 @@ def cmd_export(args: argparse.Namespace) -> int:
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
     if args.format == "vda5050":
-        order = orders.build_order(plan, _order_options(args, scene, plan))
+        vt = _vehicle_types(args).select(args.manufacturer, args.serial, None, args.vehicle_type)
+        opts = _order_options(args, scene, plan)
+        if vt is not None:
+            opts = replace(opts, pick=vt.pick)
+        order = orders.build_order(plan, opts)
         text = json.dumps(v.dump(order), indent=1) + "\n"
     else:
         yaml_out = (args.out or "").endswith((".yaml", ".yml"))
@@ -122,16 +134,21 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_dispatch(args: argparse.Namespace) -> int:
-    from pickstop.fleet.dispatch import Dispatcher
+    from pickstop.fleet.dispatch import Dispatcher, checked_order
 
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
     broker = mqtt.parse_broker(args.broker)
-    order = orders.build_order(plan, _order_options(args, scene, plan))
+    opts = _order_options(args, scene, plan)
+    types = _vehicle_types(args)
     mqtt.check_level("interface", args.interface)
-    d = Dispatcher(broker, args.manufacturer, args.serial, order.version, args.interface)
+    d = Dispatcher(broker, args.manufacturer, args.serial, opts.version, args.interface)
     d.start()
     try:
+        order, _ = checked_order(
+            d, lambda pick: orders.build_order(plan, replace(opts, pick=pick)), types,
+            args.vehicle_type, not args.no_factsheet, args.wait,
+        )  # fmt: skip
 
         def progress(s: dict[str, Any]) -> None:
             if not args.quiet:
@@ -158,6 +175,13 @@ def _checker(scene_path: str, scene: Any, args: argparse.Namespace, db: str | No
     return PickChecker(planner, scene)
 
 
+def _sim_body(vt: Any) -> Any:
+    """The simulated vehicle's factsheet body, with the series its type names."""
+    from pickstop.fleet.factsheet import Body
+
+    return Body(series_name=vt.series_name) if vt.series_name else Body()
+
+
 def cmd_sim_vehicle(args: argparse.Namespace) -> int:
     from pickstop.fleet.sim_node import VehicleNode
     from pickstop.fleet.vehicle import Motion, SimVehicle, error_model
@@ -171,6 +195,7 @@ def cmd_sim_vehicle(args: argparse.Namespace) -> int:
     scene = _scene(args.scene)
     broker = mqtt.parse_broker(args.broker)
     mqtt.check_level("interface", args.interface)
+    vt = _vehicle_types(args).select(args.manufacturer, args.serial, None, args.vehicle_type)
     m = scene.motion
     sigma = scene.sigma if args.sigma is None else args.sigma
     veh = SimVehicle(
@@ -181,6 +206,7 @@ def cmd_sim_vehicle(args: argparse.Namespace) -> int:
         check=_checker(args.scene, scene, args, args.db),
         rng=np.random.default_rng(args.seed),
         version=orders.version_of(args.vda_version),
+        **({} if vt is None else {"pick": vt.pick, "body": _sim_body(vt)}),
         x=scene.start.x,
         y=scene.start.y,
         theta=scene.start.yaw,
@@ -217,8 +243,15 @@ def _vehicle_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--manufacturer", default="pickstop", help="VDA 5050 manufacturer")
     p.add_argument("--serial", default="sim-1", help="VDA 5050 serialNumber")
     p.add_argument("--interface", default=mqtt.INTERFACE, help="topic interface name")
-    p.add_argument("--vda-version", default="2.1", help="2.1 (default) or 3.0")
+    p.add_argument("--vda-version", default="2.1", help="2.0, 2.1 (default) or 3.0")
     p.add_argument("--map-id", help="mapId / frame id (default: map)")
+    p.add_argument(
+        "--vehicle-types", help="vehicle types file: each type's pick action and parameter names"
+    )
+    p.add_argument(
+        "--vehicle-type",
+        help="the vehicle's type in --vehicle-types (default: the first matching the vehicle)",
+    )
 
 
 def _order_args(p: argparse.ArgumentParser) -> None:
@@ -253,6 +286,11 @@ def add_commands(sub: Any) -> None:
     )
     dp.add_argument("--wait", type=finite_float, default=10.0, help="[s] for the vehicle to appear")
     dp.add_argument("--quiet", action="store_true")
+    dp.add_argument(
+        "--no-factsheet",
+        action="store_true",
+        help="send without reading the vehicle's factsheet (a vehicle older than VDA 5050 2.0)",
+    )
     _vehicle_args(dp)
     _order_args(dp)
     dp.set_defaults(func=cmd_dispatch)
@@ -276,7 +314,7 @@ def add_commands(sub: Any) -> None:
     es.add_argument("--runs", type=int, default=200)
     es.add_argument("--seed", type=int, default=0)
     es.add_argument("--broker", help="mqtt://HOST:PORT (default: a local Mosquitto)")
-    es.add_argument("--vda-version", default="2.1")
+    es.add_argument("--vda-version", default="2.1", help="2.0, 2.1 (default) or 3.0")
     es.add_argument("--db", help="reachability database id (default: the plan's)")
     es.add_argument("--out", help="write the report JSON here")
     es.set_defaults(func=cmd_execute_sim)

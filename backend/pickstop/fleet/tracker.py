@@ -21,7 +21,7 @@ DONE_ACTION = ("FINISHED", "FAILED")
 
 @dataclass
 class OrderTracker:
-    order: v.Order21 | v.Order30
+    order: v.Order
     sent_at: float | None = None  # [s] monotonic time the order was published
     acknowledged_at: float | None = None  # first state naming the order
     states: int = 0  # states of this order taken
@@ -81,7 +81,7 @@ class OrderTracker:
         self.errors = [
             e.model_dump(mode="json", by_alias=True, exclude_none=True) for e in st.errors
         ]
-        pos = st.agv_position if isinstance(st, v.State21) else st.mobile_robot_position
+        pos = st.mobile_robot_position if isinstance(st, v.State30) else st.agv_position
         if pos is not None:
             self.position = {"x": pos.x, "y": pos.y, "theta": pos.theta}
         if self.done and self.finished_at is None:

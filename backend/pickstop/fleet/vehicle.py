@@ -19,8 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from pickstop.fleet import factsheet as fs
 from pickstop.fleet import order as orders
 from pickstop.fleet import vda5050 as v
+from pickstop.fleet.vehicle_types import DEFAULT_PICK, PickAction
 from pickstop.frames import wrap_angle
 from pickstop.sequence.success import Kind, sample_errors
 from pickstop.sequence.timing import leg_time
@@ -90,6 +92,8 @@ class SimVehicle:
     check: Check
     rng: np.random.Generator
     version: str = "2.1.0"
+    pick: PickAction = DEFAULT_PICK  # how its controller names a pick and its parameters
+    body: fs.Body = field(default_factory=fs.Body)
     x: float = 0.0
     y: float = 0.0
     theta: float = 0.0
@@ -111,18 +115,38 @@ class SimVehicle:
     finished_at: float | None = None
     stopped_at: dict[str, tuple[float, float, float]] = field(default_factory=dict)
 
+    # -- the factsheet -----------------------------------------------------------------------------
+    def factsheet(self, header_id: int = 0) -> dict[str, Any]:
+        """Its factsheet message: the pick as its controller names it, its body and drive."""
+        return fs.describe(
+            self.version, self.manufacturer, self.serial_number, [fs.pick_spec(self.pick)],
+            self.body, header_id, orders.timestamp(),
+        )  # fmt: skip
+
     # -- orders ----------------------------------------------------------------------------------
     def accept(self, doc: dict[str, Any]) -> bool:
-        """Take an order message; False (with an error in the state) if it is refused."""
+        """Take an order message; False (with an error in the state) if it is refused: an
+        order of a newer protocol version, one the version's schema or the standard's rules
+        refuse, or one asking for an action or parameter its factsheet does not list."""
         oid = str(doc.get("orderId", "")) if isinstance(doc, dict) else ""
         refs = (("orderId", oid),)
         # an earlier refusal is history once a new order arrives
         self.errors = [e for e in self.errors if e["errorType"] not in REFUSAL_TYPES]
+        theirs = str(doc.get("version", "")) if isinstance(doc, dict) else ""
+        if v.minor(theirs) > v.minor(self.version):
+            text = f"order version {theirs} is not compatible with vehicle version {self.version}"
+            self._error("validationError", text, "FATAL", refs)
+            return False
         try:
             o = v.ORDER_MODELS[self.version].model_validate(doc)
         except Exception as e:
             text = f"order refused: {e}".splitlines()[0]
             self._error("validationError", text, "FATAL", refs)
+            return False
+        unable = fs.check_order(o, fs.read(self.factsheet()))
+        if unable:
+            self._error("orderError", "order action is not executable: " + "; ".join(unable),
+                        "WARNING", refs)  # fmt: skip
             return False
         problems = orders.check_order(o)
         if problems or not o.nodes:
@@ -288,10 +312,11 @@ class SimVehicle:
 
     def _pick(self, k: int, a: _Action) -> None:
         node = self.nodes[k]
-        if a.type != orders.PICK:
+        if a.type != self.pick.action_type:
             a.status, a.result = "FINISHED", f"{a.type}: nothing to do in simulation"
             return
-        tray = str(a.params.get("trayId", ""))
+        ours = self.pick.ours(a.params)
+        tray = str(ours.get("trayId", ""))
         off = math.hypot(self.x - node.x, self.y - node.y)
         ok, why = self.check(tray, self.x, self.y, self.theta)
         where = (
@@ -304,10 +329,10 @@ class SimVehicle:
             )
         )
         if ok:
-            a.status, a.result = "RUNNING", f"part {a.params.get('partId')} graspable; {where}"
+            a.status, a.result = "RUNNING", f"part {ours.get('partId')} graspable; {where}"
         else:
             a.status = "FAILED"
-            a.result = f"part {a.params.get('partId')} of tray {tray} not graspable: {why}; {where}"
+            a.result = f"part {ours.get('partId')} of tray {tray} not graspable: {why}; {where}"
             self._error(
                 "pickFailed", a.result, "WARNING", (("actionId", a.id), ("nodeId", node.id))
             )
@@ -323,7 +348,7 @@ class SimVehicle:
     # -- the state message ----------------------------------------------------------------------
     def state(self, stamp: str | None = None) -> dict[str, Any]:
         """The VDA 5050 state message now (validated by the version's model)."""
-        v3 = self.version == "3.0.0"
+        v3 = v.v3(self.version)
         desc = "actionDescriptor" if v3 else "actionDescription"
         result = "actionResult" if v3 else "resultDescription"
         upcoming = self.nodes[self.last_node + 1 :] if self.last_node >= 0 else []
