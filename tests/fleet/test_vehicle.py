@@ -4,6 +4,8 @@ guaranteed radius fails its pick (exact check) with the reason."""
 
 from __future__ import annotations
 
+import math
+
 import jsonschema
 import numpy as np
 import pytest
@@ -14,6 +16,7 @@ from pickstop.fleet import vda5050 as v
 from pickstop.fleet.execution import vehicle_for
 from pickstop.fleet.pickcheck import PickChecker
 from pickstop.fleet.tracker import OrderTracker
+from pickstop.scene.positioning import YAW_LATTICE
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +93,7 @@ def test_the_tracker_ignores_other_orders_and_stale_states(paper):
 def test_errors_are_drawn_from_the_scene_model(paper):
     _, plan, check = paper
     veh = vehicle_for(plan, check, seed=3)
-    d = np.array([veh.error(veh.rng)[:2] for _ in range(4000)])
+    d = np.array([veh.error(veh.rng, 0.0, 0.0, 0.0, ())[:2] for _ in range(4000)])
     mean = np.linalg.norm(d, axis=1).mean()
     assert mean == pytest.approx(plan.parameters.sigma, rel=0.05)  # gaussian: mean error sigma
 
@@ -102,3 +105,29 @@ def test_a_malformed_order_is_refused_with_an_error_in_the_state(paper):
     doc["nodes"][1]["sequenceId"] = 3
     assert not veh.accept(doc)
     assert veh.state()["errors"][0]["errorType"] == "orderError"
+
+
+def test_the_vehicle_lands_by_the_model_of_each_stops_station(paper):
+    """A biased, anisotropic model in the base frame for the first stop's trays: the vehicle
+    lands off by it turned to the stop's heading; the other stops by the global model."""
+    from pickstop.scene.positioning import ErrorDist, Positioning, Station, rot
+
+    _, plan, check = paper
+    s0 = plan.stops[0]
+    cov = ((4e-4, 1e-4), (1e-4, 1e-4))
+    biased = ErrorDist("gaussian", mean=(0.05, -0.02), covariance=cov, yaw_mean=0.02)
+    pos = Positioning(ErrorDist("gaussian", 0.0), (Station("s0", biased, frozenset(s0.trays)),))
+    veh = vehicle_for(plan, check, seed=3, positioning=pos)
+    d = np.array([veh.error(veh.rng, s0.x, s0.y, s0.yaw, tuple(s0.trays)) for _ in range(20_000)])
+    R = rot(s0.yaw)
+    assert d[:, :2].mean(0) == pytest.approx(R @ np.array(biased.mean), abs=1e-3)
+    assert np.cov(d[:, :2].T) == pytest.approx(R @ np.array(cov) @ R.T, abs=2e-5)
+    assert d[:, 2].mean() == pytest.approx(0.02, abs=YAW_LATTICE)
+    assert veh.error(veh.rng, s0.x, s0.y, s0.yaw, ("elsewhere",)) == (0.0, 0.0, 0.0)
+    order = od.build_order(plan)
+    drive(veh, order, OrderTracker(order))
+    x, y, _ = veh.stopped_at["stop0"]
+    assert math.dist((x, y), (s0.x, s0.y)) > 0.01  # it drew from the station's model
+    if len(plan.stops) > 1:
+        x1, y1, _ = veh.stopped_at["stop1"]
+        assert (x1, y1) == pytest.approx((plan.stops[1].x, plan.stops[1].y))

@@ -175,6 +175,16 @@ def _checker(scene_path: str, scene: Any, args: argparse.Namespace, db: str | No
     return PickChecker(planner, scene)
 
 
+def _positioning(args: argparse.Namespace, scene: Any, sigma: float) -> Any:
+    """``--error-model FILE``, else the scene's models with ``sigma`` [m]."""
+    from pickstop.scene.error_file import load_error_file
+    from pickstop.scene.positioning import of_scene
+
+    if getattr(args, "error_model", None) is None:
+        return of_scene(scene, sigma)
+    return load_error_file(args.error_model).positioning(scene, sigma)
+
+
 def _sim_body(vt: Any) -> Any:
     """The simulated vehicle's factsheet body, with the series its type names."""
     from pickstop.fleet.factsheet import Body
@@ -202,7 +212,7 @@ def cmd_sim_vehicle(args: argparse.Namespace) -> int:
         manufacturer=mqtt.check_level("manufacturer", args.manufacturer),
         serial_number=mqtt.check_level("serial", args.serial),
         motion=Motion(m.max_speed, m.max_acceleration, m.stop_time, m.pick_time),
-        error=error_model(scene.error_model.kind, sigma, scene.error_model.yaw_sigma),
+        error=error_model(_positioning(args, scene, sigma)),
         check=_checker(args.scene, scene, args, args.db),
         rng=np.random.default_rng(args.seed),
         version=orders.version_of(args.vda_version),
@@ -231,7 +241,10 @@ def cmd_execute_sim(args: argparse.Namespace) -> int:
     scene = _scene(args.scene, plan)
     check = _checker(args.scene, scene, args, args.db or plan.database)
     broker = None if args.broker is None else mqtt.parse_broker(args.broker)
-    outcomes = execution.execute(plan, check, args.runs, args.seed, args.vda_version, broker)
+    pos = _positioning(args, scene, plan.parameters.sigma)
+    outcomes = execution.execute(
+        plan, check, args.runs, args.seed, args.vda_version, broker, positioning=pos
+    )
     rep = execution.report(plan, outcomes)
     print(execution.table(rep))
     if args.out:
@@ -301,6 +314,8 @@ def add_commands(sub: Any) -> None:
     sv.add_argument(
         "--sigma", type=finite_float, help="positioning error [m] (default: the scene's)"
     )
+    sv.add_argument("--error-model", help="where it lands: an error model file (default: the "
+                    "scene's models)")  # fmt: skip
     sv.add_argument("--rate", type=finite_float, default=1.0, help="state messages per second")
     sv.add_argument("--time-scale", type=finite_float, default=1.0, help="sim s per s; 0: at once")
     sv.add_argument("--seed", type=int, default=0)
@@ -317,4 +332,9 @@ def add_commands(sub: Any) -> None:
     es.add_argument("--vda-version", default="2.1", help="2.0, 2.1 (default) or 3.0")
     es.add_argument("--db", help="reachability database id (default: the plan's)")
     es.add_argument("--out", help="write the report JSON here")
+    es.add_argument(
+        "--error-model",
+        help="where the vehicle lands: an error model file (default: the scene's models, "
+        "the ones the plan predicts with)",
+    )
     es.set_defaults(func=cmd_execute_sim)

@@ -24,25 +24,35 @@ from pickstop.fleet import order as orders
 from pickstop.fleet import vda5050 as v
 from pickstop.fleet.vehicle_types import DEFAULT_PICK, PickAction
 from pickstop.frames import wrap_angle
-from pickstop.sequence.success import Kind, sample_errors
+from pickstop.scene.positioning import ErrorDist, Kind, Positioning
 from pickstop.sequence.timing import leg_time
 
 REFUSAL_TYPES = ("validationError", "orderError")
 
 #: ``check(tray_id, x, y, yaw) -> (ok, reason)`` at an actual base pose [m, m, rad].
 Check = Callable[[str, float, float, float], tuple[bool, str]]
-#: ``error(rng) -> (dx, dy, dyaw)``: where the base lands relative to the node.
-ErrorDraw = Callable[[np.random.Generator], tuple[float, float, float]]
+#: ``error(rng, x, y, yaw, trays) -> (dx, dy, dyaw)``: where the base lands relative to a
+#: node at ``(x, y, yaw)`` [m, m, rad] whose picks are from ``trays`` (map frame).
+ErrorDraw = Callable[
+    [np.random.Generator, float, float, float, tuple[str, ...]], tuple[float, float, float]
+]
 
 
-def error_model(kind: Kind, sigma: float, yaw_sigma: float) -> ErrorDraw:
-    """Draws from the scene's error model (the same sampler as the plan's Monte Carlo)."""
+def error_model(positioning: Positioning) -> ErrorDraw:
+    """Draws from the model of the node's station (the sampler of the plan's Monte Carlo)."""
 
-    def draw(rng: np.random.Generator) -> tuple[float, float, float]:
-        dxy, dyaw = sample_errors(kind, sigma, yaw_sigma, 1, rng)
+    def draw(
+        rng: np.random.Generator, x: float, y: float, yaw: float, trays: tuple[str, ...]
+    ) -> tuple[float, float, float]:
+        dxy, dyaw = positioning.at((x, y), trays).sample(1, rng, yaw)
         return float(dxy[0, 0]), float(dxy[0, 1]), float(dyaw[0])
 
     return draw
+
+
+def isotropic(kind: Kind, sigma: float, yaw_sigma: float) -> Positioning:
+    """The one model of a plan's parameters: isotropic, unbiased, everywhere."""
+    return Positioning(ErrorDist(kind, sigma, yaw_sigma=yaw_sigma))
 
 
 @dataclass(frozen=True)
@@ -297,7 +307,10 @@ class SimVehicle:
         if ph.kind == "drive":
             dx, dy, dyaw = (0.0, 0.0, 0.0)
             if node.actions:  # it stops here: the base lands off by the error model
-                dx, dy, dyaw = self.forced_error or self.error(self.rng)
+                yaw = self.theta if node.theta is None else node.theta
+                dx, dy, dyaw = self.forced_error or self.error(
+                    self.rng, node.x, node.y, yaw, self._trays(node)
+                )
             self.x, self.y = node.x + dx, node.y + dy
             if node.theta is not None:
                 self.theta = wrap_angle(node.theta + dyaw)
@@ -309,6 +322,12 @@ class SimVehicle:
                 a.status = "FINISHED"
         if len(self.phases) == 1:
             self.finished_at = self.clock
+
+    def _trays(self, node: _Node) -> tuple[str, ...]:
+        """The trays a node's picks are from (as its pick's parameters name them)."""
+        found = (self.pick.ours(a.params).get("trayId") for a in node.actions
+                 if a.type == self.pick.action_type)  # fmt: skip
+        return tuple(sorted({str(t) for t in found if t is not None}))
 
     def _pick(self, k: int, a: _Action) -> None:
         node = self.nodes[k]
