@@ -208,3 +208,57 @@ def test_a_dispatch_job_is_refused_by_the_factsheet_and_mapped_by_the_vehicle_ty
             assert job["result"]["actions_finished"] == job["result"]["actions"] > 0
         finally:
             node.stop()
+
+
+def test_a_dispatch_jobs_arrivals_fit_and_write_a_stored_scene(fleet_client, mosquitto, planner):
+    """Three dispatches of a stored scene's plan: each job keeps its arrivals (JSON lines);
+    the fit of them, written into the scene with its ETag, gives it a fitted global model."""
+    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
+    r = fleet_client.post("/api/v1/scenes", headers=AUTH, json=doc)
+    assert r.status_code == 201, r.text
+    scene_id, etag = r.json()["id"], r.headers["ETag"]
+    r = fleet_client.post("/api/v1/plans", headers=AUTH,
+                          json={"scene_id": scene_id, "options": {"samples": 0}})  # fmt: skip
+    assert r.status_code == 201, r.text
+    plan_id, plan = r.json()["id"], load_plan(r.json()["plan"])
+    veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=2)
+    veh.serial_number = "fit-1"
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=0).start()
+    jobs = []
+    try:
+        for _ in range(3):
+            r = fleet_client.post(f"/api/v1/plans/{plan_id}/dispatch", headers=AUTH,
+                                  json={"serial_number": "fit-1"})  # fmt: skip
+            job = r.json()
+            t_end = time.monotonic() + 60
+            while time.monotonic() < t_end and job["state"] in ("queued", "running"):
+                time.sleep(0.1)
+                job = fleet_client.get(f"/api/v1/jobs/{job['id']}").json()
+            assert job["state"] == "done", job
+            jobs.append(job["id"])
+    finally:
+        node.stop()
+    r = fleet_client.get(f"/api/v1/jobs/{jobs[0]}/arrivals")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("application/x-ndjson")
+    lines = [json.loads(x) for x in r.text.splitlines()]
+    assert [a["node_id"] for a in lines] == [f"stop{k}" for k in range(len(plan.stops))]
+    assert fleet_client.get("/api/v1/jobs/job_nope/arrivals").status_code == 404
+
+    body = {"jobs": jobs, "scene_id": scene_id, "min_arrivals": 3, "write": True}
+    r = fleet_client.post("/api/v1/errors/fit", headers=AUTH, json=body)
+    assert r.status_code == 428  # no If-Match
+    r = fleet_client.post("/api/v1/errors/fit", headers=AUTH | {"If-Match": '"stale"'}, json=body)
+    assert r.status_code == 412
+    r = fleet_client.post("/api/v1/errors/fit", headers=AUTH | {"If-Match": etag}, json=body)
+    assert r.status_code == 200, r.text
+    out = r.json()
+    assert out["format"] == "pickstop.error_model"
+    (g,) = out["fit"]["stations"]
+    assert g["station"] == "(global)" and g["arrivals"] == 3 * len(plan.stops)
+    assert out["fit"]["written"] == ["(global)"]
+    stored = fleet_client.get(f"/api/v1/scenes/{scene_id}").json()
+    assert stored["etag"] != etag.strip('"') and stored["revision"] == 2
+    assert stored["scene"]["error_model"]["covariance"] == out["error_model"]["covariance"]
+    r = fleet_client.post("/api/v1/errors/fit", headers=AUTH,
+                          json={"arrivals": [{"order_id": "x"}]})  # fmt: skip
+    assert r.status_code == 422 and r.json()["field"].startswith("node_id")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import secrets
 from dataclasses import replace
 from typing import Annotated, Any, Literal
 
@@ -175,6 +176,10 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
                 field="broker",
             )
 
+        # Each dispatch is an order of its own: a vehicle takes the same order id again as a
+        # repeat of the order it ran, and does nothing.
+        order_id = f"{plan_id}-{secrets.token_hex(4)}"
+
         def prepare() -> DispatchJob:
             plan, scene_doc = _stored(s, plan_id)
             start_yaw, goal_yaw = _yaws(scene_doc)
@@ -183,7 +188,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
                 manufacturer=body.manufacturer,
                 serial_number=body.serial_number,
                 map_id=body.map_id,
-                order_id=plan_id,
+                order_id=order_id,
                 start_yaw=start_yaw,
                 goal_yaw=goal_yaw,
             )
@@ -209,7 +214,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
             job_spec = await asyncio.get_running_loop().run_in_executor(s.threads, prepare)
         except PickStopError as e:
             raise _problem(e) from None
-        params = {"plan_id": plan_id, **body.model_dump(), "order_id": plan_id}
+        params = {"plan_id": plan_id, **body.model_dump(), "order_id": order_id}
         job = await run_in_threadpool(s.store.add_job, "dispatch", params)
         start_dispatch_job(
             s.store.set_job, job["id"], job_spec, broker, lambda: s.jobs.cancelled(job["id"])

@@ -134,6 +134,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_dispatch(args: argparse.Namespace) -> int:
+    from pickstop.fleet.arrivals import Recorder
     from pickstop.fleet.dispatch import Dispatcher, checked_order
 
     plan = read_plan(args.plan)
@@ -145,10 +146,11 @@ def cmd_dispatch(args: argparse.Namespace) -> int:
     d = Dispatcher(broker, args.manufacturer, args.serial, opts.version, args.interface)
     d.start()
     try:
-        order, _ = checked_order(
+        order, vt = checked_order(
             d, lambda pick: orders.build_order(plan, replace(opts, pick=pick)), types,
             args.vehicle_type, not args.no_factsheet, args.wait,
         )  # fmt: skip
+        record = None if args.record is None else Recorder(args.record)
 
         def progress(s: dict[str, Any]) -> None:
             if not args.quiet:
@@ -158,7 +160,10 @@ def cmd_dispatch(args: argparse.Namespace) -> int:
                     file=sys.stderr,
                 )
 
-        summary = d.run(order, timeout=args.timeout, wait_vehicle=args.wait, progress=progress)
+        summary = d.run(
+            order, timeout=args.timeout, wait_vehicle=args.wait, progress=progress,
+            record=record, pick=None if vt is None else vt.pick,
+        )  # fmt: skip
     finally:
         d.stop()
     print(json.dumps(summary, indent=1))
@@ -236,15 +241,18 @@ def cmd_sim_vehicle(args: argparse.Namespace) -> int:
 
 def cmd_execute_sim(args: argparse.Namespace) -> int:
     from pickstop.fleet import execution
+    from pickstop.fleet.arrivals import Recorder
 
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
     check = _checker(args.scene, scene, args, args.db or plan.database)
     broker = None if args.broker is None else mqtt.parse_broker(args.broker)
     pos = _positioning(args, scene, plan.parameters.sigma)
+    record = None if args.record is None else Recorder(args.record)
     outcomes = execution.execute(
-        plan, check, args.runs, args.seed, args.vda_version, broker, positioning=pos
-    )
+        plan, check, args.runs, args.seed, args.vda_version, broker, positioning=pos,
+        record=record,
+    )  # fmt: skip
     rep = execution.report(plan, outcomes)
     print(execution.table(rep))
     if args.out:
@@ -281,6 +289,9 @@ def _order_args(p: argparse.ArgumentParser) -> None:
 
 
 def add_commands(sub: Any) -> None:
+    from pickstop.fleet.fit_cli import add_commands as add_fit_commands
+
+    add_fit_commands(sub)
     ex = sub.add_parser("export", help="a plan as a VDA 5050 order or a Nav2 goal")
     ex.add_argument("plan", help="plan JSON (from pickstop plan)")
     ex.add_argument("--format", choices=["vda5050", "nav2"], required=True)
@@ -299,6 +310,7 @@ def add_commands(sub: Any) -> None:
     )
     dp.add_argument("--wait", type=finite_float, default=10.0, help="[s] for the vehicle to appear")
     dp.add_argument("--quiet", action="store_true")
+    dp.add_argument("--record", help="append every arrival at a stop to this JSON-lines log")
     dp.add_argument(
         "--no-factsheet",
         action="store_true",
@@ -332,6 +344,7 @@ def add_commands(sub: Any) -> None:
     es.add_argument("--vda-version", default="2.1", help="2.0, 2.1 (default) or 3.0")
     es.add_argument("--db", help="reachability database id (default: the plan's)")
     es.add_argument("--out", help="write the report JSON here")
+    es.add_argument("--record", help="append every arrival at a stop to this JSON-lines log")
     es.add_argument(
         "--error-model",
         help="where the vehicle lands: an error model file (default: the scene's models, "

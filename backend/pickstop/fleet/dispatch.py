@@ -22,8 +22,9 @@ from pickstop.fleet import factsheet as fs
 from pickstop.fleet import mqtt
 from pickstop.fleet import order as orders
 from pickstop.fleet import vda5050 as v
+from pickstop.fleet.arrivals import Arrival
 from pickstop.fleet.tracker import OrderTracker
-from pickstop.fleet.vehicle_types import PickAction, VehicleType, VehicleTypes
+from pickstop.fleet.vehicle_types import DEFAULT_PICK, PickAction, VehicleType, VehicleTypes
 
 REFUSALS = ("orderError", "validationError", "orderUpdateError", "noRouteError")
 
@@ -94,6 +95,7 @@ class Dispatcher:
         self.refused: str | None = None  # why the vehicle refused the current order
         self._last_sent = 0.0  # [s] monotonic
         self._header = -1  # headerId of the last order message sent
+        self._recorded = 0  # arrivals of the current order handed to ``record``
         self._factsheet: dict[str, Any] | None = None
         self._factsheet_seen = threading.Event()
         self.link.subscribe(self.topics["state"], self._on_state)
@@ -162,8 +164,36 @@ class Dispatcher:
         resend: float = 2.0,
         progress: Callable[[dict[str, Any]], None] | None = None,
         cancelled: Callable[[], bool] | None = None,
+        record: Callable[[Arrival], None] | None = None,
+        pick: PickAction | None = None,
     ) -> dict[str, Any]:
-        """Publish ``order``, follow it until done; returns the tracker's summary."""
+        """Publish ``order``, follow it until done; returns the tracker's summary.
+        ``record`` takes each arrival at a stop as its picks end (and, however the order
+        ends, those still open); ``pick``: how the order names its picks (its vehicle type's)."""
+        tr = OrderTracker(order, pick=pick or DEFAULT_PICK)
+        with self._cond:
+            self._recorded = 0
+        try:
+            return self._follow(order, tr, timeout, wait_vehicle, resend, progress, cancelled,
+                                record)  # fmt: skip
+        finally:
+            if record is not None:
+                with self._cond:
+                    rest = tr.arrivals(final=True)[self._recorded :]
+                for a in rest:
+                    record(a)
+
+    def _follow(
+        self,
+        order: v.Order,
+        tr: OrderTracker,
+        timeout: float,
+        wait_vehicle: float,
+        resend: float,
+        progress: Callable[[dict[str, Any]], None] | None,
+        cancelled: Callable[[], bool] | None,
+        record: Callable[[Arrival], None] | None,
+    ) -> dict[str, Any]:
         if not self.vehicle_seen.wait(wait_vehicle):
             raise DispatchError(
                 f"no vehicle on {self.topics['state']} (no state or ONLINE connection in "
@@ -173,7 +203,7 @@ class Dispatcher:
         self._header = max(self._header + 1, order.header_id)
         doc["headerId"] = self._header  # per topic, one more with every message sent
         with self._cond:
-            self.tracker = tr = OrderTracker(order)
+            self.tracker = tr
             self.refused = None
             tr.sent_at = time.monotonic()
         self._last_sent = time.monotonic()
@@ -187,6 +217,11 @@ class Dispatcher:
                 self._cond.wait(0.1)
                 done = tr.done
                 summary = tr.summary() if progress else None
+                fresh = tr.arrivals()[self._recorded :] if record is not None else []
+                self._recorded += len(fresh)
+            if record is not None:
+                for a in fresh:
+                    record(a)
             now = time.monotonic()
             if done:
                 break

@@ -55,12 +55,13 @@ def run_dispatch_job(
     d = Dispatcher(broker, job.manufacturer, job.serial_number, job.version, job.interface)
     try:
         d.start()
-        order, _ = checked_order(
+        order, vt = checked_order(
             d, job.build, job.types, job.vehicle_type, job.factsheet, job.wait_vehicle
         )
         summary = d.run(
-            order, job.timeout, job.wait_vehicle, progress=progress, cancelled=cancelled
-        )
+            order, job.timeout, job.wait_vehicle, progress=progress, cancelled=cancelled,
+            pick=None if vt is None else vt.pick,
+        )  # fmt: skip
         set_job(job_id, state="done", progress=1.0, result=summary)
     except DispatchCancelled as e:
         set_job(job_id, state="cancelled", error=e.message)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,6 +18,7 @@ import numpy as np
 
 from pickstop.errors import InputError
 from pickstop.fleet import order as orders
+from pickstop.fleet.arrivals import Arrival
 from pickstop.fleet.broker import LocalMosquitto
 from pickstop.fleet.dispatch import Dispatcher
 from pickstop.fleet.mqtt import Broker
@@ -68,9 +70,11 @@ def execute(
     version: str = "2.1.0",
     broker: Broker | None = None,
     positioning: Positioning | None = None,
+    record: Callable[[Arrival], None] | None = None,
 ) -> list[RunOutcome]:
     """``runs`` executions of the plan (a local Mosquitto unless ``broker`` is given), the
-    vehicle landing off by ``positioning`` (default: the plan's isotropic model)."""
+    vehicle landing off by ``positioning`` (default: the plan's isotropic model); ``record``
+    takes every arrival at a stop."""
     if not 1 <= runs <= MAX_RUNS:
         raise InputError(f"runs: must be in 1..{MAX_RUNS}, got {runs}", field="runs")
     version = orders.version_of(version)
@@ -94,7 +98,7 @@ def execute(
                         header_id=r,
                     ),
                 )
-                s = disp.run(order, timeout=120.0)
+                s = disp.run(order, timeout=120.0, record=record)
                 stops = s["stops"]
                 out.append(
                     RunOutcome(
