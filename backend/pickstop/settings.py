@@ -37,6 +37,11 @@ class Settings(BaseSettings):
         description="MQTT broker the API dispatches orders to (mqtt://HOST:PORT); unset: "
         "dispatch is refused",
     )
+    vehicle_types: Path | None = Field(
+        default=None,
+        description="vehicle types file (pickstop.vehicles): the pick action and parameter "
+        "names of each vehicle type, for exports and dispatches",
+    )
     api_keys: list[str] = Field(
         default_factory=list,
         description="accepted API keys, stored hashed as 'sha256:<hex>' (pickstop api-key makes "

@@ -150,3 +150,115 @@ def test_a_dispatch_job_can_be_cancelled(fleet_client, stored_plan, mosquitto, p
         assert job["state"] == "cancelled" and "cancelled" in job["error"]
     finally:
         node.stop()
+
+
+def test_a_dispatch_job_is_refused_by_the_factsheet_and_mapped_by_the_vehicle_types(
+    region_db, mosquitto, planner, tmp_path
+):
+    """A 2.0.0 vehicle calling a pick ``pickPart``: without a vehicle type the job fails naming
+    the missing action and the vehicle receives nothing; with the service's vehicle types the
+    export renames the pick and the job runs to the end."""
+    from pickstop.fleet.factsheet import Body
+    from pickstop.fleet.vehicle_types import parse_vehicle_types
+    from tests.fleet.test_vehicle_types import TYPES
+
+    folder, _ = region_db
+    types = tmp_path / "vehicles.yaml"
+    types.write_text(yaml.safe_dump(TYPES))
+    settings = Settings(data_dir=folder, api_keys=[hash_key(KEY)],
+                        mqtt_broker=mosquitto.broker.url, vehicle_types=types)  # fmt: skip
+    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
+    with TestClient(create_app(settings)) as c:
+        r = c.post("/api/v1/plans", headers=AUTH,
+                   json={"scene": doc, "options": {"sigma": 0.1, "samples": 0}})  # fmt: skip
+        plan_id, plan = r.json()["id"], load_plan(r.json()["plan"])
+        r = c.get(f"/api/v1/plans/{plan_id}/export?vda_version=2.0&vehicle_type=mm1")
+        assert r.status_code == 200
+        jsonschema.validate(r.json(), schema("order", "2.0.0"))
+        assert {a["actionType"] for n in r.json()["nodes"] for a in n["actions"]} == {"pickPart"}
+        assert c.get(f"/api/v1/plans/{plan_id}/export?vehicle_type=nope").status_code == 422
+
+        veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=0,
+                          version="2.0.0")  # fmt: skip
+        veh.manufacturer, veh.serial_number = "other", "mm-5"
+        veh.pick = parse_vehicle_types(TYPES).vehicle_types[0].pick
+        veh.body = Body(series_name="MM-1")
+        veh.forced_error = (0.0, 0.0, 0.0)
+        node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=0).start()
+        try:
+
+            def dispatch(**extra) -> dict:
+                body = {"manufacturer": "other", "serial_number": "mm-5", "vda_version": "2.0"}
+                r = c.post(f"/api/v1/plans/{plan_id}/dispatch", headers=AUTH,
+                           json=body | extra)  # fmt: skip
+                assert r.status_code == 202, r.text
+                job = r.json()
+                t_end = time.monotonic() + 60
+                while time.monotonic() < t_end and job["state"] in ("queued", "running"):
+                    time.sleep(0.1)
+                    job = c.get(f"/api/v1/jobs/{job['id']}").json()
+                return job
+
+            job = dispatch()  # "other" matches no type: PickStop's own pick
+            assert job["state"] == "failed", job
+            assert "cannot run order" in job["error"] and "no action 'pick'" in job["error"]
+            assert veh.order_id == ""
+            job = dispatch(vehicle_type="mm1")
+            assert job["state"] == "done", job
+            assert job["result"]["actions_finished"] == job["result"]["actions"] > 0
+        finally:
+            node.stop()
+
+
+def test_a_dispatch_jobs_arrivals_fit_and_write_a_stored_scene(fleet_client, mosquitto, planner):
+    """Three dispatches of a stored scene's plan: each job keeps its arrivals (JSON lines);
+    the fit of them, written into the scene with its ETag, gives it a fitted global model."""
+    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
+    r = fleet_client.post("/api/v1/scenes", headers=AUTH, json=doc)
+    assert r.status_code == 201, r.text
+    scene_id, etag = r.json()["id"], r.headers["ETag"]
+    r = fleet_client.post("/api/v1/plans", headers=AUTH,
+                          json={"scene_id": scene_id, "options": {"samples": 0}})  # fmt: skip
+    assert r.status_code == 201, r.text
+    plan_id, plan = r.json()["id"], load_plan(r.json()["plan"])
+    veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=2)
+    veh.serial_number = "fit-1"
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=0).start()
+    jobs = []
+    try:
+        for _ in range(3):
+            r = fleet_client.post(f"/api/v1/plans/{plan_id}/dispatch", headers=AUTH,
+                                  json={"serial_number": "fit-1"})  # fmt: skip
+            job = r.json()
+            t_end = time.monotonic() + 60
+            while time.monotonic() < t_end and job["state"] in ("queued", "running"):
+                time.sleep(0.1)
+                job = fleet_client.get(f"/api/v1/jobs/{job['id']}").json()
+            assert job["state"] == "done", job
+            jobs.append(job["id"])
+    finally:
+        node.stop()
+    r = fleet_client.get(f"/api/v1/jobs/{jobs[0]}/arrivals")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("application/x-ndjson")
+    lines = [json.loads(x) for x in r.text.splitlines()]
+    assert [a["node_id"] for a in lines] == [f"stop{k}" for k in range(len(plan.stops))]
+    assert fleet_client.get("/api/v1/jobs/job_nope/arrivals").status_code == 404
+
+    body = {"jobs": jobs, "scene_id": scene_id, "min_arrivals": 3, "write": True}
+    r = fleet_client.post("/api/v1/errors/fit", headers=AUTH, json=body)
+    assert r.status_code == 428  # no If-Match
+    r = fleet_client.post("/api/v1/errors/fit", headers=AUTH | {"If-Match": '"stale"'}, json=body)
+    assert r.status_code == 412
+    r = fleet_client.post("/api/v1/errors/fit", headers=AUTH | {"If-Match": etag}, json=body)
+    assert r.status_code == 200, r.text
+    out = r.json()
+    assert out["format"] == "pickstop.error_model"
+    (g,) = out["fit"]["stations"]
+    assert g["station"] == "(global)" and g["arrivals"] == 3 * len(plan.stops)
+    assert out["fit"]["written"] == ["(global)"]
+    stored = fleet_client.get(f"/api/v1/scenes/{scene_id}").json()
+    assert stored["etag"] != etag.strip('"') and stored["revision"] == 2
+    assert stored["scene"]["error_model"]["covariance"] == out["error_model"]["covariance"]
+    r = fleet_client.post("/api/v1/errors/fit", headers=AUTH,
+                          json={"arrivals": [{"order_id": "x"}]})  # fmt: skip
+    assert r.status_code == 422 and r.json()["field"].startswith("node_id")

@@ -132,3 +132,154 @@ def test_verify_yaw_sets_each_stops_tolerance_from_exact_checks(
     nodes = [n for n in json.loads(out.read_text())["nodes"] if n["actions"]]
     assert nodes[0]["nodePosition"]["allowedDeviationTheta"] == pytest.approx(tol)
     assert main(["export", str(plan_file), "--format", "nav2", "--verify-yaw"]) == 2
+
+
+def test_export_and_dispatch_with_a_vehicle_types_file(
+    plan_file, example_plans, planner, mosquitto, tmp_path, capsys
+):
+    """``--vehicle-types``: the export renames the pick; a dispatch to a vehicle that calls it
+    ``pickPart`` exits 3 naming the missing action without the file, and runs with it."""
+    import jsonschema
+    import yaml
+
+    from pickstop.fleet import published
+    from pickstop.fleet.execution import vehicle_for
+    from pickstop.fleet.factsheet import Body
+    from pickstop.fleet.pickcheck import PickChecker
+    from pickstop.fleet.sim_node import VehicleNode
+    from pickstop.fleet.vehicle_types import parse_vehicle_types
+    from tests.fleet.test_vehicle_types import TYPES
+
+    types = tmp_path / "vehicles.yaml"
+    types.write_text(yaml.safe_dump(TYPES))
+    out = tmp_path / "order.json"
+    args = ["export", str(plan_file), "--format", "vda5050", "--vda-version", "2.0",
+            "--vehicle-types", str(types), "--vehicle-type", "mm1", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    order = json.loads(out.read_text())
+    jsonschema.validate(order, published.schema("order", "2.0.0"))
+    acts = [a for n in order["nodes"] for a in n["actions"]]
+    assert acts and {a["actionType"] for a in acts} == {"pickPart"}
+    assert main([*args[:-2], "--vehicle-type", "nope"]) == 2
+
+    scene, plan = example_plans["paper_experiment"]
+    veh = vehicle_for(plan, PickChecker(planner, scene), seed=0, version="2.0.0")
+    veh.manufacturer, veh.serial_number = "acme", "mm-3"
+    veh.pick = parse_vehicle_types(TYPES).vehicle_types[0].pick
+    veh.body = Body(series_name="MM-1")
+    veh.forced_error = (0.0, 0.0, 0.0)
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=0).start()
+    base = ["dispatch", str(plan_file), "--broker", mosquitto.broker.url, "--manufacturer",
+            "acme", "--serial", "mm-3", "--vda-version", "2.0", "--quiet"]  # fmt: skip
+    try:
+        capsys.readouterr()
+        assert main(base) == 3
+        err = capsys.readouterr().err
+        assert "cannot run order" in err and "lists no action 'pick'" in err
+        assert veh.order_id == ""
+        assert main([*base, "--vehicle-types", str(types)]) == 0
+        summary = json.loads(capsys.readouterr().out)
+        assert summary["done"] and summary["actions_finished"] == summary["actions"] > 0
+    finally:
+        node.stop()
+
+
+@pytest.mark.slow
+def test_simulate_500_runs_with_a_known_model_and_fit_it_back(
+    plan_file, example_plans, region_db, tmp_path, capsys
+):
+    """The loop end to end: 500 executions of the paper plan over MQTT, the vehicle landing
+    off by a known anisotropic, biased model per stop (in its base frame) and recording every
+    arrival; the fit of the log holds the truth within its 95% intervals, is written into the
+    scene, and a re-plan with it says what changed."""
+    import yaml
+
+    from pickstop.fleet.arrivals import read_log
+    from pickstop.fleet.fit import group_name
+
+    _, plan = example_plans["paper_experiment"]
+    folder, db = region_db
+    truths = [
+        {"mean": [0.02, -0.01], "covariance": [[4e-4, 1e-4], [1e-4, 1e-4]], "yaw_mean": 0.006,
+         "yaw_sigma": 0.012},
+        {"mean": [-0.015, 0.004], "covariance": [[1e-4, -5e-5], [-5e-5, 2.5e-4]],
+         "yaw_mean": -0.004, "yaw_sigma": 0.008},
+    ]  # fmt: skip
+    stations = [{"name": f"s{k}", "trays": s.trays, **truths[k % 2]}
+                for k, s in enumerate(plan.stops)]  # fmt: skip
+    truth = tmp_path / "truth.yaml"
+    truth.write_text(yaml.safe_dump({"format": "pickstop.error_model", "version": 1,
+                                     "error_model": {"stations": stations}}))  # fmt: skip
+    log, model = tmp_path / "arrivals.jsonl", tmp_path / "fitted.json"
+    scene_file = str(EXAMPLES / "paper_experiment.json")
+    common = ["--data-dir", str(folder)]
+    assert main([*common, "execute-sim", str(plan_file), "--scene", scene_file, "--runs", "500",
+                 "--seed", "3", "--db", db.id, "--error-model", str(truth),
+                 "--record", str(log)]) == 0  # fmt: skip
+    arrivals = read_log(log)
+    assert len(arrivals) == 500 * len(plan.stops)
+    assert len({a.order_id for a in arrivals}) == 500
+    # the scene's stations: one per stop's trays, with the scene's model until fitted
+    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
+    doc["error_model"] = {**doc.get("error_model", {}), "stations": [
+        {"name": st["name"], "trays": st["trays"]} for st in stations]}  # fmt: skip
+    with_stations, fitted_scene = tmp_path / "stations.json", tmp_path / "fitted_scene.json"
+    with_stations.write_text(json.dumps(doc))
+    capsys.readouterr()
+    assert main([*common, "errors", "fit", str(log), "--out", str(model), "--scene",
+                 str(with_stations), "--write-scene", str(fitted_scene), "--replan",
+                 str(plan_file), "--db", db.id]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    assert "re-plan:" in printed and "(model s0)" in printed
+    fit = json.loads(model.read_text())["fit"]
+    assert fit["arrivals"] == 500 * len(plan.stops)
+    assert fit["written"] == [st["name"] for st in stations]
+    by_name = {s["station"]: s for s in fit["stations"]}
+    for st in stations:
+        f = by_name[st["name"]]
+        assert f["arrivals"] == 500
+        C = st["covariance"]
+        for i in range(2):
+            lo, hi = f["mean_interval"][i]
+            assert lo <= st["mean"][i] <= hi, (st["name"], "mean", i, f)
+            lo, hi = f["variance_interval"][i]
+            assert lo <= C[i][i] <= hi, (st["name"], "variance", i, f)
+        lo, hi = f["covariance_interval"]
+        assert lo <= C[0][1] <= hi, (st["name"], "covariance", f)
+        lo, hi = f["yaw_mean_interval"]
+        assert lo <= st["yaw_mean"] <= hi, (st["name"], "yaw mean", f)
+        lo, hi = f["yaw_sigma_interval"]
+        assert lo <= st["yaw_sigma"] <= hi, (st["name"], "yaw sd", f)
+    written = json.loads(fitted_scene.read_text())["error_model"]["stations"]
+    assert [(w["name"], w["trays"], w["arrivals"]) for w in written] == [
+        (st["name"], st["trays"], 500) for st in stations
+    ]
+    # without a scene: one station per tray group, the same estimates
+    assert main(["errors", "fit", str(log)]) == 0
+    assert group_name(plan.stops[0].trays) in capsys.readouterr().out
+
+
+def test_dispatch_records_every_arrival(plan_file, example_plans, planner, mosquitto, tmp_path):
+    from pickstop.fleet.arrivals import read_log
+    from pickstop.fleet.execution import vehicle_for
+    from pickstop.fleet.pickcheck import PickChecker
+    from pickstop.fleet.sim_node import VehicleNode
+
+    scene, plan = example_plans["paper_experiment"]
+    veh = vehicle_for(plan, PickChecker(planner, scene), seed=0)
+    veh.serial_number = "rec-1"
+    veh.forced_error = (0.01, 0.0, 0.0)
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=0).start()
+    log = tmp_path / "log.jsonl"
+    try:
+        for k in range(2):  # a new order id each time: the same one again is a repeat
+            assert main(["dispatch", str(plan_file), "--broker", mosquitto.broker.url,
+                         "--serial", "rec-1", "--quiet", "--record", str(log),
+                         "--order-id", f"rec-{k}"]) == 0  # fmt: skip
+    finally:
+        node.stop()
+    arrivals = read_log(log)
+    assert [a.node_id for a in arrivals] == [f"stop{k}" for k in range(len(plan.stops))] * 2
+    assert all(a.reported.x - a.planned.x == pytest.approx(0.01) for a in arrivals)
+    assert all(a.serial_number == "rec-1" for a in arrivals)
+    assert [a.order_id for a in arrivals[:: len(plan.stops)]] == ["rec-0", "rec-1"]

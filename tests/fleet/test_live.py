@@ -158,3 +158,73 @@ def test_a_refused_order_fails_the_dispatch_with_the_vehicles_reason(mosquitto, 
     finally:
         d.stop()
         node.stop()
+
+
+def test_a_vehicle_whose_factsheet_lacks_the_pick_gets_no_order(mosquitto, paper):
+    """A 2.0.0 vehicle whose controller calls a pick ``pickPart`` (``station``, ``load``):
+    PickStop's own pick is refused, naming it, before anything is sent; the vehicle type of its
+    series maps the pick onto it and the order runs to the end."""
+    from dataclasses import replace
+
+    from pickstop.fleet.dispatch import VehicleRefusal, checked_order
+    from pickstop.fleet.factsheet import Body
+    from pickstop.fleet.vehicle_types import parse_vehicle_types
+    from tests.fleet.test_vehicle_types import TYPES
+
+    _, plan, check = paper
+    types = parse_vehicle_types(TYPES)
+    veh = vehicle_for(plan, check, seed=0, version="2.0.0")
+    veh.manufacturer, veh.serial_number = "acme", "mm-7"
+    veh.pick, veh.body = types.vehicle_types[0].pick, Body(series_name="MM-1")
+    veh.forced_error = (0.0, 0.0, 0.0)
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=0).start()
+    d = Dispatcher(mosquitto.broker, "acme", "mm-7", "2.0.0").start()
+    opts = od.OrderOptions(version="2.0", manufacturer="acme", serial_number="mm-7")
+    try:
+        with pytest.raises(VehicleRefusal) as e:
+            checked_order(d, lambda pick: od.build_order(plan, replace(opts, pick=pick)))
+        assert "lists no action 'pick' (it lists: factsheetRequest, pickPart)" in e.value.message
+        assert e.value.exit_code == 3
+        time.sleep(0.3)
+        assert veh.order_id == "" and node._inbox.empty()  # nothing was sent
+        order, vt = checked_order(
+            d, lambda pick: od.build_order(plan, replace(opts, pick=pick)), types
+        )
+        assert vt.name == "mm1" and order.nodes[2].actions[0].action_type == "pickPart"
+        s = d.run(order, timeout=60)
+    finally:
+        d.stop()
+        node.stop()
+    assert s["done"] and s["actions_finished"] == s["actions"] > 0
+
+
+def test_a_factsheet_is_asked_for_when_none_is_retained(mosquitto, paper):
+    from pickstop.fleet.mqtt import Link
+
+    _, plan, check = paper
+    veh = vehicle_for(plan, check, seed=0)
+    node = VehicleNode(veh, mosquitto.broker).start()
+    topic = node.topics["factsheet"]
+    try:
+        wipe = Link(mosquitto.broker).start()
+        time.sleep(0.2)
+        wipe.client.publish(topic, b"", qos=1, retain=True).wait_for_publish(5)
+        wipe.stop()
+        d = Dispatcher(mosquitto.broker, veh.manufacturer, veh.serial_number).start()
+        try:
+            caps = d.read_factsheet(wait=5, ask_after=0.3)
+        finally:
+            d.stop()
+    finally:
+        node.stop()
+    assert caps.series_name == "pickstop-sim" and "pick" in caps.actions
+    assert node._factsheet_header >= 1  # published again, on request
+
+
+def test_dispatch_to_a_vehicle_without_a_factsheet_says_so(mosquitto):
+    d = Dispatcher(mosquitto.broker, "nobody", "none").start()
+    try:
+        with pytest.raises(DispatchError, match="no factsheet on uagv/v2/nobody/none/factsheet"):
+            d.read_factsheet(wait=0.5, ask_after=0.2)
+    finally:
+        d.stop()

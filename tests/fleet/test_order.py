@@ -4,28 +4,25 @@ constraints; and the guaranteed radius and picks they carry."""
 from __future__ import annotations
 
 import copy
-import json
 import math
-from pathlib import Path
 
 import jsonschema
 import pytest
 
 from pickstop.errors import InputError
 from pickstop.fleet import order as od
+from pickstop.fleet import published
 from pickstop.fleet import route as rt
 from pickstop.fleet import vda5050 as v
 from pickstop.frames import wrap_angle
 from tests.fleet.conftest import SCENES
 
-SCHEMAS = Path(v.__file__).parent / "schemas"
-
 
 def schema(kind: str, version: str) -> dict:
-    return json.loads((SCHEMAS / f"{kind}-{version}.schema.json").read_text())
+    return published.schema(kind, version)
 
 
-@pytest.mark.parametrize("version", ["2.1", "3.0"])
+@pytest.mark.parametrize("version", ["2.0", "2.1", "3.0"])
 @pytest.mark.parametrize("name", SCENES)
 def test_orders_of_every_example_validate_and_keep_the_rules(example_plans, name, version):
     scene, plan = example_plans[name]
@@ -47,7 +44,7 @@ def test_orders_of_every_example_validate_and_keep_the_rules(example_plans, name
         p = n.node_position
         assert (p.x, p.y) == (s.x, s.y) and p.theta == pytest.approx(wrap_angle(s.yaw))
         dev = p.allowed_deviation_xy
-        radius = dev if version == "2.1" else dev.a
+        radius = dev.a if version == "3.0" else dev
         assert radius == s.inscribed_radius >= plan.parameters.sigma > 0
         assert p.allowed_deviation_theta >= 0
         picks = {(a.action_parameters[1].value, a.action_parameters[2].value) for a in n.actions}
@@ -156,7 +153,7 @@ def test_floor_path_corners_become_via_nodes_the_vehicle_passes(example_plans, p
     )
 
 
-@pytest.mark.parametrize("version", ["2.1", "3.0"])
+@pytest.mark.parametrize("version", ["2.0", "2.1", "3.0"])
 def test_a_docking_leg_holds_the_stops_yaw_in_the_order_nav2_and_the_vehicle(
     example_plans, planner, version
 ):
@@ -199,10 +196,10 @@ def test_a_docking_leg_holds_the_stops_yaw_in_the_order_nav2_and_the_vehicle(
         assert (p.x, p.y) == pytest.approx(back) and p.theta == pytest.approx(s0.yaw)
         assert p.allowed_deviation_theta is not None
         dev = p.allowed_deviation_xy
-        assert (dev if version == "2.1" else dev.a) == rt.DOCK_TOLERANCE
+        assert (dev.a if version == "3.0" else dev) == rt.DOCK_TOLERANCE
     for e in (order.edges[1], order.edges[2]):  # staging -> stop, stop -> staging
         assert e.orientation == pytest.approx(s0.yaw) and e.orientation_type == "GLOBAL"
-        if version == "2.1":
+        if version != "3.0":
             assert e.rotation_allowed is False
         else:
             assert e.reach_orientation_before_entering is True

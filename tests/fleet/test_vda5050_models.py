@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import pytest
 
+from pickstop.fleet import published
 from pickstop.fleet import vda5050 as v
 from tests.fleet.schema_walk import flatten
 
-SCHEMAS = Path(v.__file__).parent / "schemas"
 MODELS = [
+    ("order", "2.0.0", v.Order20),
+    ("state", "2.0.0", v.State20),
+    ("connection", "2.0.0", v.Connection21),
+    ("instantActions", "2.0.0", v.InstantActions2),
+    ("instantActions", "2.1.0", v.InstantActions2),
+    ("instantActions", "3.0.0", v.InstantActions30),
     ("order", "2.1.0", v.Order21),
     ("order", "3.0.0", v.Order30),
     ("state", "2.1.0", v.State21),
@@ -22,7 +25,7 @@ MODELS = [
 
 
 def official(kind: str, version: str) -> dict:
-    return json.loads((SCHEMAS / f"{kind}-{version}.schema.json").read_text())
+    return published.schema(kind, version)
 
 
 @pytest.mark.parametrize(("kind", "version", "model"), MODELS)

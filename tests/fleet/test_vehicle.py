@@ -4,20 +4,19 @@ guaranteed radius fails its pick (exact check) with the reason."""
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
+import math
 
 import jsonschema
 import numpy as np
 import pytest
 
 from pickstop.fleet import order as od
+from pickstop.fleet import published
 from pickstop.fleet import vda5050 as v
 from pickstop.fleet.execution import vehicle_for
 from pickstop.fleet.pickcheck import PickChecker
 from pickstop.fleet.tracker import OrderTracker
-
-SCHEMAS = Path(v.__file__).parent / "schemas"
+from pickstop.scene.positioning import YAW_LATTICE
 
 
 @pytest.fixture(scope="module")
@@ -40,14 +39,14 @@ def drive(veh, order, tracker, schema=None, max_dt=2.0):
     return states
 
 
-@pytest.mark.parametrize("version", ["2.1.0", "3.0.0"])
+@pytest.mark.parametrize("version", ["2.0.0", "2.1.0", "3.0.0"])
 def test_an_order_runs_to_the_end_and_every_state_is_valid(paper, version):
     scene, plan, check = paper
     veh = vehicle_for(plan, check, seed=1, version=version)
     veh.forced_error = (0.0, 0.0, 0.0)  # exactly at the stops: every pick is feasible
     order = od.build_order(plan, od.OrderOptions(version=version))
     tracker = OrderTracker(order)
-    schema = json.loads((SCHEMAS / f"state-{version}.schema.json").read_text())
+    schema = published.schema("state", version)
     drive(veh, order, tracker, schema)
     s = tracker.summary()
     assert s["done"] and s["nodes_reached"] == len(order.nodes)
@@ -94,7 +93,7 @@ def test_the_tracker_ignores_other_orders_and_stale_states(paper):
 def test_errors_are_drawn_from_the_scene_model(paper):
     _, plan, check = paper
     veh = vehicle_for(plan, check, seed=3)
-    d = np.array([veh.error(veh.rng)[:2] for _ in range(4000)])
+    d = np.array([veh.error(veh.rng, 0.0, 0.0, 0.0, ())[:2] for _ in range(4000)])
     mean = np.linalg.norm(d, axis=1).mean()
     assert mean == pytest.approx(plan.parameters.sigma, rel=0.05)  # gaussian: mean error sigma
 
@@ -106,3 +105,29 @@ def test_a_malformed_order_is_refused_with_an_error_in_the_state(paper):
     doc["nodes"][1]["sequenceId"] = 3
     assert not veh.accept(doc)
     assert veh.state()["errors"][0]["errorType"] == "orderError"
+
+
+def test_the_vehicle_lands_by_the_model_of_each_stops_station(paper):
+    """A biased, anisotropic model in the base frame for the first stop's trays: the vehicle
+    lands off by it turned to the stop's heading; the other stops by the global model."""
+    from pickstop.scene.positioning import ErrorDist, Positioning, Station, rot
+
+    _, plan, check = paper
+    s0 = plan.stops[0]
+    cov = ((4e-4, 1e-4), (1e-4, 1e-4))
+    biased = ErrorDist("gaussian", mean=(0.05, -0.02), covariance=cov, yaw_mean=0.02)
+    pos = Positioning(ErrorDist("gaussian", 0.0), (Station("s0", biased, frozenset(s0.trays)),))
+    veh = vehicle_for(plan, check, seed=3, positioning=pos)
+    d = np.array([veh.error(veh.rng, s0.x, s0.y, s0.yaw, tuple(s0.trays)) for _ in range(20_000)])
+    R = rot(s0.yaw)
+    assert d[:, :2].mean(0) == pytest.approx(R @ np.array(biased.mean), abs=1e-3)
+    assert np.cov(d[:, :2].T) == pytest.approx(R @ np.array(cov) @ R.T, abs=2e-5)
+    assert d[:, 2].mean() == pytest.approx(0.02, abs=YAW_LATTICE)
+    assert veh.error(veh.rng, s0.x, s0.y, s0.yaw, ("elsewhere",)) == (0.0, 0.0, 0.0)
+    order = od.build_order(plan)
+    drive(veh, order, OrderTracker(order))
+    x, y, _ = veh.stopped_at["stop0"]
+    assert math.dist((x, y), (s0.x, s0.y)) > 0.01  # it drew from the station's model
+    if len(plan.stops) > 1:
+        x1, y1, _ = veh.stopped_at["stop1"]
+        assert (x1, y1) == pytest.approx((plan.stops[1].x, plan.stops[1].y))

@@ -392,3 +392,25 @@ def test_a_stop_check_is_reused_until_something_near_its_tray_changes(
     assert "tray_4" not in checked and "tray_1" in checked
     for stop in plan.stops:
         assert_stop_verified(planner, moved, stop)
+
+
+def test_a_stations_own_error_model_gives_its_stop_its_success_rate(
+    stop_planner, paper_plan, paper_doc
+):
+    """A tray group whose base lands 0.5 m behind its stop (tightly; away from the table):
+    that stop's Monte Carlo uses it and falls; every other stop keeps its rate, drawn as
+    before."""
+    _, plain = paper_plan
+    group = plain.stops[0].trays
+    paper_doc["error_model"] = {
+        **paper_doc.get("error_model", {}),
+        "stations": [{"name": "backs-off", "trays": group, "mean": [-0.5, 0.0],
+                      "covariance": [[1e-6, 0.0], [0.0, 1e-6]]}],
+    }  # fmt: skip
+    plan = stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=300))
+    assert [s.trays for s in plan.stops] == [s.trays for s in plain.stops]
+    for s, p in zip(plan.stops, plain.stops, strict=True):
+        if s.trays == group:
+            assert s.error_model == "backs-off" and s.success.rate < 0.05 < p.success.rate
+        else:
+            assert s.error_model is None and s.success == p.success

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import pytest
 from shapely.geometry import box
 
@@ -54,3 +57,47 @@ def test_cut_off_rejects_only_kept_candidates():
     assert out[2].kept
     with pytest.raises(ValueError, match="2 verdicts but 1"):
         cut_off(vs[:2], [True])
+
+
+def test_the_success_rule_judges_each_candidate_with_its_stations_model():
+    """A 0.1 m wide strip along x (inscribed radius 0.05 m): an error long along the strip
+    keeps it, the same error across it or a bias off it rejects it; a tray group's own model
+    applies to the candidates picking from it."""
+    from pickstop.scene.positioning import ErrorDist, Positioning, Station
+
+    (strip,) = intersections({"a": box(0, 0, 20, 0.1)})
+    strip = dataclasses.replace(strip, centre=(10.0, 0.05))  # mid-strip (any centre is one)
+    (square,) = intersections({"b": box(30, 0, 31, 1)})
+    along = ErrorDist("gaussian", covariance=((0.04, 0.0), (0.0, 1e-6)))
+    across = ErrorDist("gaussian", covariance=((1e-6, 0.0), (0.0, 0.04)))
+    off = ErrorDist("gaussian", mean=(0.0, 0.06), covariance=((1e-6, 0.0), (0.0, 1e-6)))
+
+    def verdict(dist, cand=strip):
+        return judge(Rule("success", 0.1, target=0.9, positioning=Positioning(dist)), [cand])[0]
+
+    assert strip.radius == pytest.approx(0.05)
+    assert verdict(along).kept and verdict(along).predicted > 0.99
+    assert not verdict(across).kept and verdict(across).predicted < 0.5
+    assert not verdict(off).kept and verdict(off).predicted < 0.01
+    assert verdict(ErrorDist("gaussian", mean=(0.5, 0.0))).kept  # a bias along it: inside
+    # a base-frame model turns with the candidate's heading: along x at yaw pi/2 is across
+    turned = dataclasses.replace(strip, yaw=math.pi / 2)
+    assert not verdict(along, turned).kept
+    assert verdict(dataclasses.replace(along, frame="map"), turned).kept
+    group = Positioning(along, (Station("b", across, trays=frozenset({"b"})),))
+    rule = Rule("success", 0.1, target=0.9, positioning=group)
+    assert [v.kept for v in judge(rule, [strip, square])] == [True, True]
+    narrow = dataclasses.replace(strip, trays=frozenset({"b"}))
+    assert not judge(rule, [narrow])[0].kept  # the group's model, across the strip
+    assert rule.threshold == pytest.approx(along.radius_for(0.9))
+
+
+def test_an_isotropic_positioning_judges_as_the_rule_always_did():
+    from pickstop.scene.positioning import ErrorDist, Positioning
+
+    cands = intersections({"a": box(0, 0, 2, 2), "b": box(1.8, 0, 4, 2), "c": box(5, 0, 9, 0.3)})
+    for kind in ("gaussian", "bounded"):
+        plain = Rule("success", 0.12, kind, 0.9, seed=3)
+        with_pos = dataclasses.replace(plain, positioning=Positioning(ErrorDist(kind, 0.12)))
+        assert judge(plain, cands) == judge(with_pos, cands)
+        assert plain.threshold == with_pos.threshold

@@ -24,14 +24,15 @@ from pickstop.api.fleet import DispatchRequest
 from pickstop.api.limits import Limits
 from pickstop.api.middleware import API, BodyLimit, ErrorGuard, Head, StoredPlanFastPath
 from pickstop.api.problems import install, server_roots
-from pickstop.api.routes import databases, health, jobs, plans, robots, scenes
+from pickstop.api.routes import databases, errors, health, jobs, plans, robots, scenes
+from pickstop.api.routes.errors import FitRequest
 from pickstop.api.schemas import BatchRequest, BuildRequest, PlanRequest, ProblemDetails
 from pickstop.api.service import Service
 from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
-           jobs.router)  # fmt: skip
+           jobs.router, errors.router)  # fmt: skip
 
 
 def create_app(
@@ -86,5 +87,6 @@ def create_app(
         "Scene": Scene, "RobotConfig": RobotConfig, "PlanRequest": PlanRequest,
         "BatchRequest": BatchRequest, "BuildRequest": BuildRequest,
         "ProblemDetails": ProblemDetails, "Limits": Limits, "DispatchRequest": DispatchRequest,
+        "FitRequest": FitRequest,
     })  # fmt: skip
     return app

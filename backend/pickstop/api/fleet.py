@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import asyncio
 import json
+import secrets
+from dataclasses import replace
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request, Response
@@ -29,10 +31,28 @@ class DispatchRequest(BaseModel):
     manufacturer: Level = "pickstop"
     serial_number: Level = "sim-1"
     interface_name: Level = "uagv"
-    vda_version: Literal["2.1", "3.0"] = "2.1"
+    vda_version: Literal["2.0", "2.1", "3.0"] = "2.1"
     map_id: Annotated[str, Field(min_length=1, max_length=100)] | None = None
     timeout: float = Field(default=600.0, gt=0, le=24 * 3600, description="[s]")
     wait_vehicle: float = Field(default=10.0, gt=0, le=600, description="[s]")
+    vehicle_type: Annotated[str, Field(min_length=1, max_length=100)] | None = Field(
+        default=None,
+        description="a type of the service's vehicle types file (default: the first matching "
+        "the vehicle and its factsheet)",
+    )
+    check_factsheet: bool = Field(
+        default=True,
+        description="read the vehicle's factsheet and refuse an order it cannot run before "
+        "sending it (false: a vehicle older than VDA 5050 2.0)",
+    )
+
+
+def _vehicle_types(s: Any) -> Any:
+    """The service's vehicle types (``PICKSTOP_VEHICLE_TYPES``), or none."""
+    from pickstop.fleet.vehicle_types import VehicleTypes, load_vehicle_types
+
+    path = s.settings.vehicle_types
+    return VehicleTypes() if path is None else load_vehicle_types(path)
 
 
 def _job_record(row: dict[str, Any]) -> dict[str, Any]:
@@ -69,6 +89,9 @@ def _export(s: Any, plan_id: str, q: dict[str, Any]) -> tuple[str, str]:
     plan, scene_doc = _stored(s, plan_id)
     start_yaw, goal_yaw = _yaws(scene_doc)
     if q["format"] == "vda5050":
+        vt = _vehicle_types(s).select(
+            q["manufacturer"], q["serial_number"], None, q["vehicle_type"]
+        )
         opts = orders.OrderOptions(
             version=q["vda_version"],
             manufacturer=q["manufacturer"],
@@ -77,6 +100,7 @@ def _export(s: Any, plan_id: str, q: dict[str, Any]) -> tuple[str, str]:
             order_id=plan_id,
             start_yaw=start_yaw,
             goal_yaw=goal_yaw,
+            pick=None if vt is None else vt.pick,
         )
         return json.dumps(v.dump(orders.build_order(plan, opts))), "application/json"
     doc = nav2.build_nav2(plan, q["map_id"] or "map", q["distro"], start_yaw, goal_yaw)
@@ -106,7 +130,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         request: Request,
         plan_id: str,
         format: Literal["vda5050", "nav2"] = "vda5050",
-        vda_version: Literal["2.1", "3.0"] = "2.1",
+        vda_version: Literal["2.0", "2.1", "3.0"] = "2.1",
         manufacturer: Annotated[
             str, Query(min_length=1, max_length=100, pattern=r"^[^/+#]+$")
         ] = "pickstop",
@@ -116,11 +140,13 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         map_id: Annotated[str | None, Query(min_length=1, max_length=100)] = None,
         nav2_format: Literal["json", "yaml"] = "json",
         distro: Literal["humble", "jazzy", "kilted"] = "jazzy",
+        vehicle_type: Annotated[str | None, Query(min_length=1, max_length=100)] = None,
     ) -> Response:
-        """The plan as a VDA 5050 order (orderId = the plan id) or a Nav2 goal."""
+        """The plan as a VDA 5050 order (orderId = the plan id) or a Nav2 goal; the pick as
+        the vehicle type names it (``vehicle_type``, or the first matching the vehicle)."""
         q = dict(format=format, vda_version=vda_version, manufacturer=manufacturer,
                  serial_number=serial_number, map_id=map_id, nav2_format=nav2_format,
-                 distro=distro)  # fmt: skip
+                 distro=distro, vehicle_type=vehicle_type)  # fmt: skip
         s = svc(request)
         try:
             body, media = await asyncio.get_running_loop().run_in_executor(
@@ -144,7 +170,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         record follows the order (nodes reached, picks running, finished, failed)."""
         from pickstop.fleet import mqtt
         from pickstop.fleet import order as orders
-        from pickstop.fleet.dispatch_job import start_dispatch_job
+        from pickstop.fleet.dispatch_job import DispatchJob, start_dispatch_job
 
         body = await run_in_threadpool(validate, DispatchRequest, doc)
         s = svc(request)
@@ -157,38 +183,48 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
                 field="broker",
             )
 
-        def build() -> Any:
+        # Each dispatch is an order of its own: a vehicle takes the same order id again as a
+        # repeat of the order it ran, and does nothing.
+        order_id = f"{plan_id}-{secrets.token_hex(4)}"
+
+        def prepare() -> DispatchJob:
             plan, scene_doc = _stored(s, plan_id)
             start_yaw, goal_yaw = _yaws(scene_doc)
-            return orders.build_order(
-                plan,
-                orders.OrderOptions(
-                    version=body.vda_version,
-                    manufacturer=body.manufacturer,
-                    serial_number=body.serial_number,
-                    map_id=body.map_id,
-                    order_id=plan_id,
-                    start_yaw=start_yaw,
-                    goal_yaw=goal_yaw,
-                ),
+            opts = orders.OrderOptions(
+                version=body.vda_version,
+                manufacturer=body.manufacturer,
+                serial_number=body.serial_number,
+                map_id=body.map_id,
+                order_id=order_id,
+                start_yaw=start_yaw,
+                goal_yaw=goal_yaw,
+            )
+            orders.build_order(plan, opts)  # bad options fail the request, not the job
+            types = _vehicle_types(s)
+            if body.vehicle_type is not None:
+                types.select(body.manufacturer, body.serial_number, None, body.vehicle_type)
+            return DispatchJob(
+                build=lambda pick: orders.build_order(plan, replace(opts, pick=pick)),
+                manufacturer=body.manufacturer,
+                serial_number=body.serial_number,
+                version=orders.version_of(body.vda_version),
+                interface=body.interface_name,
+                timeout=body.timeout,
+                wait_vehicle=body.wait_vehicle,
+                types=types,
+                vehicle_type=body.vehicle_type,
+                factsheet=body.check_factsheet,
             )
 
         try:
             broker = mqtt.parse_broker(configured)
-            order = await asyncio.get_running_loop().run_in_executor(s.threads, build)
+            job_spec = await asyncio.get_running_loop().run_in_executor(s.threads, prepare)
         except PickStopError as e:
             raise _problem(e) from None
-        params = {"plan_id": plan_id, **body.model_dump(), "order_id": order.order_id}
+        params = {"plan_id": plan_id, **body.model_dump(), "order_id": order_id}
         job = await run_in_threadpool(s.store.add_job, "dispatch", params)
         start_dispatch_job(
-            s.store.set_job,
-            job["id"],
-            order,
-            broker,
-            body.interface_name,
-            body.timeout,
-            body.wait_vehicle,
-            lambda: s.jobs.cancelled(job["id"]),
+            s.store.set_job, job["id"], job_spec, broker, lambda: s.jobs.cancelled(job["id"])
         )
         response.headers["Location"] = f"/api/v1/jobs/{job['id']}"
         return _job_record(await run_in_threadpool(s.store.job, job["id"]))

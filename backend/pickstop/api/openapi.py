@@ -196,6 +196,8 @@ def _operation(op: dict[str, Any], method: str, path: str, settings: Settings) -
                 param["schema"] = {"type": "string", "minLength": 1}
     if path.endswith("/plans") or path.endswith("/regions") or path.endswith("/batch"):
         codes[409], codes[504] = TEXT[409], TEXT[504]
+    if path.endswith("/errors/fit"):  # a stored scene written with its ETag
+        codes[404], codes[412], codes[428] = TEXT[404], TEXT[412], TEXT[428]
     if path.endswith("/dispatch"):
         codes[409] = "no MQTT broker is configured on this server (PICKSTOP_MQTT_BROKER)"
     if path.endswith("/check") or path.endswith("/model"):

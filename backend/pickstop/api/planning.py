@@ -199,6 +199,7 @@ class Planning:
     ) -> dict[str, Any]:
         """Regions and intersections, each candidate judged as a plan with this rule would."""
         from pickstop.regions.geojson import region_feature
+        from pickstop.scene.positioning import of_scene
 
         slot = self.slot(scene, db_id)
         sigma = scene.sigma if sigma is None else sigma
@@ -209,7 +210,9 @@ class Planning:
             points, yaws = route_points(scene, cands), route_yaws(scene, cands)
             dist = sp.paths(sp.floor(scene), points, yaws).dist
         verdicts = cut_off(
-            judge(Rule(rule, sigma, scene.error_model.kind, target), cands),
+            judge(
+                Rule(rule, sigma, scene.error_model.kind, target, 0, of_scene(scene, sigma)), cands
+            ),
             [bool(np.isfinite(dist[0, i + 2])) for i in range(len(cands))],
         )
         names = {t.id: t.name for t in scene.trays}

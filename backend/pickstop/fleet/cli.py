@@ -9,6 +9,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -18,23 +19,8 @@ from pickstop.argtypes import finite_float
 from pickstop.errors import InputError
 from pickstop.fleet import mqtt
 from pickstop.fleet import order as orders
-from pickstop.fleet import route as rt
+from pickstop.fleet.route import read_plan
 from pickstop.sequence import plan_model as pm
-
-MAX_PLAN_BYTES = 64 * 1024 * 1024
-
-
-def read_plan(path: str) -> pm.Plan:
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"plan {path}: no such file", field="plan")
-    if p.stat().st_size > MAX_PLAN_BYTES:
-        raise InputError(f"plan {path}: larger than {MAX_PLAN_BYTES} bytes", field="plan")
-    try:
-        doc = json.loads(p.read_text())
-    except (ValueError, UnicodeDecodeError) as e:
-        raise InputError(f"plan {path}: not JSON ({e})", field="plan") from None
-    return rt.load_plan(doc, f"plan {path}")
 
 
 def _scene(path: str | None, plan: pm.Plan | None = None) -> Any:
@@ -64,6 +50,13 @@ def _yaw_tolerance(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
     return verified_yaw_tolerances(
         _checker(args.scene, scene, args, args.db or plan.database), plan
     )
+
+
+def _vehicle_types(args: argparse.Namespace) -> Any:
+    from pickstop.fleet.vehicle_types import VehicleTypes, load_vehicle_types
+
+    path = getattr(args, "vehicle_types", None)
+    return VehicleTypes() if path is None else load_vehicle_types(path)
 
 
 def _order_options(
@@ -99,7 +92,11 @@ def cmd_export(args: argparse.Namespace) -> int:
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
     if args.format == "vda5050":
-        order = orders.build_order(plan, _order_options(args, scene, plan))
+        vt = _vehicle_types(args).select(args.manufacturer, args.serial, None, args.vehicle_type)
+        opts = _order_options(args, scene, plan)
+        if vt is not None:
+            opts = replace(opts, pick=vt.pick)
+        order = orders.build_order(plan, opts)
         text = json.dumps(v.dump(order), indent=1) + "\n"
     else:
         yaml_out = (args.out or "").endswith((".yaml", ".yml"))
@@ -122,16 +119,23 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_dispatch(args: argparse.Namespace) -> int:
-    from pickstop.fleet.dispatch import Dispatcher
+    from pickstop.fleet.arrivals import Recorder
+    from pickstop.fleet.dispatch import Dispatcher, checked_order
 
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
     broker = mqtt.parse_broker(args.broker)
-    order = orders.build_order(plan, _order_options(args, scene, plan))
+    opts = _order_options(args, scene, plan)
+    types = _vehicle_types(args)
     mqtt.check_level("interface", args.interface)
-    d = Dispatcher(broker, args.manufacturer, args.serial, order.version, args.interface)
+    d = Dispatcher(broker, args.manufacturer, args.serial, opts.version, args.interface)
     d.start()
     try:
+        order, vt = checked_order(
+            d, lambda pick: orders.build_order(plan, replace(opts, pick=pick)), types,
+            args.vehicle_type, not args.no_factsheet, args.wait,
+        )  # fmt: skip
+        record = None if args.record is None else Recorder(args.record)
 
         def progress(s: dict[str, Any]) -> None:
             if not args.quiet:
@@ -141,7 +145,10 @@ def cmd_dispatch(args: argparse.Namespace) -> int:
                     file=sys.stderr,
                 )
 
-        summary = d.run(order, timeout=args.timeout, wait_vehicle=args.wait, progress=progress)
+        summary = d.run(
+            order, timeout=args.timeout, wait_vehicle=args.wait, progress=progress,
+            record=record, pick=None if vt is None else vt.pick,
+        )  # fmt: skip
     finally:
         d.stop()
     print(json.dumps(summary, indent=1))
@@ -158,6 +165,23 @@ def _checker(scene_path: str, scene: Any, args: argparse.Namespace, db: str | No
     return PickChecker(planner, scene)
 
 
+def _positioning(args: argparse.Namespace, scene: Any, sigma: float) -> Any:
+    """``--error-model FILE``, else the scene's models with ``sigma`` [m]."""
+    from pickstop.scene.error_file import load_error_file
+    from pickstop.scene.positioning import of_scene
+
+    if getattr(args, "error_model", None) is None:
+        return of_scene(scene, sigma)
+    return load_error_file(args.error_model).positioning(scene, sigma)
+
+
+def _sim_body(vt: Any) -> Any:
+    """The simulated vehicle's factsheet body, with the series its type names."""
+    from pickstop.fleet.factsheet import Body
+
+    return Body(series_name=vt.series_name) if vt.series_name else Body()
+
+
 def cmd_sim_vehicle(args: argparse.Namespace) -> int:
     from pickstop.fleet.sim_node import VehicleNode
     from pickstop.fleet.vehicle import Motion, SimVehicle, error_model
@@ -171,16 +195,18 @@ def cmd_sim_vehicle(args: argparse.Namespace) -> int:
     scene = _scene(args.scene)
     broker = mqtt.parse_broker(args.broker)
     mqtt.check_level("interface", args.interface)
+    vt = _vehicle_types(args).select(args.manufacturer, args.serial, None, args.vehicle_type)
     m = scene.motion
     sigma = scene.sigma if args.sigma is None else args.sigma
     veh = SimVehicle(
         manufacturer=mqtt.check_level("manufacturer", args.manufacturer),
         serial_number=mqtt.check_level("serial", args.serial),
         motion=Motion(m.max_speed, m.max_acceleration, m.stop_time, m.pick_time),
-        error=error_model(scene.error_model.kind, sigma, scene.error_model.yaw_sigma),
+        error=error_model(_positioning(args, scene, sigma)),
         check=_checker(args.scene, scene, args, args.db),
         rng=np.random.default_rng(args.seed),
         version=orders.version_of(args.vda_version),
+        **({} if vt is None else {"pick": vt.pick, "body": _sim_body(vt)}),
         x=scene.start.x,
         y=scene.start.y,
         theta=scene.start.yaw,
@@ -200,12 +226,18 @@ def cmd_sim_vehicle(args: argparse.Namespace) -> int:
 
 def cmd_execute_sim(args: argparse.Namespace) -> int:
     from pickstop.fleet import execution
+    from pickstop.fleet.arrivals import Recorder
 
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
     check = _checker(args.scene, scene, args, args.db or plan.database)
     broker = None if args.broker is None else mqtt.parse_broker(args.broker)
-    outcomes = execution.execute(plan, check, args.runs, args.seed, args.vda_version, broker)
+    pos = _positioning(args, scene, plan.parameters.sigma)
+    record = None if args.record is None else Recorder(args.record)
+    outcomes = execution.execute(
+        plan, check, args.runs, args.seed, args.vda_version, broker, positioning=pos,
+        record=record,
+    )  # fmt: skip
     rep = execution.report(plan, outcomes)
     print(execution.table(rep))
     if args.out:
@@ -217,8 +249,15 @@ def _vehicle_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--manufacturer", default="pickstop", help="VDA 5050 manufacturer")
     p.add_argument("--serial", default="sim-1", help="VDA 5050 serialNumber")
     p.add_argument("--interface", default=mqtt.INTERFACE, help="topic interface name")
-    p.add_argument("--vda-version", default="2.1", help="2.1 (default) or 3.0")
+    p.add_argument("--vda-version", default="2.1", help="2.0, 2.1 (default) or 3.0")
     p.add_argument("--map-id", help="mapId / frame id (default: map)")
+    p.add_argument(
+        "--vehicle-types", help="vehicle types file: each type's pick action and parameter names"
+    )
+    p.add_argument(
+        "--vehicle-type",
+        help="the vehicle's type in --vehicle-types (default: the first matching the vehicle)",
+    )
 
 
 def _order_args(p: argparse.ArgumentParser) -> None:
@@ -235,6 +274,9 @@ def _order_args(p: argparse.ArgumentParser) -> None:
 
 
 def add_commands(sub: Any) -> None:
+    from pickstop.fleet.fit_cli import add_commands as add_fit_commands
+
+    add_fit_commands(sub)
     ex = sub.add_parser("export", help="a plan as a VDA 5050 order or a Nav2 goal")
     ex.add_argument("plan", help="plan JSON (from pickstop plan)")
     ex.add_argument("--format", choices=["vda5050", "nav2"], required=True)
@@ -253,6 +295,12 @@ def add_commands(sub: Any) -> None:
     )
     dp.add_argument("--wait", type=finite_float, default=10.0, help="[s] for the vehicle to appear")
     dp.add_argument("--quiet", action="store_true")
+    dp.add_argument("--record", help="append every arrival at a stop to this JSON-lines log")
+    dp.add_argument(
+        "--no-factsheet",
+        action="store_true",
+        help="send without reading the vehicle's factsheet (a vehicle older than VDA 5050 2.0)",
+    )
     _vehicle_args(dp)
     _order_args(dp)
     dp.set_defaults(func=cmd_dispatch)
@@ -263,6 +311,8 @@ def add_commands(sub: Any) -> None:
     sv.add_argument(
         "--sigma", type=finite_float, help="positioning error [m] (default: the scene's)"
     )
+    sv.add_argument("--error-model", help="where it lands: an error model file (default: the "
+                    "scene's models)")  # fmt: skip
     sv.add_argument("--rate", type=finite_float, default=1.0, help="state messages per second")
     sv.add_argument("--time-scale", type=finite_float, default=1.0, help="sim s per s; 0: at once")
     sv.add_argument("--seed", type=int, default=0)
@@ -276,7 +326,13 @@ def add_commands(sub: Any) -> None:
     es.add_argument("--runs", type=int, default=200)
     es.add_argument("--seed", type=int, default=0)
     es.add_argument("--broker", help="mqtt://HOST:PORT (default: a local Mosquitto)")
-    es.add_argument("--vda-version", default="2.1")
+    es.add_argument("--vda-version", default="2.1", help="2.0, 2.1 (default) or 3.0")
     es.add_argument("--db", help="reachability database id (default: the plan's)")
     es.add_argument("--out", help="write the report JSON here")
+    es.add_argument("--record", help="append every arrival at a stop to this JSON-lines log")
+    es.add_argument(
+        "--error-model",
+        help="where the vehicle lands: an error model file (default: the scene's models, "
+        "the ones the plan predicts with)",
+    )
     es.set_defaults(func=cmd_execute_sim)

@@ -7,12 +7,13 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 from pickstop.errors import PickStopError
 from pickstop.fleet import mqtt
-from pickstop.fleet import vda5050 as v
-from pickstop.fleet.dispatch import DispatchCancelled, Dispatcher
+from pickstop.fleet.dispatch import BuildOrder, DispatchCancelled, Dispatcher, checked_order
+from pickstop.fleet.vehicle_types import VehicleTypes
 
 log = logging.getLogger("pickstop.fleet")
 
@@ -20,16 +21,30 @@ log = logging.getLogger("pickstop.fleet")
 SetJob = Callable[..., None]
 
 
+@dataclass(frozen=True)
+class DispatchJob:
+    """What a dispatch job sends, to which vehicle, and how long it waits [s]."""
+
+    build: BuildOrder
+    manufacturer: str
+    serial_number: str
+    version: str
+    interface: str
+    timeout: float
+    wait_vehicle: float
+    types: VehicleTypes = field(default_factory=VehicleTypes)
+    vehicle_type: str | None = None
+    factsheet: bool = True
+
+
 def run_dispatch_job(
     set_job: SetJob,
     job_id: str,
-    order: v.Order21 | v.Order30,
+    job: DispatchJob,
     broker: mqtt.Broker,
-    interface: str,
-    timeout: float,
-    wait_vehicle: float,
     cancelled: Callable[[], bool],
 ) -> None:
+    """Read the factsheet, check and send the order, follow it; the job record as it goes."""
     set_job(job_id, state="running")
 
     def progress(summary: dict[str, Any]) -> None:
@@ -37,10 +52,16 @@ def run_dispatch_job(
         done = summary["nodes_reached"] + summary["actions_finished"] + summary["actions_failed"]
         set_job(job_id, progress=min(1.0, done / n), result=summary)
 
-    d = Dispatcher(broker, order.manufacturer, order.serial_number, order.version, interface)
+    d = Dispatcher(broker, job.manufacturer, job.serial_number, job.version, job.interface)
     try:
         d.start()
-        summary = d.run(order, timeout, wait_vehicle, progress=progress, cancelled=cancelled)
+        order, vt = checked_order(
+            d, job.build, job.types, job.vehicle_type, job.factsheet, job.wait_vehicle
+        )
+        summary = d.run(
+            order, job.timeout, job.wait_vehicle, progress=progress, cancelled=cancelled,
+            pick=None if vt is None else vt.pick,
+        )  # fmt: skip
         set_job(job_id, state="done", progress=1.0, result=summary)
     except DispatchCancelled as e:
         set_job(job_id, state="cancelled", error=e.message)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,11 +18,13 @@ import numpy as np
 
 from pickstop.errors import InputError
 from pickstop.fleet import order as orders
+from pickstop.fleet.arrivals import Arrival
 from pickstop.fleet.broker import LocalMosquitto
 from pickstop.fleet.dispatch import Dispatcher
 from pickstop.fleet.mqtt import Broker
 from pickstop.fleet.sim_node import VehicleNode
-from pickstop.fleet.vehicle import Check, Motion, SimVehicle, error_model
+from pickstop.fleet.vehicle import Check, Motion, SimVehicle, error_model, isotropic
+from pickstop.scene.positioning import Positioning
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.success import Rate
 
@@ -37,15 +40,22 @@ class RunOutcome:
 
 
 def vehicle_for(
-    plan: pm.Plan, check: Check, seed: int, version: str = "2.1.0", kind: str | None = None
+    plan: pm.Plan,
+    check: Check,
+    seed: int,
+    version: str = "2.1.0",
+    kind: str | None = None,
+    positioning: Positioning | None = None,
 ) -> SimVehicle:
-    """A simulated vehicle with the plan's time model and error model."""
+    """A simulated vehicle with the plan's time model and ``positioning`` (default: the
+    plan's isotropic error model; pass the scene's for per-station, biased, anisotropic ones)."""
     p = plan.parameters
+    pos = positioning or isotropic(kind or p.error_model, p.sigma, p.yaw_sigma)  # type: ignore[arg-type]
     return SimVehicle(
         manufacturer="pickstop",
         serial_number="sim-1",
         motion=Motion(p.max_speed, p.max_acceleration, p.stop_time, p.pick_time),
-        error=error_model(kind or p.error_model, p.sigma, p.yaw_sigma),  # type: ignore[arg-type]
+        error=error_model(pos),
         check=check,
         rng=np.random.default_rng(seed),
         version=version,
@@ -59,15 +69,19 @@ def execute(
     seed: int = 0,
     version: str = "2.1.0",
     broker: Broker | None = None,
+    positioning: Positioning | None = None,
+    record: Callable[[Arrival], None] | None = None,
 ) -> list[RunOutcome]:
-    """``runs`` executions of the plan (a local Mosquitto unless ``broker`` is given)."""
+    """``runs`` executions of the plan (a local Mosquitto unless ``broker`` is given), the
+    vehicle landing off by ``positioning`` (default: the plan's isotropic model); ``record``
+    takes every arrival at a stop."""
     if not 1 <= runs <= MAX_RUNS:
         raise InputError(f"runs: must be in 1..{MAX_RUNS}, got {runs}", field="runs")
     version = orders.version_of(version)
     local = LocalMosquitto().start() if broker is None else None
     try:
         where = broker or local.broker  # type: ignore[union-attr]
-        veh = vehicle_for(plan, check, seed, version)
+        veh = vehicle_for(plan, check, seed, version, positioning=positioning)
         node = VehicleNode(veh, where, time_scale=0).start()
         disp = Dispatcher(where, veh.manufacturer, veh.serial_number, version).start()
         try:
@@ -84,7 +98,7 @@ def execute(
                         header_id=r,
                     ),
                 )
-                s = disp.run(order, timeout=120.0)
+                s = disp.run(order, timeout=120.0, record=record)
                 stops = s["stops"]
                 out.append(
                     RunOutcome(

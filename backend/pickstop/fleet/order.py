@@ -1,4 +1,4 @@
-"""A plan as a VDA 5050 order (2.1.0 by default, 3.0.0 on request).
+"""A plan as a VDA 5050 order (2.1.0 by default, 2.0.0 or 3.0.0 on request).
 
 Nodes: start, every corner of the obstacle-aware floor path, each stop, goal; straight edges
 join them. A docking leg (driven at a stop's fixed yaw where the base cannot turn) is an edge
@@ -6,7 +6,8 @@ with that ``orientation`` (GLOBAL; no rotation on it), between nodes carrying th
 Node ``sequenceId`` s are even, edge ones odd, increasing along the route. Each stop
 node carries ``allowedDeviationXY`` = its guaranteed radius, ``allowedDeviationTheta`` = the
 yaw tolerance, and one blocking ``pick`` action per part (tray, part, grasp, and the witness arm
-configuration with its joint names). Everything is released (the base) unless
+configuration with its joint names), or the action a vehicle type names for it
+(:class:`~pickstop.fleet.vehicle_types.PickAction`). Everything is released (the base) unless
 ``release_stops`` keeps later stops in the horizon.
 """
 
@@ -21,14 +22,13 @@ from typing import Any
 from pickstop.errors import InputError
 from pickstop.fleet import route as rt
 from pickstop.fleet import vda5050 as v
+from pickstop.fleet.vehicle_types import DEFAULT_PICK, PickAction
 from pickstop.sequence import plan_model as pm
-
-PICK = "pick"
 
 
 @dataclass(frozen=True)
 class OrderOptions:
-    version: str = "2.1.0"  # "2.1", "2.1.0", "3.0" or "3.0.0"
+    version: str = "2.1.0"  # "2.0", "2.1", "3.0" (or with the patch: "2.1.0")
     manufacturer: str = "pickstop"
     serial_number: str = "sim-1"
     map_id: str | None = None  # default: "map"
@@ -40,6 +40,7 @@ class OrderOptions:
     start_yaw: float | None = None  # [rad]
     goal_yaw: float | None = None  # [rad]
     yaw_tolerance: float | tuple[float, ...] | None = None  # [rad], one or one per stop
+    pick: PickAction | None = None  # the vehicle type's pick; None: PickStop's own
 
 
 def version_of(text: str) -> v.VersionName:
@@ -65,22 +66,23 @@ def order_id_of(plan: pm.Plan) -> str:
     return "pickstop-" + hashlib.sha256(repr(key).encode()).hexdigest()[:16]
 
 
-def _params(pick: rt.Pick, stop: int) -> list[dict[str, Any]]:
-    return [
-        {"key": "stopIndex", "value": stop},
-        {"key": "trayId", "value": pick.tray_id},
-        {"key": "partId", "value": pick.part_id},
-        {"key": "graspIndex", "value": pick.grasp_index},
-        {"key": "jointNames", "value": list(pick.joints)},
-        {"key": "jointPositions", "value": [round(q, 6) for q in pick.theta]},
-    ]
+def _params(pick: rt.Pick, stop: int, action: PickAction) -> list[dict[str, Any]]:
+    ours = {
+        "stopIndex": stop,
+        "trayId": pick.tray_id,
+        "partId": pick.part_id,
+        "graspIndex": pick.grasp_index,
+        "jointNames": list(pick.joints),
+        "jointPositions": [round(q, 6) for q in pick.theta],
+    }
+    return action.values(ours)
 
 
 def action_id(order_id: str, stop: int, pick: rt.Pick) -> str:
     return f"{order_id}/stop{stop}/pick/{pick.tray_id}/{pick.part_id}"
 
 
-def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order21 | v.Order30:
+def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order:
     """The plan's order message, validated by the version's model."""
     opts = opts or OrderOptions()
     version = version_of(opts.version)
@@ -103,18 +105,19 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order21 | 
             last = 0
         else:
             last = next(i for i, w in enumerate(wps) if w.stop == opts.release_stops - 1)
-    v3 = version == "3.0.0"
+    v3 = v.v3(version)
+    act = opts.pick or DEFAULT_PICK
     nodes, edges = [], []
     for i, w in enumerate(wps):
         actions = [
             {
-                "actionType": PICK,
+                "actionType": act.action_type,
                 "actionId": action_id(oid, w.stop, p),
                 ("actionDescriptor" if v3 else "actionDescription"): (
                     f"pick {p.part_id} from {p.tray_id}"
                 ),
-                "blockingType": "HARD",
-                "actionParameters": _params(p, w.stop),
+                "blockingType": act.blocking_type,
+                "actionParameters": _params(p, w.stop, act),
             }
             for p in w.picks
             if w.stop is not None
@@ -173,7 +176,7 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order21 | 
     return v.ORDER_MODELS[version].model_validate(doc)
 
 
-def check_order(order: v.Order21 | v.Order30) -> list[str]:
+def check_order(order: v.Order) -> list[str]:
     """The standard's constraints beyond the schema; an empty list when all hold."""
     problems = []
     nodes: list[Any] = list(order.nodes)

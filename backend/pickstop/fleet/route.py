@@ -15,9 +15,11 @@ sampled: two standard deviations of the scene's yaw error, and at least the yaw 
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import ValidationError
@@ -26,6 +28,8 @@ from pickstop.errors import InputError
 from pickstop.frames import wrap_angle
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.success import YAW_LATTICE
+
+MAX_PLAN_BYTES = 64 * 1024 * 1024  # a plan file read from disk
 
 MAX_WAYPOINTS = 10_000  # a route longer than this is refused before any export
 VIA_TOLERANCE = 0.25  # [m] how close a floor-path corner must be passed (Nav2's default)
@@ -80,6 +84,21 @@ def load_plan(doc: Any, source: str = "plan") -> pm.Plan:
         err = e.errors()[0]
         loc = ".".join(str(p) for p in err["loc"]) or "(root)"
         raise InputError(f"{source}: {loc}: {err['msg']}", field=loc) from None
+
+
+def read_plan(path: str) -> pm.Plan:
+    """The plan in the JSON file ``path``; a missing, oversized or invalid one raises
+    :class:`InputError` naming the field ``plan``."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"plan {path}: no such file", field="plan")
+    if p.stat().st_size > MAX_PLAN_BYTES:
+        raise InputError(f"plan {path}: larger than {MAX_PLAN_BYTES} bytes", field="plan")
+    try:
+        doc = json.loads(p.read_text())
+    except (ValueError, UnicodeDecodeError) as e:
+        raise InputError(f"plan {path}: not JSON ({e})", field="plan") from None
+    return load_plan(doc, f"plan {path}")
 
 
 def waypoints(

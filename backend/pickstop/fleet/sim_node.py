@@ -1,6 +1,7 @@
 """The simulated vehicle on MQTT: takes orders from its ``order`` topic, publishes ``state``
-on every change and at a fixed rate, and ``connection`` (ONLINE, retained; the broker's last
-will says the connection broke).
+on every change and at a fixed rate, ``connection`` (ONLINE, retained; the broker's last
+will says the connection broke) and its ``factsheet`` (retained, and again on the instant
+action ``factsheetRequest``).
 
 ``time_scale`` is simulated seconds per wall second (1: real time); 0 runs each order as fast
 as it computes, publishing a state at every event (node reached, action started or ended).
@@ -32,13 +33,16 @@ class VehicleNode:
             raise ValueError("rate_hz must be > 0 and time_scale >= 0")
         self.vehicle, self.rate_hz, self.time_scale = vehicle, rate_hz, time_scale
         self._connection_header = -1
+        self._factsheet_header = -1
 
         def t(leaf: str) -> str:
             return mqtt.topic(
                 interface, vehicle.version, vehicle.manufacturer, vehicle.serial_number, leaf
             )
 
-        self.topics = {k: t(k) for k in ("order", "state", "connection")}
+        self.topics = {
+            k: t(k) for k in ("order", "state", "connection", "factsheet", "instantActions")
+        }
         self.link = mqtt.Link(
             broker, will=(self.topics["connection"], self._connection(v.BROKEN[vehicle.version]))
         )
@@ -65,9 +69,23 @@ class VehicleNode:
 
     def _online(self) -> None:
         self.link.publish(self.topics["connection"], self._connection("ONLINE"), qos=1, retain=True)
+        self.publish_factsheet()
+
+    def publish_factsheet(self) -> None:
+        self._factsheet_header += 1
+        doc = self.vehicle.factsheet(self._factsheet_header)
+        self.link.publish(self.topics["factsheet"], doc, qos=1, retain=True)
+
+    def _instant(self, _topic: str, doc: dict[str, Any]) -> None:
+        acts = doc.get("actions")
+        if isinstance(acts, list) and any(
+            isinstance(a, dict) and a.get("actionType") == "factsheetRequest" for a in acts
+        ):
+            self.publish_factsheet()
 
     def start(self) -> VehicleNode:
         self.link.subscribe(self.topics["order"], lambda _t, doc: self._inbox.put(doc))
+        self.link.subscribe(self.topics["instantActions"], self._instant)
         self.link.start()
         self._thread.start()
         return self

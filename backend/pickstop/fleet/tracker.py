@@ -3,7 +3,9 @@
 A state lists the nodes and edges still to traverse and the status of every action of the
 order; the tracker turns each into: nodes reached, per-stop status, actions running, finished
 or failed (with their result), errors, the vehicle's position, and whether the order is done.
-States of another order, or older than one already seen (``headerId``), are ignored.
+States of another order, or older than one already seen (``headerId``), are ignored. At each
+stop node (a node with actions) it notes the arrival (:mod:`pickstop.fleet.arrivals`): the
+pose reported in the first state whose ``lastNodeId`` is the node while not driving.
 """
 
 from __future__ import annotations
@@ -15,13 +17,15 @@ from typing import Any
 from pydantic import ValidationError
 
 from pickstop.fleet import vda5050 as v
+from pickstop.fleet.arrivals import Arrival, PickOutcome, Pose
+from pickstop.fleet.vehicle_types import DEFAULT_PICK, PickAction
 
 DONE_ACTION = ("FINISHED", "FAILED")
 
 
 @dataclass
 class OrderTracker:
-    order: v.Order21 | v.Order30
+    order: v.Order
     sent_at: float | None = None  # [s] monotonic time the order was published
     acknowledged_at: float | None = None  # first state naming the order
     states: int = 0  # states of this order taken
@@ -35,6 +39,9 @@ class OrderTracker:
     pending_nodes: int | None = None
     pending_edges: int | None = None
     finished_at: float | None = None
+    pick: PickAction = DEFAULT_PICK  # how the order's picks name their tray and part
+    #: node id -> (reported pose, state timestamp) of each stop node the vehicle stood at
+    landed: dict[str, tuple[Pose, str]] = field(default_factory=dict)
 
     @property
     def done(self) -> bool:
@@ -81,12 +88,65 @@ class OrderTracker:
         self.errors = [
             e.model_dump(mode="json", by_alias=True, exclude_none=True) for e in st.errors
         ]
-        pos = st.agv_position if isinstance(st, v.State21) else st.mobile_robot_position
+        pos = st.mobile_robot_position if isinstance(st, v.State30) else st.agv_position
         if pos is not None:
             self.position = {"x": pos.x, "y": pos.y, "theta": pos.theta}
+            at = st.last_node_id
+            if not st.driving and at not in self.landed and at in self._stop_nodes:
+                self.landed[at] = (Pose(x=pos.x, y=pos.y, theta=pos.theta), st.timestamp)
         if self.done and self.finished_at is None:
             self.finished_at = now
         return True
+
+    def __post_init__(self) -> None:
+        self._stop_nodes = {n.node_id for n in self.order.nodes if n.actions}
+
+    def arrivals(self, final: bool = False) -> list[Arrival]:
+        """The arrivals at stop nodes whose picks have all ended, in order; ``final``: also
+        those the vehicle stood at whose picks had not (the order ended or was given up)."""
+        out = []
+        stops = [n for n in self.order.nodes if n.actions]
+        for k, n in enumerate(stops):
+            if n.node_id not in self.landed:
+                continue
+            acts = [(a, self.actions.get(a.action_id, {})) for a in n.actions]
+            ended = all(s.get("status") in DONE_ACTION for _, s in acts)
+            if not (ended or final):
+                continue
+            picks = []
+            for a, s in acts:
+                ours = self.pick.ours({q.key: q.value for q in a.action_parameters or []})
+                picks.append(
+                    PickOutcome(
+                        action_id=a.action_id,
+                        tray_id=None if ours.get("trayId") is None else str(ours["trayId"]),
+                        part_id=None if ours.get("partId") is None else str(ours["partId"]),
+                        status=s.get("status", "WAITING"),
+                        result=s.get("result"),
+                    )
+                )
+            pose, stamp = self.landed[n.node_id]
+            p = n.node_position
+            if p is None:
+                continue  # nothing planned to compare with
+            out.append(
+                Arrival(
+                    order_id=self.order.order_id,
+                    node_id=n.node_id,
+                    sequence_id=n.sequence_id,
+                    stop=k,
+                    trays=sorted({q.tray_id for q in picks if q.tray_id is not None}),
+                    manufacturer=self.order.manufacturer,
+                    serial_number=self.order.serial_number,
+                    map_id=p.map_id,
+                    planned=Pose(x=p.x, y=p.y, theta=p.theta),
+                    reported=pose,
+                    time=stamp,
+                    picks=picks,
+                    ok=all(q.status == "FINISHED" for q in picks),
+                )
+            )
+        return out
 
     def stops(self) -> list[dict[str, Any]]:
         """Per stop node: reached, and the status of its picks (pending, running, finished,
@@ -138,6 +198,7 @@ class OrderTracker:
             "stops": self.stops(),
             "errors": self.errors,
             "position": self.position,
+            "arrivals": [a.model_dump(mode="json", exclude_none=True) for a in self.arrivals()],
             "states": self.states,
             "latency": None
             if self.sent_at is None or self.acknowledged_at is None

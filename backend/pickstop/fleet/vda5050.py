@@ -1,4 +1,5 @@
-"""VDA 5050 messages (order and state), versions 2.1.0 and 3.0.0, as pydantic models.
+"""VDA 5050 messages (order, state, connection, instant actions), versions 2.0.0, 2.1.0 and
+3.0.0, as pydantic models.
 
 Written from the published JSON schemas (vendored in ``schemas/``; a test compares every
 field, required set, enum and number range with them). Attributes are snake_case, the wire
@@ -17,8 +18,10 @@ PI_THETA = 3.14159265359  # the schemas' bound on theta and orientation
 PI_DEV = 3.141592654  # the schemas' bound on allowedDeviationTheta
 HALF_PI = 1.570796327
 
-VersionName = Literal["2.1.0", "3.0.0"]
+VersionName = Literal["2.0.0", "2.1.0", "3.0.0"]
 VERSIONS: dict[str, VersionName] = {
+    "2.0": "2.0.0",
+    "2.0.0": "2.0.0",
     "2.1": "2.1.0",
     "2.1.0": "2.1.0",
     "3.0": "3.0.0",
@@ -43,10 +46,10 @@ class _In(_Msg):
     model_config = ConfigDict(alias_generator=to_camel, populate_by_name=True, extra="ignore")
 
 
-# -- shared by both versions --------------------------------------------------------------------
+# -- shared by every version --------------------------------------------------------------------
 class ActionParameter(_Msg):
     key: str
-    value: list[Any] | bool | float | str | dict[str, Any]
+    value: list[Any] | bool | int | float | str | dict[str, Any]
 
 
 class ControlPoint21(_Msg):
@@ -136,6 +139,60 @@ class Order21(Header):
     zone_set_id: str | None = None
     nodes: list[Node21]
     edges: list[Edge21]
+
+
+# -- 2.0.0 order (2.1.0 less the corridor; allowedDeviationTheta >= 0; an orientationType enum) --
+class NodePosition20(_Msg):
+    x: float
+    y: float
+    theta: Theta | None = None
+    allowed_deviation_xy: NonNeg | None = Field(default=None, alias="allowedDeviationXY")
+    allowed_deviation_theta: Annotated[float, Field(ge=0, le=PI_DEV)] | None = None
+    map_id: str
+    map_description: str | None = None
+
+
+class Node20(_Msg):
+    node_id: str
+    sequence_id: SeqId
+    node_description: str | None = None
+    released: bool
+    node_position: NodePosition20 | None = None
+    actions: list[Action21]
+
+
+class Trajectory20(_Msg):
+    degree: int
+    knot_vector: list[Unit]
+    control_points: list[ControlPoint21]
+
+
+class Edge20(_Msg):
+    edge_id: str
+    sequence_id: SeqId
+    edge_description: str | None = None
+    released: bool
+    start_node_id: str
+    end_node_id: str
+    max_speed: float | None = None
+    max_height: float | None = None
+    min_height: float | None = None
+    orientation: Theta | None = None
+    orientation_type: Literal["GLOBAL", "TANGENTIAL"] | None = None
+    direction: str | None = None
+    rotation_allowed: bool | None = None
+    max_rotation_speed: float | None = None
+    length: float | None = None
+    trajectory: Trajectory20 | None = None
+    actions: list[Action21]
+
+
+class Order20(Header):
+    order_id: str
+    order_update_id: SeqId
+    zone_set_id: str | None = None
+    nodes: list[Node20]
+    edges: list[Edge20]
 
 
 # -- 3.0.0 order -----------------------------------------------------------------------------------
@@ -368,6 +425,89 @@ class State21(Header, _In):
     safety_state: SafetyState21
 
 
+# -- 2.0.0 state -----------------------------------------------------------------------------------
+ActionStatus20 = Literal["WAITING", "INITIALIZING", "RUNNING", "PAUSED", "FINISHED", "FAILED"]
+
+
+class NodeStatePosition20(_In):
+    x: float
+    y: float
+    theta: float | None = None
+    allowed_deviation_xy: float | None = Field(default=None, alias="allowedDeviationXY")
+    allowed_deviation_theta: float | None = None
+    map_id: str
+    map_description: str | None = None
+
+
+class NodeState20(_In):
+    node_id: str
+    sequence_id: int
+    node_description: str | None = None
+    node_position: NodeStatePosition20 | None = None
+    released: bool
+
+
+class StateTrajectory20(_In):
+    degree: Annotated[float, Field(ge=1)] | None = None
+    knot_vector: list[Unit]
+    control_points: list[ControlPoint]
+
+
+class EdgeState20(_In):
+    edge_id: str
+    sequence_id: int
+    edge_description: str | None = None
+    released: bool
+    trajectory: StateTrajectory20 | None = None
+
+
+class ActionState20(_In):
+    action_id: str
+    action_type: str | None = None
+    action_description: str | None = None
+    action_status: ActionStatus20
+    result_description: str | None = None
+
+
+class BatteryState20(_In):
+    battery_charge: float
+    battery_voltage: float | None = None
+    battery_health: Annotated[int, Field(ge=0, le=100)] | None = None
+    charging: bool
+    reach: NonNeg | None = None
+
+
+class Error20(_In):
+    error_type: str
+    error_references: list[Reference] | None = None
+    error_description: str | None = None
+    error_level: Literal["WARNING", "FATAL"]
+
+
+class State20(Header, _In):
+    model_config = _In.model_config
+    order_id: str
+    order_update_id: int
+    zone_set_id: str | None = None
+    last_node_id: str
+    last_node_sequence_id: int
+    driving: bool
+    paused: bool | None = None
+    new_base_request: bool | None = None
+    distance_since_last_node: float | None = None
+    operating_mode: Literal["AUTOMATIC", "SEMIAUTOMATIC", "MANUAL", "SERVICE", "TEACHIN"]
+    node_states: list[NodeState20]
+    edge_states: list[EdgeState20]
+    agv_position: AgvPosition | None = None
+    velocity: Velocity | None = None
+    loads: list[Load21] | None = None
+    action_states: list[ActionState20]
+    battery_state: BatteryState20
+    errors: list[Error20]
+    information: list[Info21] | None = None
+    safety_state: SafetyState21
+
+
 # -- 3.0.0 state -----------------------------------------------------------------------------------
 ActionStatus30 = Literal[
     "WAITING", "INITIALIZING", "RUNNING", "PAUSED", "RETRIABLE", "FINISHED", "FAILED"
@@ -549,7 +689,26 @@ class State30(Header, _In):
     safety_state: SafetyState30
 
 
-# -- connection (both versions) --------------------------------------------------------------------
+# -- connection (every version) --------------------------------------------------------------------
+# -- instant actions (the factsheet request) ----------------------------------------------------
+class InstantActions2(Header):
+    """2.0.0 and 2.1.0 (the same message)."""
+
+    actions: list[Action21]
+
+
+class InstantAction30(_Msg):
+    action_type: str
+    action_id: str
+    action_descriptor: str | None = None
+    blocking_type: Literal["NONE"]
+    action_parameters: list[ActionParameter] | None = None
+
+
+class InstantActions30(Header):
+    actions: list[InstantAction30]
+
+
 class Connection21(Header):
     connection_state: Literal["ONLINE", "OFFLINE", "CONNECTIONBROKEN"]
 
@@ -559,16 +718,44 @@ class Connection30(Header):
 
 
 #: the last-will state of each version (the broker publishes it when the vehicle drops)
-BROKEN = {"2.1.0": "CONNECTIONBROKEN", "3.0.0": "CONNECTION_BROKEN"}
+BROKEN = {"2.0.0": "CONNECTIONBROKEN", "2.1.0": "CONNECTIONBROKEN", "3.0.0": "CONNECTION_BROKEN"}
 
-Order = Order21 | Order30
-State = State21 | State30
-ORDER_MODELS: dict[str, type[Order21] | type[Order30]] = {"2.1.0": Order21, "3.0.0": Order30}
-STATE_MODELS: dict[str, type[State21] | type[State30]] = {"2.1.0": State21, "3.0.0": State30}
+Order = Order20 | Order21 | Order30
+State = State20 | State21 | State30
+ORDER_MODELS: dict[str, type[Order20] | type[Order21] | type[Order30]] = {
+    "2.0.0": Order20,
+    "2.1.0": Order21,
+    "3.0.0": Order30,
+}
+STATE_MODELS: dict[str, type[State20] | type[State21] | type[State30]] = {
+    "2.0.0": State20,
+    "2.1.0": State21,
+    "3.0.0": State30,
+}
 CONNECTION_MODELS: dict[str, type[Connection21] | type[Connection30]] = {
+    "2.0.0": Connection21,  # the same message as 2.1.0
     "2.1.0": Connection21,
     "3.0.0": Connection30,
 }
+INSTANT_MODELS: dict[str, type[InstantActions2] | type[InstantActions30]] = {
+    "2.0.0": InstantActions2,
+    "2.1.0": InstantActions2,
+    "3.0.0": InstantActions30,
+}
+
+
+def v3(version: str) -> bool:
+    """3.x names (``actionDescriptor``, ``maximumSpeed``, an ellipse for ``allowedDeviationXY``)."""
+    return version.startswith("3.")
+
+
+def minor(version: str) -> tuple[int, int]:
+    """``"2.1.0" -> (2, 1)``; a version that is not ``MAJOR.MINOR[.PATCH]`` gives ``(0, 0)``."""
+    try:
+        a, b = version.split(".")[:2]
+        return int(a), int(b)
+    except ValueError:
+        return (0, 0)
 
 
 def major(version: str) -> str:

@@ -19,28 +19,40 @@ from typing import Any
 
 import numpy as np
 
+from pickstop.fleet import factsheet as fs
 from pickstop.fleet import order as orders
 from pickstop.fleet import vda5050 as v
+from pickstop.fleet.vehicle_types import DEFAULT_PICK, PickAction
 from pickstop.frames import wrap_angle
-from pickstop.sequence.success import Kind, sample_errors
+from pickstop.scene.positioning import ErrorDist, Kind, Positioning
 from pickstop.sequence.timing import leg_time
 
 REFUSAL_TYPES = ("validationError", "orderError")
 
 #: ``check(tray_id, x, y, yaw) -> (ok, reason)`` at an actual base pose [m, m, rad].
 Check = Callable[[str, float, float, float], tuple[bool, str]]
-#: ``error(rng) -> (dx, dy, dyaw)``: where the base lands relative to the node.
-ErrorDraw = Callable[[np.random.Generator], tuple[float, float, float]]
+#: ``error(rng, x, y, yaw, trays) -> (dx, dy, dyaw)``: where the base lands relative to a
+#: node at ``(x, y, yaw)`` [m, m, rad] whose picks are from ``trays`` (map frame).
+ErrorDraw = Callable[
+    [np.random.Generator, float, float, float, tuple[str, ...]], tuple[float, float, float]
+]
 
 
-def error_model(kind: Kind, sigma: float, yaw_sigma: float) -> ErrorDraw:
-    """Draws from the scene's error model (the same sampler as the plan's Monte Carlo)."""
+def error_model(positioning: Positioning) -> ErrorDraw:
+    """Draws from the model of the node's station (the sampler of the plan's Monte Carlo)."""
 
-    def draw(rng: np.random.Generator) -> tuple[float, float, float]:
-        dxy, dyaw = sample_errors(kind, sigma, yaw_sigma, 1, rng)
+    def draw(
+        rng: np.random.Generator, x: float, y: float, yaw: float, trays: tuple[str, ...]
+    ) -> tuple[float, float, float]:
+        dxy, dyaw = positioning.at((x, y), trays).sample(1, rng, yaw)
         return float(dxy[0, 0]), float(dxy[0, 1]), float(dyaw[0])
 
     return draw
+
+
+def isotropic(kind: Kind, sigma: float, yaw_sigma: float) -> Positioning:
+    """The one model of a plan's parameters: isotropic, unbiased, everywhere."""
+    return Positioning(ErrorDist(kind, sigma, yaw_sigma=yaw_sigma))
 
 
 @dataclass(frozen=True)
@@ -90,6 +102,8 @@ class SimVehicle:
     check: Check
     rng: np.random.Generator
     version: str = "2.1.0"
+    pick: PickAction = DEFAULT_PICK  # how its controller names a pick and its parameters
+    body: fs.Body = field(default_factory=fs.Body)
     x: float = 0.0
     y: float = 0.0
     theta: float = 0.0
@@ -111,18 +125,38 @@ class SimVehicle:
     finished_at: float | None = None
     stopped_at: dict[str, tuple[float, float, float]] = field(default_factory=dict)
 
+    # -- the factsheet -----------------------------------------------------------------------------
+    def factsheet(self, header_id: int = 0) -> dict[str, Any]:
+        """Its factsheet message: the pick as its controller names it, its body and drive."""
+        return fs.describe(
+            self.version, self.manufacturer, self.serial_number, [fs.pick_spec(self.pick)],
+            self.body, header_id, orders.timestamp(),
+        )  # fmt: skip
+
     # -- orders ----------------------------------------------------------------------------------
     def accept(self, doc: dict[str, Any]) -> bool:
-        """Take an order message; False (with an error in the state) if it is refused."""
+        """Take an order message; False (with an error in the state) if it is refused: an
+        order of a newer protocol version, one the version's schema or the standard's rules
+        refuse, or one asking for an action or parameter its factsheet does not list."""
         oid = str(doc.get("orderId", "")) if isinstance(doc, dict) else ""
         refs = (("orderId", oid),)
         # an earlier refusal is history once a new order arrives
         self.errors = [e for e in self.errors if e["errorType"] not in REFUSAL_TYPES]
+        theirs = str(doc.get("version", "")) if isinstance(doc, dict) else ""
+        if v.minor(theirs) > v.minor(self.version):
+            text = f"order version {theirs} is not compatible with vehicle version {self.version}"
+            self._error("validationError", text, "FATAL", refs)
+            return False
         try:
             o = v.ORDER_MODELS[self.version].model_validate(doc)
         except Exception as e:
             text = f"order refused: {e}".splitlines()[0]
             self._error("validationError", text, "FATAL", refs)
+            return False
+        unable = fs.check_order(o, fs.read(self.factsheet()))
+        if unable:
+            self._error("orderError", "order action is not executable: " + "; ".join(unable),
+                        "WARNING", refs)  # fmt: skip
             return False
         problems = orders.check_order(o)
         if problems or not o.nodes:
@@ -273,7 +307,10 @@ class SimVehicle:
         if ph.kind == "drive":
             dx, dy, dyaw = (0.0, 0.0, 0.0)
             if node.actions:  # it stops here: the base lands off by the error model
-                dx, dy, dyaw = self.forced_error or self.error(self.rng)
+                yaw = self.theta if node.theta is None else node.theta
+                dx, dy, dyaw = self.forced_error or self.error(
+                    self.rng, node.x, node.y, yaw, self._trays(node)
+                )
             self.x, self.y = node.x + dx, node.y + dy
             if node.theta is not None:
                 self.theta = wrap_angle(node.theta + dyaw)
@@ -286,12 +323,19 @@ class SimVehicle:
         if len(self.phases) == 1:
             self.finished_at = self.clock
 
+    def _trays(self, node: _Node) -> tuple[str, ...]:
+        """The trays a node's picks are from (as its pick's parameters name them)."""
+        found = (self.pick.ours(a.params).get("trayId") for a in node.actions
+                 if a.type == self.pick.action_type)  # fmt: skip
+        return tuple(sorted({str(t) for t in found if t is not None}))
+
     def _pick(self, k: int, a: _Action) -> None:
         node = self.nodes[k]
-        if a.type != orders.PICK:
+        if a.type != self.pick.action_type:
             a.status, a.result = "FINISHED", f"{a.type}: nothing to do in simulation"
             return
-        tray = str(a.params.get("trayId", ""))
+        ours = self.pick.ours(a.params)
+        tray = str(ours.get("trayId", ""))
         off = math.hypot(self.x - node.x, self.y - node.y)
         ok, why = self.check(tray, self.x, self.y, self.theta)
         where = (
@@ -304,10 +348,10 @@ class SimVehicle:
             )
         )
         if ok:
-            a.status, a.result = "RUNNING", f"part {a.params.get('partId')} graspable; {where}"
+            a.status, a.result = "RUNNING", f"part {ours.get('partId')} graspable; {where}"
         else:
             a.status = "FAILED"
-            a.result = f"part {a.params.get('partId')} of tray {tray} not graspable: {why}; {where}"
+            a.result = f"part {ours.get('partId')} of tray {tray} not graspable: {why}; {where}"
             self._error(
                 "pickFailed", a.result, "WARNING", (("actionId", a.id), ("nodeId", node.id))
             )
@@ -323,7 +367,7 @@ class SimVehicle:
     # -- the state message ----------------------------------------------------------------------
     def state(self, stamp: str | None = None) -> dict[str, Any]:
         """The VDA 5050 state message now (validated by the version's model)."""
-        v3 = self.version == "3.0.0"
+        v3 = v.v3(self.version)
         desc = "actionDescriptor" if v3 else "actionDescription"
         result = "actionResult" if v3 else "resultDescription"
         upcoming = self.nodes[self.last_node + 1 :] if self.last_node >= 0 else []

@@ -13,7 +13,15 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
+from shapely.geometry import Polygon
 
 from pickstop.errors import InputError
 from pickstop.frames import R_axis
@@ -275,11 +283,103 @@ class Motion(_Strict):
     pick_time: Annotated[float, Field(ge=0, le=3600)] = 6.0  # per part [s]
 
 
-class ErrorModel(_Strict):
-    """Base positioning error: bounded disc of radius sigma, or Gaussian with mean error sigma."""
+Offset = Annotated[float, Field(ge=-1.0, le=1.0, allow_inf_nan=False)]  # [m]
+Variance = Annotated[float, Field(ge=-1.0, le=1.0, allow_inf_nan=False)]  # [m^2]
+YawOffset = Annotated[float, Field(ge=-math.pi, le=math.pi, allow_inf_nan=False)]  # [rad]
+Covariance = tuple[tuple[Variance, Variance], tuple[Variance, Variance]]
+#: the fields an error model added to its first form (kind, yaw_sigma), left out of the
+#: scene's dump while they hold their defaults, so that a scene's hash stays what it was
+_ADDED: dict[str, Any] = {"mean": (0.0, 0.0), "covariance": None, "yaw_mean": 0.0, "frame": "base",
+          "stations": []}  # fmt: skip
+
+
+def _check_covariance(c: Covariance | None) -> Covariance | None:
+    """Symmetric and positive definite, or None."""
+    if c is None:
+        return c
+    (a, b), (b2, d) = c
+    if abs(b - b2) > 1e-12:
+        raise ValueError("covariance must be symmetric")
+    if not (a > 0 and d > 0 and a * d - b * b > 0):
+        raise ValueError("covariance must be positive definite (variances > 0, |correlation| < 1)")
+    return c
+
+
+class _Positioning(_Strict):
+    """What an error model adds to an isotropic sigma: a mean offset [m] and a covariance
+    [m^2] in ``frame`` (``base``: x along the planned heading, y to its left; or ``map``), and
+    a yaw bias [rad]. See :mod:`pickstop.scene.positioning`."""
+
+    mean: tuple[Offset, Offset] = (0.0, 0.0)
+    covariance: Covariance | None = None  # gaussian only; None: isotropic from sigma
+    yaw_mean: YawOffset = 0.0
+    frame: Literal["base", "map"] = "base"
+
+    @field_validator("covariance")
+    @classmethod
+    def _pd(cls, c: Covariance | None) -> Covariance | None:
+        return _check_covariance(c)
+
+
+class StationError(_Positioning):
+    """A station's own error model: for stops whose centre lies in ``zone`` (a polygon, map
+    frame [m]) or that pick from any of ``trays`` (a tray group). Unset fields take the
+    scene's (kind, sigma, yaw_sigma)."""
+
+    name: Ident
+    trays: list[Ident] | None = Field(default=None, min_length=1, max_length=1000)
+    zone: list[tuple[Finite, Finite]] | None = Field(default=None, min_length=3, max_length=256)
+    kind: Literal["bounded", "gaussian"] | None = None
+    sigma: Annotated[float, Field(ge=0, le=1.0)] | None = None  # [m]
+    yaw_sigma: Annotated[float, Field(ge=0, le=math.pi)] | None = None  # [rad]
+    arrivals: Annotated[int, Field(ge=0)] | None = Field(
+        default=None, description="recorded arrivals a fitted model rests on"
+    )
+
+    @model_validator(mode="after")
+    def _where(self) -> StationError:
+        if (self.trays is None) == (self.zone is None):
+            raise ValueError("give either trays (a tray group) or zone (a polygon), not both")
+        if self.zone is not None and not Polygon(self.zone).is_valid:
+            raise ValueError("zone must be a simple polygon")
+        if self.covariance is not None and self.kind == "bounded":
+            raise ValueError("a covariance needs kind 'gaussian'")
+        return self
+
+
+class ErrorModel(_Positioning):
+    """Base positioning error: bounded disc of radius sigma, or Gaussian with mean error sigma
+    (or the given covariance), offset by ``mean``; per station where ``stations`` says so."""
 
     kind: Literal["bounded", "gaussian"] = "gaussian"
     yaw_sigma: Annotated[float, Field(ge=0, le=math.pi)] = 0.0  # [rad]
+    stations: list[StationError] = Field(default_factory=list, max_length=256)
+
+    @model_validator(mode="after")
+    def _kinds(self) -> ErrorModel:
+        if self.covariance is not None and self.kind == "bounded":
+            raise ValueError("a covariance needs kind 'gaussian'")
+        names = [s.name for s in self.stations]
+        if len(set(names)) != len(names):
+            raise ValueError("station names must be unique")
+        for i, st in enumerate(self.stations):
+            if st.covariance is not None and (st.kind or self.kind) == "bounded":
+                raise ValueError(f"stations.{i}: a covariance needs kind 'gaussian'")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _compact(self, handler: Any) -> dict[str, Any]:
+        out = handler(self)
+        for k, default in _ADDED.items():
+            if k in out and _same(out[k], default):
+                del out[k]
+        return out
+
+
+def _same(value: Any, default: Any) -> bool:
+    if isinstance(value, list | tuple) and isinstance(default, list | tuple):
+        return list(value) == list(default)
+    return bool(value == default)
 
 
 class Scene(_Strict):
@@ -302,6 +402,17 @@ class Scene(_Strict):
     sigma: Annotated[float, Field(ge=0, le=1.0)] = defaults.SIGMA  # base positioning error [m]
     error_model: ErrorModel = ErrorModel()
     motion: Motion = Motion()
+
+    @model_validator(mode="after")
+    def _station_trays(self) -> Scene:
+        known = {t.id for t in self.trays}
+        for i, st in enumerate(self.error_model.stations):
+            missing = [t for t in st.trays or [] if t not in known]
+            if missing:
+                raise ValueError(
+                    f"error_model.stations.{i}.trays: no tray {', '.join(missing)} in the scene"
+                )
+        return self
 
     @property
     def grid_extent(self) -> Extent:

@@ -46,12 +46,13 @@ from pickstop.regions.kit import Interrupted
 from pickstop.regions.offgrid import check_key, feasible_near
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
+from pickstop.scene.positioning import of_scene
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
 from pickstop.sequence.intersections import Intersection, inscribed_circle, intersections
 from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
-from pickstop.sequence.success import Rate, combined, monte_carlo
+from pickstop.sequence.success import Rate, combined, monte_carlo_at
 from pickstop.sequence.timing import TimeBreakdown, leg_time, pieces_time, plan_time, rest_pieces
 
 MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
@@ -305,11 +306,12 @@ class StopPlanner:
         samples: int,
         seed: int,
     ) -> Rate:
-        """Monte Carlo success rate of stopping at ``xy`` to pick the regions' trays (cached)."""
-        em = scene.error_model
+        """Monte Carlo success rate of stopping at ``xy`` to pick the regions' trays (cached),
+        under the error model of the stop's station (:mod:`pickstop.scene.positioning`)."""
         trays = tuple(r.tray_id for r in regions)
         yaw = regions[0].yaw
-        key = (world_key, trays, xy, yaw, em.kind, em.yaw_sigma, sigma, samples, seed)
+        dist = of_scene(scene, sigma).at(xy, trays)
+        key = (world_key, trays, xy, yaw, dist, samples, seed)
         hit = self._rates.hit(key)
         if hit is not None:
             return hit
@@ -324,7 +326,7 @@ class StopPlanner:
             return ok
 
         rng = np.random.default_rng([seed, int.from_bytes(_digest((trays, xy)).encode()[:4])])
-        rate = monte_carlo(evaluate, xy, yaw, em.kind, sigma, em.yaw_sigma, samples, rng)
+        rate = monte_carlo_at(evaluate, xy, yaw, dist, samples, rng)
         return self._rates.put(key, rate)
 
     def prefetch_checks(
@@ -540,6 +542,7 @@ class _Planning:
         self.unlock = unlock
         self.sigma = scene.sigma if opts.sigma is None else opts.sigma
         self.kind = scene.error_model.kind
+        self.positioning = of_scene(scene, self.sigma)
         self.required = scene.task_trays
         self.world = world_key(scene)
         self.t: dict[str, float] = dict.fromkeys(
@@ -622,7 +625,7 @@ class _Planning:
 
     def _rule(self) -> Rule:
         opts = self.opts
-        return Rule(opts.rule, self.sigma, self.kind, opts.target, opts.seed)
+        return Rule(opts.rule, self.sigma, self.kind, opts.target, opts.seed, self.positioning)
 
     def _apply_rule(self, cands: list[Intersection], paths: Paths) -> float:
         """Reject candidates by the rule and by reachability; returns the threshold radius."""
@@ -827,17 +830,19 @@ class _Planning:
         for k, c in enumerate(sel.order):
             cand = cands[c]
             rate = rates.get(c)
+            picked = [t for t in self.required if sel.serves[t] == c]
             stops.append(
                 pm.Stop(
                     index=k,
                     x=cand.centre[0],
                     y=cand.centre[1],
                     yaw=cand.yaw,
-                    trays=[t for t in self.required if sel.serves[t] == c],
+                    trays=picked,
                     region_trays=sorted(cand.trays),
                     inscribed_radius=cand.radius,
                     candidate=c,
                     witnesses=witnesses[c],
+                    error_model=self.positioning.station_of(cand.centre, picked),
                     success=None
                     if rate is None
                     else pm.Success(

@@ -82,6 +82,11 @@ class Stop(BaseModel):
     candidate: int  # index into ``candidates``
     witnesses: list[Witness]
     success: Success | None = None
+    error_model: str | None = Field(
+        default=None,
+        description="the station whose error model the stop's success rate uses "
+        "(the scene's error_model.stations); null: the scene's global model",
+    )
 
 
 class Leg(BaseModel):

@@ -1,6 +1,8 @@
-"""Positioning error at a stop: its distribution, the radius a success rate needs, Monte Carlo.
+"""Positioning error at a stop: the radius a success rate needs, Monte Carlo success rates.
 
-Two error models, both set by sigma [m]:
+The error models themselves (isotropic, anisotropic, biased, per station; their sampler,
+density and disc probability) live in :mod:`pickstop.scene.positioning`; the functions here
+taking ``(kind, sigma, yaw_sigma)`` are the isotropic, unbiased case of it:
 
 - ``bounded``: uniform in the disc of radius sigma. A stop whose inscribed circle has radius
   >= sigma then always succeeds (the paper's rule); radius r covers a fraction (r / sigma)^2.
@@ -18,30 +20,31 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
-Kind = Literal["bounded", "gaussian"]
-YAW_LATTICE = math.radians(0.25)  # [rad]
+from pickstop.scene.positioning import YAW_LATTICE, ErrorDist, Kind, rayleigh_scale
+
+__all__ = [
+    "YAW_LATTICE",
+    "Kind",
+    "Rate",
+    "combined",
+    "disc_probability",
+    "monte_carlo",
+    "monte_carlo_at",
+    "radius_for",
+    "rayleigh_scale",
+    "sample_errors",
+]
 Z95 = 1.959963984540054
-
-
-def rayleigh_scale(sigma: float) -> float:
-    """Per-axis standard deviation of a 2D Gaussian whose mean error magnitude is ``sigma``."""
-    return sigma * math.sqrt(2.0 / math.pi)
 
 
 def disc_probability(kind: Kind, sigma: float, r: float) -> float:
     """P(|e| <= r): the success rate a stop with inscribed radius r guarantees (yaw aside)."""
     if sigma <= 0.0:
         return 1.0
-    # Ratios first: sigma may be as small as a subnormal number, whose square is 0.
-    if kind == "bounded":
-        q = r / sigma
-        return min(1.0, q * q)
-    q = r / rayleigh_scale(sigma)
-    return 1.0 - math.exp(-0.5 * q * q)
+    return ErrorDist(kind, sigma).disc_probability(r)
 
 
 def radius_for(kind: Kind, sigma: float, target: float) -> float:
@@ -50,23 +53,14 @@ def radius_for(kind: Kind, sigma: float, target: float) -> float:
         raise ValueError(f"target must be in (0, 1), got {target}")
     if kind == "bounded":
         return sigma * math.sqrt(target)
-    return rayleigh_scale(sigma) * math.sqrt(-2.0 * math.log(1.0 - target))
+    return ErrorDist(kind, sigma).radius_for(target)
 
 
 def sample_errors(
     kind: Kind, sigma: float, yaw_sigma: float, n: int, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
     """``n`` position errors ``(n, 2)`` [m] and yaw errors ``(n,)`` [rad] (on the lattice)."""
-    if kind == "bounded":
-        r = sigma * np.sqrt(rng.random(n))
-        a = rng.random(n) * 2.0 * math.pi
-        dxy = np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
-    else:
-        dxy = rng.normal(scale=rayleigh_scale(sigma), size=(n, 2))
-    dyaw = np.zeros(n)
-    if yaw_sigma > 0.0:
-        dyaw = np.round(rng.normal(scale=yaw_sigma, size=n) / YAW_LATTICE) * YAW_LATTICE
-    return dxy, dyaw
+    return ErrorDist(kind, sigma, yaw_sigma=yaw_sigma).sample(n, rng)
 
 
 @dataclass(frozen=True)
@@ -108,7 +102,21 @@ def monte_carlo(
     rng: np.random.Generator,
 ) -> Rate:
     """Success rate of stopping at ``centre``/``yaw`` when the base lands off by the error model."""
-    dxy, dyaw = sample_errors(kind, sigma, yaw_sigma, n, rng)
+    dist = ErrorDist(kind, sigma, yaw_sigma=yaw_sigma)
+    return monte_carlo_at(evaluate, centre, yaw, dist, n, rng)
+
+
+def monte_carlo_at(
+    evaluate: Evaluate,
+    centre: tuple[float, float],
+    yaw: float,
+    dist: ErrorDist,
+    n: int,
+    rng: np.random.Generator,
+) -> Rate:
+    """Success rate of stopping at ``centre`` [m] / ``yaw`` [rad] when the base lands off by
+    ``dist`` (drawn in the stop's frame: a ``base`` model turns with ``yaw``)."""
+    dxy, dyaw = dist.sample(n, rng, yaw)
     xy = np.asarray(centre, float) + dxy
     ok = np.zeros(n, bool)
     for d in np.unique(dyaw):
