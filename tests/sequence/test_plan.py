@@ -392,3 +392,36 @@ def test_a_stop_check_is_reused_until_something_near_its_tray_changes(
     assert "tray_4" not in checked and "tray_1" in checked
     for stop in plan.stops:
         assert_stop_verified(planner, moved, stop)
+
+
+def test_plan_reports_expected_time_with_failures_beside_the_predicted(paper_plan):
+    from pickstop.sequence.failure import FailureCosts, failure_time
+
+    scene, plan = paper_plan
+    costs = FailureCosts.of(scene.failure)
+    assert plan.parameters.failure == scene.failure
+    t = plan.totals.time
+    extra = 0.0
+    for s in plan.stops:
+        f = s.failures
+        assert f is not None and f.source == "monte_carlo" and f.success == s.success.rate
+        assert f.time == pytest.approx(float(failure_time(s.success.rate, costs)))
+        extra += f.time
+    assert t.failures == pytest.approx(extra) and t.expected == pytest.approx(t.total + extra)
+    assert t.expected >= t.total
+    assert plan.totals.retries == pytest.approx(sum(s.failures.retries for s in plan.stops))
+
+
+def test_a_dearer_failure_model_raises_only_the_expected_time(stop_planner, paper_doc):
+    free = {"relocalise_time": 0, "redock_time": 0, "operator_time": 0}
+    dear = {"relocalise_time": 20, "redock_time": 40, "retries": 1, "operator_time": 900}
+    plans = [
+        stop_planner.plan(parse_scene({**paper_doc, "failure": f}), PlanOptions(samples=300))
+        for f in (free, dear)
+    ]
+    assert plans[0].totals.time.total == plans[1].totals.time.total
+    assert plans[0].totals.time.expected == pytest.approx(plans[0].totals.time.total)
+    assert plans[1].totals.time.expected == pytest.approx(
+        plans[1].totals.time.total
+        + sum(60 * (1 - s.success.rate) + 900 * (1 - s.success.rate) ** 2 for s in plans[1].stops)
+    )

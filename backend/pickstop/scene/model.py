@@ -267,6 +267,17 @@ class ErrorModel(_Strict):
     yaw_sigma: NonNegative = 0.0  # [rad]
 
 
+class FailureModel(_Strict):
+    """What a failed arrival costs (a stop where some pick is impossible from where the base
+    landed): the base re-localises and re-docks, landing anew, up to ``retries`` times, then
+    an operator is called, who sets the base where it picks (:mod:`pickstop.sequence.failure`)."""
+
+    relocalise_time: NonNegative = 5.0  # [s] per retry
+    redock_time: NonNegative = 10.0  # [s] per retry: back off and dock again
+    retries: Annotated[int, Field(ge=0, le=10)] = 2
+    operator_time: NonNegative = 300.0  # [s] an operator's call after the last retry
+
+
 class Scene(_Strict):
     format: Literal["pickstop.scene"] = "pickstop.scene"
     version: Literal[1] = 1
@@ -287,6 +298,7 @@ class Scene(_Strict):
     sigma: Annotated[float, Field(ge=0, le=1.0)] = defaults.SIGMA  # base positioning error [m]
     error_model: ErrorModel = ErrorModel()
     motion: Motion = Motion()
+    failure: FailureModel = FailureModel()
 
     @property
     def grid_extent(self) -> Extent:

@@ -48,6 +48,7 @@ from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
+from pickstop.sequence.failure import FailureCosts, stop_failures
 from pickstop.sequence.intersections import Intersection, inscribed_circle, intersections
 from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
@@ -509,7 +510,17 @@ def route_yaws(scene: Scene, cands: list[Intersection]) -> np.ndarray:
 def world_key(scene: Scene) -> str:
     """What feasibility at a base pose depends on: everything but task, start, goal, sigma."""
     keep = scene.model_dump(
-        exclude={"name", "description", "task", "start", "goal", "sigma", "error_model", "motion"}
+        exclude={
+            "name",
+            "description",
+            "task",
+            "start",
+            "goal",
+            "sigma",
+            "error_model",
+            "motion",
+            "failure",
+        }
     )
     return _digest(sorted(keep.items()))
 
@@ -518,8 +529,30 @@ def scene_hash(scene: Scene) -> str:
     return hashlib.sha256(scene.model_dump_json().encode()).hexdigest()
 
 
-def _time(tb: TimeBreakdown) -> pm.TimeTotals:
-    return pm.TimeTotals(travel=tb.travel, stops=tb.stops, picks=tb.picks, total=tb.total)
+def _time(tb: TimeBreakdown, stops: list[pm.StopFailures | None] | None = None) -> pm.TimeTotals:
+    """The time totals; with every stop's expected failures, the expected time too."""
+    failures = None
+    if stops and all(f is not None for f in stops):
+        failures = float(sum(f.time for f in stops if f is not None))
+    return pm.TimeTotals(
+        travel=tb.travel,
+        stops=tb.stops,
+        picks=tb.picks,
+        total=tb.total,
+        failures=failures,
+        expected=None if failures is None else tb.total + failures,
+    )
+
+
+def _failures(
+    p: float | None, source: Literal["monte_carlo", "estimate"], costs: FailureCosts
+) -> pm.StopFailures | None:
+    """A stop's expected failures at success rate ``p`` (None: no rate known)."""
+    if p is None:
+        return None
+    f = stop_failures(p, costs)
+    return pm.StopFailures(success=p, source=source, retries=f.retries, operator=f.operator,
+                           time=f.time)  # fmt: skip
 
 
 class _Planning:
@@ -823,10 +856,12 @@ class _Planning:
     ) -> pm.Plan:
         scene, opts, sp = self.scene, self.opts, self.sp
         robot = sp.regions.robot
+        costs = FailureCosts.of(scene.failure)
         stops = []
         for k, c in enumerate(sel.order):
             cand = cands[c]
             rate = rates.get(c)
+            fails = _failures(None if rate is None else rate.rate, "monte_carlo", costs)
             stops.append(
                 pm.Stop(
                     index=k,
@@ -846,6 +881,7 @@ class _Planning:
                         rate=rate.rate,
                         interval=rate.interval,
                     ),
+                    failures=fails,
                 )
             )
         legs, lengths = self._legs(paths, sel.order)
@@ -853,6 +889,9 @@ class _Planning:
         for leg in legs:
             route += leg.polyline if not route else leg.polyline[1:]
         tb = self._times(lengths, len(sel.order))
+        fails_of = [s.failures for s in stops]
+        known = [f for f in fails_of if f is not None]
+        whole = len(known) == len(stops)
         success, interval = (None, None)
         if rates:
             success, interval = combined([rates[c] for c in sel.order])
@@ -896,6 +935,7 @@ class _Planning:
                 max_acceleration=m.max_acceleration,
                 stop_time=m.stop_time,
                 pick_time=m.pick_time,
+                failure=scene.failure,
             ),
             stops=stops,
             route=route,
@@ -903,9 +943,11 @@ class _Planning:
             totals=pm.Totals(
                 stops=len(stops),
                 route_length=float(sum(leg.length for leg in legs)),
-                time=_time(tb),
+                time=_time(tb, fails_of),
                 success=success,
                 success_interval=interval,
+                retries=float(sum(f.retries for f in known)) if whole else None,
+                operator_calls=float(sum(f.operator for f in known)) if whole else None,
             ),
             naive=pm.Naive(
                 stops=[

@@ -10,6 +10,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from pickstop.scene.model import FailureModel
+
 FORMAT = "pickstop.plan"
 VERSION = 1
 
@@ -71,6 +73,17 @@ class Success(BaseModel):
     interval: Point2  # 95% Wilson score interval
 
 
+class StopFailures(BaseModel):
+    """A stop's failed arrivals expected per run under the scene's failure model
+    (:mod:`pickstop.sequence.failure`)."""
+
+    success: float  # the stop's success rate these follow from
+    source: Literal["monte_carlo", "estimate"]  # where that rate comes from
+    retries: float  # expected re-localise and re-dock rounds
+    operator: float  # probability that an operator is called
+    time: float  # expected extra time [s]
+
+
 class Stop(BaseModel):
     index: int  # visiting order, from 0
     x: float
@@ -82,6 +95,7 @@ class Stop(BaseModel):
     candidate: int  # index into ``candidates``
     witnesses: list[Witness]
     success: Success | None = None
+    failures: StopFailures | None = None
 
 
 class Leg(BaseModel):
@@ -102,7 +116,13 @@ class TimeTotals(BaseModel):
     travel: float
     stops: float
     picks: float
-    total: float
+    total: float  # predicted: every arrival succeeds [s]
+    failures: float | None = Field(
+        default=None, description="expected time of failed arrivals per run [s]"
+    )
+    expected: float | None = Field(
+        default=None, description="expected time per run, failures included: total + failures [s]"
+    )
 
 
 class Totals(BaseModel):
@@ -111,6 +131,8 @@ class Totals(BaseModel):
     time: TimeTotals
     success: float | None = None  # whole plan: product over stops
     success_interval: Point2 | None = None
+    retries: float | None = None  # expected re-docks per run
+    operator_calls: float | None = None  # expected operator calls per run
 
 
 class NaiveStop(BaseModel):
@@ -164,6 +186,7 @@ class Parameters(BaseModel):
     max_acceleration: float
     stop_time: float
     pick_time: float
+    failure: FailureModel | None = None  # what a failed arrival costs
 
 
 class Timings(BaseModel):
