@@ -45,10 +45,15 @@ def test_expectations_match_the_simulated_process(p, retries, retry_time, operat
     costs = FailureCosts(retry_time, retries, operator_time)
     r, o, t = simulate(p, costs, 40_000, np.random.default_rng(7))
     f = stop_failures(p, costs)
-    # 40,000 runs: five standard errors of each mean, plus a hair where none vary
-    assert f.retries == pytest.approx(r.mean(), abs=5 * r.std() / 200 + 1e-6)
-    assert f.operator == pytest.approx(o.mean(), abs=5 * o.std() / 200 + 1e-6)
-    assert f.time == pytest.approx(t.mean(), abs=5 * t.std() / 200 + 1e-6)
+
+    # 40,000 runs: five standard errors of each mean, and three runs' worth of the largest
+    # value where events are too rare for the runs to show their spread
+    def near(xs, most):
+        return pytest.approx(xs.mean(), abs=5 * xs.std() / 200 + 3 * most / len(xs) + 1e-9)
+
+    assert f.retries == near(r, retries)
+    assert f.operator == near(o, 1.0)
+    assert f.time == near(t, retries * retry_time + operator_time)
 
 
 def test_certain_and_hopeless_stops():

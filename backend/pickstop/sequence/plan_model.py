@@ -34,10 +34,11 @@ class PlanOptions(BaseModel):
     target: Annotated[float, Field(gt=0.5, lt=1.0)] = Field(
         default=0.95, description="success rate the 'success' rule requires per stop"
     )
-    objective: Literal["stops", "time"] = Field(
+    objective: Literal["stops", "time", "expected-time"] = Field(
         default="stops",
         description="'stops': fewest stops, then the shortest route; 'time': least predicted "
-        "operation time",
+        "operation time; 'expected-time': least expected time, failed arrivals included (the "
+        "scene's failure model, each stop's fast success estimate)",
     )
     samples: Annotated[int, Field(ge=0, le=100_000)] = Field(
         default=1000, description="Monte Carlo samples per stop (0: no success estimate)"
@@ -95,6 +96,7 @@ class Stop(BaseModel):
     candidate: int  # index into ``candidates``
     witnesses: list[Witness]
     success: Success | None = None
+    estimated_success: float | None = None  # fast estimate (error density over the cells)
     failures: StopFailures | None = None
 
 
@@ -167,7 +169,19 @@ class IntersectionRecord(BaseModel):
     status: Literal["chosen", "kept", "rejected"]
     reason: str | None = None  # why it was rejected
     predicted_success: float | None = None  # from the region's shape ('success' rule)
+    estimated_success: float | None = None  # fast estimate at its centre, for all its trays
     polygon: list[list[Point2]]  # exterior ring, then holes
+
+
+class TradeoffRow(BaseModel):
+    """The least expected time with exactly ``stops`` stops (expected-time objective)."""
+
+    stops: int
+    expected_time: float  # [s] per run, failures included
+    time: float  # [s] predicted, every arrival succeeding
+    success: float  # whole plan, from the stops' success estimates
+    optimal: bool  # proven by the solver
+    chosen: bool  # the plan's own row
 
 
 class Parameters(BaseModel):
@@ -175,7 +189,7 @@ class Parameters(BaseModel):
     rule: Literal["sigma", "success"]
     target: float
     threshold_radius: float  # inscribed radius a candidate needs to be kept outright [m]
-    objective: Literal["stops", "time"]
+    objective: Literal["stops", "time", "expected-time"]
     error_model: Literal["bounded", "gaussian"]
     yaw_sigma: float
     samples: int
@@ -221,6 +235,12 @@ class Plan(BaseModel):
     naive: Naive
     optimal: bool  # the stop selection was proven optimal
     candidates: list[IntersectionRecord]
+    tradeoff: list[TradeoffRow] | None = Field(
+        default=None,
+        description="expected-time objective: for each number of stops, the least expected "
+        "time and its success over the same candidates (the chosen row verified, the others "
+        "not)",
+    )
     timings: Timings
     verified: bool = Field(
         default=True,
