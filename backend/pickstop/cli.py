@@ -406,6 +406,7 @@ def _plan_row(plan: Any) -> dict[str, Any]:
         "naive_stops": len(plan.naive.stops),
         "length_m": round(t.route_length, 2),
         "time_s": round(t.time.total, 1),
+        "expected_s": "-" if t.time.expected is None else round(t.time.expected, 1),
         "naive_time_s": round(plan.naive.time.total, 1),
         "saving": f"{plan.naive.saving_fraction:.1%}",
         "success": "-" if t.success is None else f"{t.success:.1%}",
@@ -531,7 +532,7 @@ def _plan_batch_dask(
 
 def _print_table(rows: list[dict[str, Any]]) -> None:
     cols = ["scene", "status", "trays", "stops", "naive_stops", "length_m", "time_s",
-            "naive_time_s", "saving", "success", "seconds"]  # fmt: skip
+            "expected_s", "naive_time_s", "saving", "success", "seconds"]  # fmt: skip
     cells = [[str(r.get(c, "")) for c in cols] for r in rows]
     widths = [max(len(c), *(len(row[i]) for row in cells)) for i, c in enumerate(cols)]
     print("  ".join(c.ljust(w) for c, w in zip(cols, widths, strict=True)))
@@ -740,7 +741,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pl.add_argument("--rule", choices=["sigma", "success"], help="candidate rule (default: sigma)")
     pl.add_argument("--target", type=finite_float, help="success rate per stop for --rule success")
-    pl.add_argument("--objective", choices=["stops", "time"], help="default: stops, then route")
+    pl.add_argument(
+        "--objective",
+        choices=["stops", "time", "expected-time"],
+        help="default: stops, then route; time: least predicted time; expected-time: least "
+        "expected time, failed arrivals included (the scene's failure model)",
+    )
     pl.add_argument(
         "--samples", type=int, help="Monte Carlo samples per stop (default 1000; 0: none)"
     )

@@ -196,7 +196,9 @@ class PlannerApp:
             self.target = gui.add_slider(
                 "target success", min=0.6, max=0.99, step=0.01, initial_value=0.95
             )
-            self.objective = gui.add_dropdown("objective", ("stops", "time"), initial_value="stops")
+            self.objective = gui.add_dropdown(
+                "objective", ("stops", "time", "expected-time"), initial_value="stops"
+            )
             # The robots stand on their stops' circles; hide them to see the circles whole.
             self.show_robots = gui.add_checkbox("robots at stops", True)
             self.show_robots.on_update(lambda _: self.layer.ghosts_visible(self.show_robots.value))

@@ -107,6 +107,10 @@ def test_execute_sim_prints_and_writes_the_report(plan_file, region_db, tmp_path
     rep = json.loads(out.read_text())
     assert rep["runs"] == 10 and len(rep["stops"]) == len(rep["stops"]) >= 1
     assert 0 <= rep["plan"]["executed"] <= 1
+    # the plan's failure model runs with it: re-docks and operator calls beside the expected
+    assert "expected" in printed and "re-docks per run" in printed
+    assert rep["time"]["expected"] >= rep["time"]["predicted"]
+    assert rep["recovery"]["retries_mean"] >= 0 and rep["recovery"]["retries_expected"] >= 0
     assert main(["execute-sim", str(plan_file), "--scene", "x.json", "--runs", "0"]) == 2
 
 

@@ -61,6 +61,7 @@ def test_an_order_runs_to_the_end_and_every_state_is_valid(paper, version):
 def test_a_stop_outside_the_guaranteed_radius_fails_its_pick_with_the_reason(paper):
     _, plan, check = paper
     veh = vehicle_for(plan, check, seed=1)
+    veh.failure = None  # no failure model: a failed pick fails its action, no retry
     r = plan.stops[0].inscribed_radius
     veh.forced_error = (0.0, -(r + 0.35), 0.0)  # far outside, away from the table
     order = od.build_order(plan)
@@ -131,3 +132,56 @@ def test_the_vehicle_lands_by_the_model_of_each_stops_station(paper):
     if len(plan.stops) > 1:
         x1, y1, _ = veh.stopped_at["stop1"]
         assert (x1, y1) == pytest.approx((plan.stops[1].x, plan.stops[1].y))
+
+
+def test_a_missed_landing_re_docks_then_calls_an_operator_as_the_model_says(paper):
+    """Every landing misses: each stop re-docks ``retries`` times, then an operator sets the
+    base at the node; its picks then finish, and the time adds up to the model's worst case."""
+    _, plan, check = paper
+    veh = vehicle_for(plan, check, seed=1)
+    fm = veh.failure
+    assert fm is not None and fm.retries == plan.parameters.failure.retries
+    r = plan.stops[0].inscribed_radius
+    veh.forced_error = (0.0, -(r + 0.35), 0.0)  # far outside, away from the table
+    order = od.build_order(plan)
+    tracker = OrderTracker(order)
+    schema = published.schema("state", "2.1.0")
+    drive(veh, order, tracker, schema)
+    s = tracker.summary()
+    assert s["done"] and s["actions_finished"] == s["actions"]  # the operator saved each stop
+    assert [(a.first_ok, a.retries, a.operator) for a in veh.arrivals] == [
+        (False, fm.retries, True)
+    ] * len(plan.stops)
+    worst = len(plan.stops) * (fm.retries * fm.retry_time + fm.operator_time)
+    # the drives leave from where the operator set the base, the node: as planned
+    assert veh.finished_at - veh.started_at == pytest.approx(
+        plan.totals.time.total + worst, rel=1e-6
+    )
+    kinds = [i["infoType"] for i in veh.state()["information"]]
+    assert kinds.count("operatorCall") == len(plan.stops)
+
+
+def test_executed_time_matches_the_expected_time_of_a_known_success_rate(paper):
+    """A check that passes within 0.12 m of the node: the success rate is known in closed
+    form, so the mean executed time over many runs must match the model's expected time."""
+    from pickstop.sequence.failure import failure_time
+    from pickstop.sequence.success import disc_probability
+
+    _, plan, _ = paper
+    stops = {(round(s.x, 9), round(s.y, 9)) for s in plan.stops}
+    R = 0.12
+
+    def near(tray, x, y, yaw):
+        return (min(np.hypot(x - a, y - b) for a, b in stops) <= R, "outside the disc")
+
+    veh = vehicle_for(plan, near, seed=5)
+    times = []
+    for r in range(400):
+        order = od.build_order(plan, od.OrderOptions(order_id=f"run{r}"))
+        drive(veh, order, OrderTracker(order), max_dt=1e9)
+        times.append(veh.finished_at - veh.started_at)
+    p = disc_probability("gaussian", plan.parameters.sigma, R)
+    expected = plan.totals.time.total + len(plan.stops) * float(failure_time(p, veh.failure))
+    times = np.array(times)
+    # drives leave from where the base landed, not the node: a few cm either way
+    assert abs(times.mean() - expected) < 4 * times.std() / np.sqrt(len(times)) + 0.5

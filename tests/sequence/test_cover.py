@@ -170,3 +170,41 @@ def test_every_chosen_stop_serves_a_tray_even_where_a_detour_is_cheaper(enumerat
                        objective="time", enumeration=enumeration)  # fmt: skip
     assert sel.cost == pytest.approx(9.0)
     assert set(sel.serves.values()) == set(sel.order)
+
+
+def brute_force_fixed(trays_of, required, cost, stop_cost, k, groups):
+    """The least route + stop_cost * k over plans of exactly ``k`` stops, none two of a
+    group; None if there is none."""
+    best = None
+    for subset in itertools.combinations(range(len(trays_of)), k):
+        if len({groups[c] for c in subset}) < k or not _assignable(trays_of, subset, required):
+            continue
+        for perm in itertools.permutations(subset):
+            r = _route(cost, perm) + stop_cost * k
+            if np.isfinite(r) and (best is None or r < best - 1e-9):
+                best = r
+    return best
+
+
+@pytest.mark.parametrize("enumeration", [0, cover.ENUMERATION], ids=["cp-sat", "enumeration"])
+@settings(max_examples=60, deadline=None)
+@given(
+    inst=st.one_of(instances(), instances(metric=False)),
+    k=st.integers(1, 4),
+    data=st.data(),
+)
+def test_fixed_count_and_groups_match_brute_force(inst, k, data, enumeration):
+    """A row of the trade-off: exactly ``k`` stops, at most one candidate of each group."""
+    trays_of, required, cost = inst
+    groups = data.draw(st.lists(st.integers(0, 2), min_size=len(trays_of),
+                                max_size=len(trays_of)))  # fmt: skip
+    expected = brute_force_fixed(trays_of, required, cost, 1.5, k, groups)
+    kw = {"objective": "time", "stop_cost": 1.5, "enumeration": enumeration, "n_stops": k,
+          "groups": groups}  # fmt: skip
+    if expected is None:
+        with pytest.raises(InfeasiblePlanError):
+            select_stops(trays_of, required, cost, **kw)
+        return
+    sel = select_stops(trays_of, required, cost, **kw)
+    _check(sel, (k, expected), trays_of, required)
+    assert len({groups[c] for c in sel.order}) == k

@@ -414,3 +414,77 @@ def test_a_stations_own_error_model_gives_its_stop_its_success_rate(
             assert s.error_model == "backs-off" and s.success.rate < 0.05 < p.success.rate
         else:
             assert s.error_model is None and s.success == p.success
+
+
+def test_plan_reports_expected_time_with_failures_beside_the_predicted(paper_plan):
+    from pickstop.sequence.failure import FailureCosts, failure_time
+
+    scene, plan = paper_plan
+    costs = FailureCosts.of(scene.failure)
+    assert plan.parameters.failure == scene.failure
+    t = plan.totals.time
+    extra = 0.0
+    for s in plan.stops:
+        f = s.failures
+        assert f is not None and f.source == "monte_carlo" and f.success == s.success.rate
+        assert f.time == pytest.approx(float(failure_time(s.success.rate, costs)))
+        extra += f.time
+    assert t.failures == pytest.approx(extra) and t.expected == pytest.approx(t.total + extra)
+    assert t.expected >= t.total
+    assert plan.totals.retries == pytest.approx(sum(s.failures.retries for s in plan.stops))
+
+
+def test_a_dearer_failure_model_raises_only_the_expected_time(stop_planner, paper_doc):
+    free = {"relocalise_time": 0, "redock_time": 0, "operator_time": 0}
+    dear = {"relocalise_time": 20, "redock_time": 40, "retries": 1, "operator_time": 900}
+    plans = [
+        stop_planner.plan(parse_scene({**paper_doc, "failure": f}), PlanOptions(samples=300))
+        for f in (free, dear)
+    ]
+    assert plans[0].totals.time.total == plans[1].totals.time.total
+    assert plans[0].totals.time.expected == pytest.approx(plans[0].totals.time.total)
+    assert plans[1].totals.time.expected == pytest.approx(
+        plans[1].totals.time.total
+        + sum(60 * (1 - s.success.rate) + 900 * (1 - s.success.rate) ** 2 for s in plans[1].stops)
+    )
+
+
+@pytest.mark.parametrize("name", ["paper_experiment", "five_trays", "factory_cell", "rack_cell"])
+def test_expected_time_plan_is_never_worse_in_expected_time(stop_planner, name):
+    """On the same candidates (the same rule, nothing rejected differently), no objective's
+    plan has a lower expected time than the expected-time objective's; its trade-off holds a
+    row for its own number of stops, with its expected time, and none lower."""
+    scene = parse_scene(json.loads((EXAMPLES / f"{name}.json").read_text()))
+    compared = 0
+    for rule in ("sigma", "success"):
+        plans = {}
+        for objective in ("stops", "time", "expected-time"):
+            try:
+                plans[objective] = stop_planner.plan(
+                    scene, PlanOptions(rule=rule, objective=objective, samples=0)
+                )
+            except InfeasiblePlanError:
+                continue
+        if "expected-time" not in plans:
+            assert not plans
+            continue
+        best = plans.pop("expected-time")
+        t = best.totals.time
+        assert t.expected == pytest.approx(t.total + t.failures)
+        assert all(s.failures.source == "estimate" for s in best.stops)
+        rows = {r.stops: r for r in best.tradeoff}
+        mine = rows[len(best.stops)]
+        assert mine.chosen and sum(r.chosen for r in rows.values()) == 1
+        assert mine.expected_time == pytest.approx(t.expected, abs=1e-2)
+        assert mine.success == pytest.approx(math.prod(s.estimated_success for s in best.stops))
+        assert all(r.expected_time >= mine.expected_time - 1e-2 for r in rows.values())
+        assert all(r.expected_time >= r.time for r in rows.values())
+        for other in plans.values():
+            if [c.status == "rejected" for c in other.candidates] != [
+                c.status == "rejected" for c in best.candidates
+            ]:
+                continue  # a stop failed its exact check in one of them: other candidates
+            assert t.expected <= other.totals.time.expected + 1e-2
+            assert rows[len(other.stops)].expected_time <= other.totals.time.expected + 1e-2
+            compared += 1
+    assert compared >= 2

@@ -85,3 +85,21 @@ def test_infeasible_plan_exits_3_with_its_explanation(region_db, capsys):
     )  # fmt: skip
     assert code == 3 and stdout == ""
     assert "no plan with sigma = 0.600 m: tray tray_1:" in err
+
+
+def test_expected_time_objective_carries_its_trade_off(region_db, tmp_path, capsys):
+    folder, db = region_db
+    out = tmp_path / "plan.json"
+    code, stdout, _ = _run(
+        capsys, "--data-dir", str(folder), "plan", str(EXAMPLES / "five_trays.json"),
+        "--objective", "expected-time", "--samples", "100", "--out", str(out), "--db", db.id,
+    )  # fmt: skip
+    assert code == 0
+    plan = json.loads(out.read_text())
+    assert plan["parameters"]["objective"] == "expected-time"
+    rows = plan["tradeoff"]
+    assert [r["stops"] for r in rows] == sorted(r["stops"] for r in rows)
+    assert [r["stops"] for r in rows if r["chosen"]] == [len(plan["stops"])]
+    summary = json.loads(stdout)
+    assert summary["expected_s"] == round(plan["totals"]["time"]["expected"], 1)
+    assert summary["expected_s"] >= summary["time_s"]

@@ -22,6 +22,11 @@ from pickstop.fleet import order as orders
 from pickstop.fleet.route import read_plan
 from pickstop.sequence import plan_model as pm
 
+NO_RETRIES = (
+    "a stop whose landing misses fails its picks at once (default: it re-docks and calls an "
+    "operator as the scene's failure model says)"
+)
+
 
 def _scene(path: str | None, plan: pm.Plan | None = None) -> Any:
     if path is None:
@@ -185,6 +190,7 @@ def _sim_body(vt: Any) -> Any:
 def cmd_sim_vehicle(args: argparse.Namespace) -> int:
     from pickstop.fleet.sim_node import VehicleNode
     from pickstop.fleet.vehicle import Motion, SimVehicle, error_model
+    from pickstop.sequence.failure import FailureCosts
 
     if args.rate <= 0:
         raise InputError(f"--rate: must be > 0, got {args.rate}", field="rate")
@@ -211,6 +217,7 @@ def cmd_sim_vehicle(args: argparse.Namespace) -> int:
         y=scene.start.y,
         theta=scene.start.yaw,
         map_id=args.map_id or "map",
+        failure=None if args.no_retries else FailureCosts.of(scene.failure),
     )
     node = VehicleNode(veh, broker, args.interface, args.rate, args.time_scale).start()
     print(json.dumps({"vehicle": node.topics, "broker": broker.url, "sigma": sigma}), flush=True)
@@ -232,6 +239,10 @@ def cmd_execute_sim(args: argparse.Namespace) -> int:
     scene = _scene(args.scene, plan)
     check = _checker(args.scene, scene, args, args.db or plan.database)
     broker = None if args.broker is None else mqtt.parse_broker(args.broker)
+    if args.no_retries:
+        plan = plan.model_copy(
+            update={"parameters": plan.parameters.model_copy(update={"failure": None})}
+        )
     pos = _positioning(args, scene, plan.parameters.sigma)
     record = None if args.record is None else Recorder(args.record)
     outcomes = execution.execute(
@@ -317,6 +328,7 @@ def add_commands(sub: Any) -> None:
     sv.add_argument("--time-scale", type=finite_float, default=1.0, help="sim s per s; 0: at once")
     sv.add_argument("--seed", type=int, default=0)
     sv.add_argument("--db", help="reachability database id")
+    sv.add_argument("--no-retries", action="store_true", help=NO_RETRIES)
     _vehicle_args(sv)
     sv.set_defaults(func=cmd_sim_vehicle)
 
@@ -335,4 +347,5 @@ def add_commands(sub: Any) -> None:
         help="where the vehicle lands: an error model file (default: the scene's models, "
         "the ones the plan predicts with)",
     )
+    es.add_argument("--no-retries", action="store_true", help=NO_RETRIES)
     es.set_defaults(func=cmd_execute_sim)

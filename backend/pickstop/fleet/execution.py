@@ -4,6 +4,11 @@ Each run dispatches the plan's VDA 5050 order over MQTT to a :class:`SimVehicle`
 each stop off by the scene's error model and checks every pick with the exact pipeline. A stop
 succeeds in a run when all its picks do, the plan when every stop does. Rates carry 95% Wilson
 intervals; the prediction is the plan's Monte Carlo (per stop) and its product (per plan).
+
+A plan that carries a failure model (``parameters.failure``) runs with it: a stop succeeds when
+its first landing serves every pick; one that does not is re-docked and, after the last retry,
+served by an operator, as the model says, and the executed time (failures included) is set
+beside the plan's expected time.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from pickstop.fleet.sim_node import VehicleNode
 from pickstop.fleet.vehicle import Check, Motion, SimVehicle, error_model, isotropic
 from pickstop.scene.positioning import Positioning
 from pickstop.sequence import plan_model as pm
+from pickstop.sequence.failure import FailureCosts
 from pickstop.sequence.success import Rate
 
 MAX_RUNS = 100_000
@@ -37,6 +43,8 @@ class RunOutcome:
     time: float  # [s] simulated, order accepted to goal reached
     failures: tuple[str, ...]  # results of failed picks
     latency: float | None  # [s] publish to the first state naming the order
+    retries: tuple[int, ...] = ()  # per stop: re-docks (with a failure model)
+    operator: tuple[bool, ...] = ()  # per stop: an operator was called (with a failure model)
 
 
 def vehicle_for(
@@ -47,8 +55,9 @@ def vehicle_for(
     kind: str | None = None,
     positioning: Positioning | None = None,
 ) -> SimVehicle:
-    """A simulated vehicle with the plan's time model and ``positioning`` (default: the
-    plan's isotropic error model; pass the scene's for per-station, biased, anisotropic ones)."""
+    """A simulated vehicle with the plan's time model and failure model, landing by
+    ``positioning`` (default: the plan's isotropic error model; pass the scene's for
+    per-station, biased, anisotropic ones)."""
     p = plan.parameters
     pos = positioning or isotropic(kind or p.error_model, p.sigma, p.yaw_sigma)  # type: ignore[arg-type]
     return SimVehicle(
@@ -59,6 +68,7 @@ def vehicle_for(
         check=check,
         rng=np.random.default_rng(seed),
         version=version,
+        failure=None if p.failure is None else FailureCosts.of(p.failure),
     )
 
 
@@ -99,15 +109,7 @@ def execute(
                     ),
                 )
                 s = disp.run(order, timeout=120.0, record=record)
-                stops = s["stops"]
-                out.append(
-                    RunOutcome(
-                        tuple(st["status"] == "finished" for st in stops),
-                        float((veh.finished_at or veh.clock) - veh.started_at),
-                        tuple(f["result"] or "" for st in stops for f in st["failed"]),
-                        s["latency"],
-                    )
-                )
+                out.append(_outcome(veh, s))
             return out
         finally:
             disp.stop()
@@ -115,6 +117,25 @@ def execute(
     finally:
         if local is not None:
             local.stop()
+
+
+def _outcome(veh: SimVehicle, s: dict[str, Any]) -> RunOutcome:
+    """A run's outcome from the tracker's summary ``s`` and the vehicle's arrivals."""
+    stops = s["stops"]
+    ok = tuple(st["status"] == "finished" for st in stops)
+    arrivals = veh.arrivals if veh.failure is not None else []
+    if arrivals:
+        if len(arrivals) != len(stops):
+            raise AssertionError(f"{len(arrivals)} arrivals recorded for {len(stops)} stops")
+        ok = tuple(a.first_ok for a in arrivals)
+    return RunOutcome(
+        ok,
+        float((veh.finished_at or veh.clock) - veh.started_at),
+        tuple(f["result"] or "" for st in stops for f in st["failed"]),
+        s["latency"],
+        tuple(a.retries for a in arrivals),
+        tuple(a.operator for a in arrivals),
+    )
 
 
 def report(plan: pm.Plan, outcomes: list[RunOutcome]) -> dict[str, Any]:
@@ -161,12 +182,29 @@ def report(plan: pm.Plan, outcomes: list[RunOutcome]) -> dict[str, Any]:
             "executed_min": min(times),
             "executed_max": max(times),
             "predicted": t.time.total,
+            "expected": t.time.expected,
         },
+        "recovery": _recovery(plan, outcomes),
         "dispatch_latency": {
             "median": statistics.median(lat) if lat else None,
             "max": max(lat) if lat else None,
         },
         "failures": [{"reason": r, "count": c} for r, c in reasons.most_common(5)],
+    }
+
+
+def _recovery(plan: pm.Plan, outcomes: list[RunOutcome]) -> dict[str, Any] | None:
+    """Re-docks and operator calls per run, executed (mean) beside expected (None without a
+    failure model)."""
+    runs = [o for o in outcomes if len(o.retries) == len(plan.stops)]
+    if not runs or plan.parameters.failure is None:
+        return None
+    t = plan.totals
+    return {
+        "retries_mean": statistics.fmean(sum(o.retries) for o in runs),
+        "retries_expected": t.retries,
+        "operator_calls_mean": statistics.fmean(sum(o.operator) for o in runs),
+        "operator_calls_expected": t.operator_calls,
     }
 
 
@@ -196,10 +234,21 @@ def table(rep: dict[str, Any]) -> str:
         f"{_pct(p['predicted']):>9} {_iv(p['predicted_interval']):>18}"
     )
     t = rep["time"]
+    expected = "" if t.get("expected") is None else f", expected {t['expected']:.1f} s"
     lines.append(
         f"time: executed {t['executed_mean']:.1f} s (sd {t['executed_sd']:.2f}, "
         f"{t['executed_min']:.1f} to {t['executed_max']:.1f}), predicted {t['predicted']:.1f} s"
+        + expected
     )
+    r = rep.get("recovery")
+    if r is not None:
+        exp_r, exp_o = r["retries_expected"], r["operator_calls_expected"]
+        lines.append(
+            f"re-docks per run: executed {r['retries_mean']:.3f}"
+            + ("" if exp_r is None else f", expected {exp_r:.3f}")
+            + f"; operator calls: executed {r['operator_calls_mean']:.4f}"
+            + ("" if exp_o is None else f", expected {exp_o:.4f}")
+        )
     for f in rep["failures"]:
         lines.append(f"  {f['count']} x {f['reason']}")
     return "\n".join(lines)

@@ -8,6 +8,12 @@ with actions it lands at the node plus an error drawn from the scene's error mod
 (``stop_time``), then runs each ``pick`` (``pick_time``) after checking, from where it really
 stopped, that the part is graspable (``check``: the exact pipeline in :mod:`pickstop.fleet.
 pickcheck`). A failed pick fails its action with the reason; the order goes on.
+
+With a failure model (``failure``, the scene's, :mod:`pickstop.sequence.failure`) it checks
+every pick of a stop when it has docked: if any is impossible from where it landed it
+re-localises and re-docks (``retry_time``), landing anew, up to ``retries`` times, then calls an
+operator (``operator_time``), who sets it at the node; its picks follow. Each arrival is
+recorded (:class:`Arrival`) and reported in the state's ``information``.
 """
 
 from __future__ import annotations
@@ -25,9 +31,11 @@ from pickstop.fleet import vda5050 as v
 from pickstop.fleet.vehicle_types import DEFAULT_PICK, PickAction
 from pickstop.frames import wrap_angle
 from pickstop.scene.positioning import ErrorDist, Kind, Positioning
+from pickstop.sequence.failure import FailureCosts
 from pickstop.sequence.timing import leg_time
 
 REFUSAL_TYPES = ("validationError", "orderError")
+INFO_KEPT = 20  # the latest re-docks and operator calls a state reports
 
 #: ``check(tray_id, x, y, yaw) -> (ok, reason)`` at an actual base pose [m, m, rad].
 Check = Callable[[str, float, float, float], tuple[bool, str]]
@@ -64,6 +72,17 @@ class Motion:
 
 
 @dataclass
+class Arrival:
+    """How a stop's arrival went: did the first landing serve every pick, how many re-docks
+    followed, was an operator called."""
+
+    node: str
+    first_ok: bool
+    retries: int = 0
+    operator: bool = False
+
+
+@dataclass
 class _Action:
     id: str
     type: str
@@ -85,7 +104,7 @@ class _Node:
 
 @dataclass
 class _Phase:
-    kind: str  # "drive", "dock", "pick"
+    kind: str  # "drive", "dock", "redock", "operator", "pick"
     duration: float
     node: int  # the node it ends at / works at
     path: list[tuple[float, float]] = field(default_factory=list)  # drive: from, vias, to
@@ -124,6 +143,9 @@ class SimVehicle:
     started_at: float = 0.0
     finished_at: float | None = None
     stopped_at: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    failure: FailureCosts | None = None  # None: no retries, a failed pick fails its action
+    arrivals: list[Arrival] = field(default_factory=list)  # this order's, in visiting order
+    info: list[dict[str, Any]] = field(default_factory=list)  # the state's information
 
     # -- the factsheet -----------------------------------------------------------------------------
     def factsheet(self, header_id: int = 0) -> dict[str, Any]:
@@ -199,6 +221,8 @@ class SimVehicle:
         self.last_node = 0
         self.started_at, self.finished_at = self.clock, None
         self.stopped_at = {}
+        self.arrivals = []
+        self.info = []
         self.phases = self._plan_phases()
         self.elapsed = 0.0
         if not self.phases:
@@ -316,6 +340,8 @@ class SimVehicle:
                 self.theta = wrap_angle(node.theta + dyaw)
             self.last_node = ph.node
             self.stopped_at[node.id] = (self.x, self.y, self.theta)
+        elif ph.kind in ("dock", "redock", "operator") and self.failure is not None:
+            self._arrived(ph)
         elif ph.kind == "pick":
             a = node.actions[ph.action]
             if a.status == "RUNNING":
@@ -328,6 +354,50 @@ class SimVehicle:
         found = (self.pick.ours(a.params).get("trayId") for a in node.actions
                  if a.type == self.pick.action_type)  # fmt: skip
         return tuple(sorted({str(t) for t in found if t is not None}))
+
+    def _arrived(self, ph: _Phase) -> None:
+        """After docking, a re-dock or an operator's call: go on to the picks if every one is
+        possible from here, else re-dock (landing anew) or, after the last retry, call an
+        operator, who sets the base at the node."""
+        fm, node = self.failure, self.nodes[ph.node]
+        assert fm is not None
+        if ph.kind == "operator":
+            self.x, self.y = node.x, node.y
+            if node.theta is not None:
+                self.theta = node.theta
+            self.arrivals[-1].operator = True
+            self.stopped_at[node.id] = (self.x, self.y, self.theta)
+            return
+        if ph.kind == "redock":
+            yaw = self.theta if node.theta is None else node.theta
+            dx, dy, dyaw = self.forced_error or self.error(
+                self.rng, node.x, node.y, yaw, self._trays(node)
+            )
+            self.x, self.y = node.x + dx, node.y + dy
+            if node.theta is not None:
+                self.theta = wrap_angle(node.theta + dyaw)
+            self.arrivals[-1].retries += 1
+            self.stopped_at[node.id] = (self.x, self.y, self.theta)
+        ok = all(self.check(t, self.x, self.y, self.theta)[0] for t in self._trays(node))
+        if ph.kind == "dock":
+            self.arrivals.append(Arrival(node.id, ok))
+        if ok:
+            return
+        if self.arrivals[-1].retries < fm.retries:
+            nxt = _Phase("redock", fm.retry_time, ph.node)
+        else:
+            nxt = _Phase("operator", fm.operator_time, ph.node)
+        self.phases.insert(1, nxt)
+        where = f"({self.x:.3f}, {self.y:.3f}, {math.degrees(self.theta):.1f} deg)"
+        self.info.append(
+            {
+                "infoType": "retry" if nxt.kind == "redock" else "operatorCall",
+                "infoDescription": f"not every pick at node {node.id} is possible from {where}: "
+                + ("re-docking" if nxt.kind == "redock" else "calling an operator"),
+                "infoLevel": "INFO",
+                "infoReferences": [{"referenceKey": "nodeId", "referenceValue": node.id}],
+            }
+        )
 
     def _pick(self, k: int, a: _Action) -> None:
         node = self.nodes[k]
@@ -409,6 +479,7 @@ class SimVehicle:
             "actionStates": actions,
             "operatingMode": "AUTOMATIC",
             "errors": errors,
+            "information": self.info[-INFO_KEPT:],
             "safetyState": {
                 ("activeEmergencyStop" if v3 else "eStop"): "NONE",
                 "fieldViolation": False,

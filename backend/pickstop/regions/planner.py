@@ -79,8 +79,9 @@ class RegionPlanner(RegionKit):
         # The regions are a function of the layout: the same layout (a change of sigma, rule
         # or objective) takes them as they were, without checking each cached region anew.
         layout = scene.model_dump_json(
-            exclude={"name", "description", "sigma", "error_model", "motion", "start", "goal"}
-        )
+            exclude={"name", "description", "sigma", "error_model", "motion", "failure", "start",
+                     "goal"}
+        )  # fmt: skip
         hit = self._layouts.get(layout)
         if hit is not None:
             for region in hit.values():

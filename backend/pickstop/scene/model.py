@@ -382,6 +382,17 @@ def _same(value: Any, default: Any) -> bool:
     return bool(value == default)
 
 
+class FailureModel(_Strict):
+    """What a failed arrival costs (a stop where some pick is impossible from where the base
+    landed): the base re-localises and re-docks, landing anew, up to ``retries`` times, then
+    an operator is called, who sets the base where it picks (:mod:`pickstop.sequence.failure`)."""
+
+    relocalise_time: NonNegative = 5.0  # [s] per retry
+    redock_time: NonNegative = 10.0  # [s] per retry: back off and dock again
+    retries: Annotated[int, Field(ge=0, le=10)] = 2
+    operator_time: NonNegative = 300.0  # [s] an operator's call after the last retry
+
+
 class Scene(_Strict):
     format: Literal["pickstop.scene"] = "pickstop.scene"
     version: Literal[1] = 1
@@ -402,6 +413,7 @@ class Scene(_Strict):
     sigma: Annotated[float, Field(ge=0, le=1.0)] = defaults.SIGMA  # base positioning error [m]
     error_model: ErrorModel = ErrorModel()
     motion: Motion = Motion()
+    failure: FailureModel = FailureModel()
 
     @model_validator(mode="after")
     def _station_trays(self) -> Scene:

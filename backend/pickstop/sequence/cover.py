@@ -11,6 +11,10 @@ enumeration instead (:func:`_by_enumeration`): every set of candidates of a size
 each of its stops can serve a tray of its own and all of them serve every tray, each with its
 best visiting order, on the same integer costs as the CP-SAT model. It is bounded by
 :data:`ENUMERATION` (sets times visiting orders times stops), beyond which CP-SAT solves it.
+
+Two optional constraints serve the expected-time objective: ``groups`` (candidates of one group
+are alternatives: at most one of them is chosen) and ``n_stops`` (exactly that many stops: a
+row of the trade-off between stops and time).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -63,6 +68,8 @@ def select_stops(
     time_limit: float = 20.0,
     workers: int | None = None,
     enumeration: int = ENUMERATION,
+    n_stops: int | None = None,
+    groups: Sequence[int] | None = None,
 ) -> Selection:
     """Pick stops among candidates.
 
@@ -72,10 +79,13 @@ def select_stops(
     route cost + ``stop_cost`` per stop directly.
     workers: CP-SAT search workers (default: one up to :data:`ONE_WORKER` candidates, else 8).
     enumeration: the largest model (route evaluations) solved by enumeration (0: CP-SAT).
+    n_stops: exactly this many stops (default: any number).
+    groups: ``(N,)`` a group per candidate; at most one candidate of each group is chosen.
     """
     t0 = time.perf_counter()
     N = len(trays_of)
     assert cost.shape == (N + 2, N + 2)
+    assert groups is None or len(groups) == N
     req = list(dict.fromkeys(required))
     servable = {t: [c for c in range(N) if t in trays_of[c]] for t in req}
     missing = [t for t in req if not servable[t]]
@@ -85,7 +95,8 @@ def select_stops(
         )
     icost = np.where(np.isfinite(cost), np.round(cost * SCALE), -1).astype(np.int64)
     stop_unit = round(stop_cost * SCALE) if objective == "time" else None
-    found = _by_enumeration(trays_of, req, icost, stop_unit, enumeration)
+    group = np.arange(N) if groups is None else np.asarray(groups, np.int64)
+    found = _by_enumeration(trays_of, req, icost, stop_unit, enumeration, n_stops, group)
     if found is not None:
         best_order, best_serves = found
         return Selection(best_order, best_serves, _cost(cost, best_order, objective, stop_cost),
@@ -120,20 +131,26 @@ def select_stops(
     for c in range(N):
         arcs.append((c + 2, c + 2, x[c].negated()))
     model.add_circuit(arcs)
+    for g in np.unique(group):
+        alike = np.flatnonzero(group == g)
+        if len(alike) > 1:
+            model.add_at_most_one(x[int(c)] for c in alike)
     route = sum(int(icost[i, j]) * lit for i, j, lit in arc_lits)
-    n_stops = sum(x)
+    count = sum(x)
+    if n_stops is not None:
+        model.add(count == n_stops)
     solver = cp_model.CpSolver()
     solver.parameters.num_workers = workers or (1 if N <= ONE_WORKER else 8)
     solver.parameters.max_time_in_seconds = time_limit
     optimal = True
     pruned = 0
     if objective == "stops":
-        model.minimize(n_stops)
+        model.minimize(count)
         status = solver.solve(model)
         _check(status, req)
         optimal &= status == cp_model.OPTIMAL
         best = round(solver.objective_value)
-        model.add(n_stops == best)
+        model.add(count == best)
         model.minimize(route)
         # Prune: a route through c is at least start -> c -> goal long (shortest paths obey
         # the triangle inequality), so c cannot beat the first phase's route if that is longer.
@@ -147,7 +164,7 @@ def select_stops(
         for c in range(N):  # warm start from the first phase's stops
             model.add_hint(x[c], bool(solver.value(x[c])))
     else:
-        model.minimize(route + round(stop_cost * SCALE) * n_stops)
+        model.minimize(route + round(stop_cost * SCALE) * count)
     status = solver.solve(model)
     _check(status, req)
     optimal &= status == cp_model.OPTIMAL
@@ -178,6 +195,8 @@ def _by_enumeration(
     icost: np.ndarray,
     stop_unit: int | None,
     limit: int,
+    n_stops: int | None = None,
+    group: np.ndarray | None = None,
 ) -> tuple[tuple[int, ...], dict[str, int]] | None:
     """The CP-SAT model's optimum by enumeration: ``(order, serves)``, or None if the model
     is beyond ``limit`` route evaluations (or has no plan: CP-SAT then says why).
@@ -188,7 +207,9 @@ def _by_enumeration(
     cover at least j required trays: each can serve one of its own, exactly as the model's
     every-tray-once, every-stop-at-least-one) and together they cover every tray. Sets of
     each size are enumerated in lexicographic order, visiting orders in lexicographic order
-    too, and the first best is taken: the same inputs always give the same stops."""
+    too, and the first best is taken: the same inputs always give the same stops. With
+    ``n_stops`` only sets of that size are tried; with ``group`` (a group per candidate) none
+    holding two candidates of a group."""
     N, T = len(trays_of), len(req)
     if T > 62 or N == 0:
         return None
@@ -201,11 +222,16 @@ def _by_enumeration(
     for k in range(1, min(N, T) + 1):
         if best is not None and (stop_unit is None or stop_unit * k >= best[0]):
             break  # fewest stops found, or a larger set costs more in stops alone
+        if n_stops is not None and k != n_stops:
+            continue
         budget -= math.comb(N, k) * k
         if budget < 0:
             return None
         sets = np.array(list(itertools.combinations(range(N), k)), np.int64).reshape(-1, k)
         sets = sets[np.bitwise_or.reduce(masks[sets], axis=1) == full]
+        if group is not None and k > 1:
+            g = np.sort(group[sets], axis=1)
+            sets = sets[(np.diff(g, axis=1) != 0).all(axis=1)]
         sets = sets[_hall(masks[sets])]
         if not len(sets):
             continue

@@ -46,13 +46,16 @@ from pickstop.regions.kit import Interrupted
 from pickstop.regions.offgrid import check_key, feasible_near
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
-from pickstop.scene.positioning import of_scene
+from pickstop.scene.positioning import ErrorDist, of_scene
+from pickstop.sequence import expected
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
+from pickstop.sequence.estimate import feasible_subcells, kernel, subset_estimates
+from pickstop.sequence.failure import FailureCosts, failure_time, stop_failures
 from pickstop.sequence.intersections import Intersection, inscribed_circle, intersections
 from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
-from pickstop.sequence.success import Rate, combined, monte_carlo_at
+from pickstop.sequence.success import Kind, Rate, combined, monte_carlo_at
 from pickstop.sequence.timing import TimeBreakdown, leg_time, pieces_time, plan_time, rest_pieces
 
 MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
@@ -139,6 +142,7 @@ class StopPlanner:
         self._check_keys = _Lru(4096)  # (world key, region digest, pose) -> check key
         self._witnesses = _Lru(4096)
         self._rates = _Lru(4096)
+        self._estimates = _Lru(4096)  # (world, regions, pose, error model) -> set -> estimate
         self._selections = _Lru(256)
         self._circles = _Lru(4096)  # component (its WKB's digest) -> its inscribed circle
         self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
@@ -329,6 +333,32 @@ class StopPlanner:
         rate = monte_carlo_at(evaluate, xy, yaw, dist, samples, rng)
         return self._rates.put(key, rate)
 
+    def estimates(
+        self,
+        scene: Scene,
+        world_key: str,
+        regions: list[TrayRegion],
+        xy: tuple[float, float],
+        sigma: float,
+        kind: Kind,
+        dist: ErrorDist | None = None,
+        yaw: float = 0.0,
+    ) -> dict[frozenset[str], float]:
+        """Fast success estimates (:mod:`~pickstop.sequence.estimate`) of a stop at ``xy``
+        (heading ``yaw``) serving each set of the regions' trays, under the isotropic
+        ``kind`` and ``sigma`` or the stop's own model ``dist`` (cached)."""
+        trays = tuple(r.tray_id for r in regions)
+        key = (world_key, tuple(r.digest for r in regions), xy, sigma, kind, dist, yaw)
+        hit = self._estimates.hit(key)
+        if hit is not None:
+            return dict(hit)
+        sets = expected.tray_sets(trays)
+        if sigma <= 0 and (dist is None or dist.legacy):  # it lands where it aims
+            return dict(self._estimates.put(key, dict.fromkeys(sets, 1.0)))
+        k = kernel(kind, sigma, regions[0].grid, xy, dist=dist, yaw=yaw)
+        feasible = {r.tray_id: feasible_subcells(r, k) for r in regions}
+        return dict(self._estimates.put(key, subset_estimates(k, feasible, sets)))
+
     def prefetch_checks(
         self, scene: Scene, lock: Any = None, stale: Callable[[], bool] = lambda: False
     ) -> int:
@@ -363,6 +393,8 @@ class StopPlanner:
         stop_cost: float,
         time_limit: float,
         unlock: Any = None,
+        n_stops: int | None = None,
+        groups: tuple[int, ...] | None = None,
     ) -> Selection:
         """:func:`~pickstop.sequence.cover.select_stops`, remembered: while sigma or the rule
         moves, the kept candidates often stay the same set. ``unlock``: the planner's lock,
@@ -375,6 +407,8 @@ class StopPlanner:
             objective,
             stop_cost,
             time_limit,
+            n_stops,
+            groups,
         )
         hit = self._selections.hit(key)
         if hit is not None:
@@ -386,7 +420,8 @@ class StopPlanner:
 
         def solve() -> Selection:
             return select_stops(trays_of, required, cost, objective=objective,
-                                stop_cost=stop_cost, time_limit=time_limit)  # fmt: skip
+                                stop_cost=stop_cost, time_limit=time_limit, n_stops=n_stops,
+                                groups=groups)  # fmt: skip
 
         if unlock is None:
             return self._selections.put(key, solve())
@@ -511,7 +546,17 @@ def route_yaws(scene: Scene, cands: list[Intersection]) -> np.ndarray:
 def world_key(scene: Scene) -> str:
     """What feasibility at a base pose depends on: everything but task, start, goal, sigma."""
     keep = scene.model_dump(
-        exclude={"name", "description", "task", "start", "goal", "sigma", "error_model", "motion"}
+        exclude={
+            "name",
+            "description",
+            "task",
+            "start",
+            "goal",
+            "sigma",
+            "error_model",
+            "motion",
+            "failure",
+        }
     )
     return _digest(sorted(keep.items()))
 
@@ -520,8 +565,42 @@ def scene_hash(scene: Scene) -> str:
     return hashlib.sha256(scene.model_dump_json().encode()).hexdigest()
 
 
-def _time(tb: TimeBreakdown) -> pm.TimeTotals:
-    return pm.TimeTotals(travel=tb.travel, stops=tb.stops, picks=tb.picks, total=tb.total)
+def _in_global(sel: Selection, idx: list[int]) -> Selection:
+    """A selection over candidates ``idx`` in global candidate indices."""
+    return Selection(
+        tuple(idx[c] for c in sel.order),
+        {t: idx[c] for t, c in sel.serves.items()},
+        sel.cost,
+        sel.optimal,
+        sel.seconds,
+        sel.pruned,
+    )
+
+
+def _time(tb: TimeBreakdown, stops: list[pm.StopFailures | None] | None = None) -> pm.TimeTotals:
+    """The time totals; with every stop's expected failures, the expected time too."""
+    failures = None
+    if stops and all(f is not None for f in stops):
+        failures = float(sum(f.time for f in stops if f is not None))
+    return pm.TimeTotals(
+        travel=tb.travel,
+        stops=tb.stops,
+        picks=tb.picks,
+        total=tb.total,
+        failures=failures,
+        expected=None if failures is None else tb.total + failures,
+    )
+
+
+def _failures(
+    p: float | None, source: Literal["monte_carlo", "estimate"], costs: FailureCosts
+) -> pm.StopFailures | None:
+    """A stop's expected failures at success rate ``p`` (None: no rate known)."""
+    if p is None:
+        return None
+    f = stop_failures(p, costs)
+    return pm.StopFailures(success=p, source=source, retries=f.retries, operator=f.operator,
+                           time=f.time)  # fmt: skip
 
 
 class _Planning:
@@ -551,6 +630,11 @@ class _Planning:
         )  # fmt: skip
         self.rejected: dict[int, str] = {}
         self.predicted: dict[int, float] = {}
+        self.costs = FailureCosts.of(scene.failure)
+        self.est: dict[int, dict[frozenset[str], float]] = {}  # candidate -> tray set -> rate
+        self.cands: list[Intersection] = []
+        self.rows: dict[tuple[Any, ...], dict[int, Selection]] = {}  # see _expected
+        self.regions: dict[tuple[str, float], TrayRegion] = {}
 
     def _clock(self, name: str, t0: float) -> float:
         now = time.perf_counter()
@@ -564,6 +648,7 @@ class _Planning:
         t0 = self._clock("regions", t0)
         self._empty_regions(regions)
         cands = sp.candidates(regions)
+        self.cands, self.regions = cands, regions
         t0 = self._clock("intersections", t0)
 
         floor = sp.floor(scene, self.world)
@@ -580,9 +665,14 @@ class _Planning:
         threshold = self._apply_rule(cands, paths)
         sel, witnesses, rates = self._select_verified(regions, cands, paths)
         t0 = time.perf_counter()
+        tradeoff = None
+        if self.opts.objective == "expected-time" and not self.preview:
+            tradeoff = self._tradeoff(paths, sel)
+            t0 = self._clock("selection", t0)
         naive = self._naive(regions, cands, paths, sel)
         self._clock("naive", t0)
-        return self._assemble(cands, paths, sel, witnesses, rates, naive, threshold, t_start)
+        plan = self._assemble(cands, paths, sel, witnesses, rates, naive, threshold, t_start)
+        return plan if tradeoff is None else plan.model_copy(update={"tradeoff": tradeoff})
 
     def _preview_regions(self) -> dict[tuple[str, float], TrayRegion]:
         rp, scene = self.sp.regions, self.scene
@@ -722,36 +812,110 @@ class _Planning:
 
     def _solve(self, trays_of: list[frozenset[str]], idx: list[int], paths: Paths) -> Selection:
         """Stop selection over candidates ``idx``; the result is in global candidate indices."""
-        nodes = [0, 1, *(i + 2 for i in idx)]
-        dist = paths.dist[np.ix_(nodes, nodes)]
         motion = self.scene.motion
+        if self.opts.objective == "expected-time":  # with the trade-off's rows, if wanted
+            ks = None if self.preview else list(range(1, len(self.required) + 1))
+            return self._expected(idx, paths, ks)[0]
         if self.opts.objective == "time":
-            cost = leg_time(dist, motion.max_speed, motion.max_acceleration)
-            cost = np.where(np.isfinite(dist), cost, np.inf)
-            if paths.docked:  # a path with docking legs halts at their ends
-                for a, b in zip(*np.nonzero(np.isfinite(dist)), strict=True):
-                    if a != b:
-                        pieces = self._pieces(paths, nodes[a], nodes[b])
-                        cost[a, b] = pieces_time(pieces, motion.max_speed, motion.max_acceleration)
+            cost = self._time_cost(paths, idx)
         else:
-            cost = dist
+            cost = paths.dist[np.ix_([0, 1, *(i + 2 for i in idx)], [0, 1, *(i + 2 for i in idx)])]
         sel = self.sp.selection(
             trays_of,
             self.required,
             cost,
-            self.opts.objective,
+            self.opts.objective,  # type: ignore[arg-type]
             motion.stop_time,
             self.opts.time_limit,
             self.unlock,
         )
-        return Selection(
-            tuple(idx[c] for c in sel.order),
-            {t: idx[c] for t, c in sel.serves.items()},
-            sel.cost,
-            sel.optimal,
-            sel.seconds,
-            sel.pruned,
-        )
+        return _in_global(sel, idx)
+
+    def _expected(
+        self, idx: list[int], paths: Paths, ks: list[int] | None = None
+    ) -> dict[int, Selection]:
+        """:func:`~pickstop.sequence.expected.select` over candidates ``idx``: the least
+        expected-time selection (key 0) and, for each k of ``ks``, the least of k stops; in
+        global candidate indices (remembered for the request: the trade-off takes the rows
+        of the last selection's candidates)."""
+        memo = (tuple(idx), None if ks is None else tuple(ks))
+        if memo in self.rows:
+            return self.rows[memo]
+        motion = self.scene.motion
+
+        def solve(
+            trays_of: list[frozenset[str]], required: list[str], cost: np.ndarray,
+            stop_cost: float, n_stops: int | None, groups: tuple[int, ...],
+        ) -> Selection:  # fmt: skip
+            limit = self.opts.time_limit
+            return self.sp.selection(trays_of, required, cost, "time", stop_cost, limit,
+                                     self.unlock, n_stops, groups)  # fmt: skip
+
+        rows = expected.select(
+            [self._serveable(c) for c in idx], self.required, self._time_cost(paths, idx),
+            motion.stop_time, [self._estimates(c) for c in idx], self.costs, solve, ks,
+        )  # fmt: skip
+        self.rows[memo] = {k: _in_global(sel, idx) for k, sel in rows.items()}
+        return self.rows[memo]
+
+    def _time_cost(self, paths: Paths, idx: list[int]) -> np.ndarray:
+        """``(n + 2, n + 2)`` rest-to-rest travel times [s] between start, goal and candidates
+        ``idx`` (inf: no way)."""
+        nodes = [0, 1, *(i + 2 for i in idx)]
+        dist = paths.dist[np.ix_(nodes, nodes)]
+        motion = self.scene.motion
+        cost = leg_time(dist, motion.max_speed, motion.max_acceleration)
+        cost = np.where(np.isfinite(dist), cost, np.inf)
+        if paths.docked:  # a path with docking legs halts at their ends
+            for a, b in zip(*np.nonzero(np.isfinite(dist)), strict=True):
+                if a != b:
+                    pieces = self._pieces(paths, nodes[a], nodes[b])
+                    cost[a, b] = pieces_time(pieces, motion.max_speed, motion.max_acceleration)
+        return cost
+
+    # -- success estimates and the expected-time objective -----------------------------------
+    def _serveable(self, c: int) -> list[str]:
+        """The required trays candidate ``c`` can serve."""
+        return [t for t in self.required if t in self.cands[c].trays]
+
+    def _estimates(self, c: int) -> dict[frozenset[str], float]:
+        """Success estimates of candidate ``c`` for every set of the trays it can serve."""
+        hit = self.est.get(c)
+        if hit is None:
+            cand = self.cands[c]
+            hit = self.est[c] = self.sp.estimates(
+                self.scene, self.world, [self.regions[t, cand.yaw] for t in self._serveable(c)],
+                cand.centre, self.sigma, self.kind,
+                self.positioning.at(cand.centre, self._serveable(c)), cand.yaw,
+            )  # fmt: skip
+        return hit
+
+    def _tradeoff(self, paths: Paths, sel: Selection) -> list[pm.TradeoffRow]:
+        """For each number of stops, the least expected time over the kept candidates, its
+        predicted time and its success (estimates)."""
+        kept = [i for i in range(len(self.cands)) if i not in self.rejected]
+        ks = list(range(1, len(self.required) + 1))
+        found = self._expected(kept, paths, ks)
+        rows = []
+        for k in ks:
+            row = sel if k == len(sel.order) else found.get(k)
+            if row is None:
+                continue
+            _, lengths = self._legs(paths, row.order)
+            tb = self._times(lengths, k)
+            ps = [self._estimates(c)[s] for c, s in expected.served(row).items()]
+            failures = float(np.sum(failure_time(np.array(ps), self.costs)))
+            rows.append(
+                pm.TradeoffRow(
+                    stops=k,
+                    expected_time=tb.total + failures,
+                    time=tb.total,
+                    success=float(np.prod(ps)),
+                    optimal=row.optimal,
+                    chosen=row is sel,
+                )
+            )
+        return rows
 
     # -- naive plan and the document ----------------------------------------------------------
     def _naive(
@@ -826,11 +990,19 @@ class _Planning:
     ) -> pm.Plan:
         scene, opts, sp = self.scene, self.opts, self.sp
         robot = sp.regions.robot
+        costs, preview = self.costs, self.preview
+        served = expected.served(sel)
         stops = []
         for k, c in enumerate(sel.order):
             cand = cands[c]
             rate = rates.get(c)
             picked = [t for t in self.required if sel.serves[t] == c]
+            est = None if preview else self._estimates(c)[served[c]]
+            fails = (
+                _failures(rate.rate, "monte_carlo", costs)
+                if rate is not None
+                else _failures(est, "estimate", costs)
+            )
             stops.append(
                 pm.Stop(
                     index=k,
@@ -843,6 +1015,7 @@ class _Planning:
                     candidate=c,
                     witnesses=witnesses[c],
                     error_model=self.positioning.station_of(cand.centre, picked),
+                    estimated_success=est,
                     success=None
                     if rate is None
                     else pm.Success(
@@ -851,6 +1024,7 @@ class _Planning:
                         rate=rate.rate,
                         interval=rate.interval,
                     ),
+                    failures=fails,
                 )
             )
         legs, lengths = self._legs(paths, sel.order)
@@ -858,6 +1032,9 @@ class _Planning:
         for leg in legs:
             route += leg.polyline if not route else leg.polyline[1:]
         tb = self._times(lengths, len(sel.order))
+        fails_of = [s.failures for s in stops]
+        known = [f for f in fails_of if f is not None]
+        whole = len(known) == len(stops)
         success, interval = (None, None)
         if rates:
             success, interval = combined([rates[c] for c in sel.order])
@@ -865,6 +1042,10 @@ class _Planning:
         best, nsel = naive
         nlegs, nlengths = self._legs(paths, nsel.order)
         ntb = self._times(nlengths, len(best))
+        nfails = [
+            None if preview else _failures(self._estimates(c)[s], "estimate", costs)
+            for c, s in expected.served(nsel).items()
+        ]
         chosen = set(sel.order)
         m = scene.motion
         return pm.Plan(
@@ -901,6 +1082,7 @@ class _Planning:
                 max_acceleration=m.max_acceleration,
                 stop_time=m.stop_time,
                 pick_time=m.pick_time,
+                failure=scene.failure,
             ),
             stops=stops,
             route=route,
@@ -908,9 +1090,11 @@ class _Planning:
             totals=pm.Totals(
                 stops=len(stops),
                 route_length=float(sum(leg.length for leg in legs)),
-                time=_time(tb),
+                time=_time(tb, fails_of),
                 success=success,
                 success_interval=interval,
+                retries=float(sum(f.retries for f in known)) if whole else None,
+                operator_calls=float(sum(f.operator for f in known)) if whole else None,
             ),
             naive=pm.Naive(
                 stops=[
@@ -923,7 +1107,7 @@ class _Planning:
                     for i in nsel.order
                 ],
                 route_length=float(sum(leg.length for leg in nlegs)),
-                time=_time(ntb),
+                time=_time(ntb, nfails),
                 saving_time=ntb.total - tb.total,
                 saving_fraction=(ntb.total - tb.total) / ntb.total if ntb.total > 0 else 0.0,
                 saving_stops=len(best) - len(stops),
@@ -943,6 +1127,9 @@ class _Planning:
                     else ("rejected" if i in self.rejected else "kept"),
                     reason=self.rejected.get(i),
                     predicted_success=self.predicted.get(i),
+                    estimated_success=None
+                    if preview
+                    else self._estimates(i)[frozenset(self._serveable(i))],
                     polygon=c.rings,
                 )
                 for i, c in enumerate(cands)

@@ -10,6 +10,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from pickstop.scene.model import FailureModel
+
 FORMAT = "pickstop.plan"
 VERSION = 1
 
@@ -32,10 +34,11 @@ class PlanOptions(BaseModel):
     target: Annotated[float, Field(gt=0.5, lt=1.0)] = Field(
         default=0.95, description="success rate the 'success' rule requires per stop"
     )
-    objective: Literal["stops", "time"] = Field(
+    objective: Literal["stops", "time", "expected-time"] = Field(
         default="stops",
         description="'stops': fewest stops, then the shortest route; 'time': least predicted "
-        "operation time",
+        "operation time; 'expected-time': least expected time, failed arrivals included (the "
+        "scene's failure model, each stop's fast success estimate)",
     )
     samples: Annotated[int, Field(ge=0, le=100_000)] = Field(
         default=1000, description="Monte Carlo samples per stop (0: no success estimate)"
@@ -71,6 +74,17 @@ class Success(BaseModel):
     interval: Point2  # 95% Wilson score interval
 
 
+class StopFailures(BaseModel):
+    """A stop's failed arrivals expected per run under the scene's failure model
+    (:mod:`pickstop.sequence.failure`)."""
+
+    success: float  # the stop's success rate these follow from
+    source: Literal["monte_carlo", "estimate"]  # where that rate comes from
+    retries: float  # expected re-localise and re-dock rounds
+    operator: float  # probability that an operator is called
+    time: float  # expected extra time [s]
+
+
 class Stop(BaseModel):
     index: int  # visiting order, from 0
     x: float
@@ -87,6 +101,8 @@ class Stop(BaseModel):
         description="the station whose error model the stop's success rate uses "
         "(the scene's error_model.stations); null: the scene's global model",
     )
+    estimated_success: float | None = None  # fast estimate (error density over the cells)
+    failures: StopFailures | None = None
 
 
 class Leg(BaseModel):
@@ -107,7 +123,13 @@ class TimeTotals(BaseModel):
     travel: float
     stops: float
     picks: float
-    total: float
+    total: float  # predicted: every arrival succeeds [s]
+    failures: float | None = Field(
+        default=None, description="expected time of failed arrivals per run [s]"
+    )
+    expected: float | None = Field(
+        default=None, description="expected time per run, failures included: total + failures [s]"
+    )
 
 
 class Totals(BaseModel):
@@ -116,6 +138,8 @@ class Totals(BaseModel):
     time: TimeTotals
     success: float | None = None  # whole plan: product over stops
     success_interval: Point2 | None = None
+    retries: float | None = None  # expected re-docks per run
+    operator_calls: float | None = None  # expected operator calls per run
 
 
 class NaiveStop(BaseModel):
@@ -150,7 +174,19 @@ class IntersectionRecord(BaseModel):
     status: Literal["chosen", "kept", "rejected"]
     reason: str | None = None  # why it was rejected
     predicted_success: float | None = None  # from the region's shape ('success' rule)
+    estimated_success: float | None = None  # fast estimate at its centre, for all its trays
     polygon: list[list[Point2]]  # exterior ring, then holes
+
+
+class TradeoffRow(BaseModel):
+    """The least expected time with exactly ``stops`` stops (expected-time objective)."""
+
+    stops: int
+    expected_time: float  # [s] per run, failures included
+    time: float  # [s] predicted, every arrival succeeding
+    success: float  # whole plan, from the stops' success estimates
+    optimal: bool  # proven by the solver
+    chosen: bool  # the plan's own row
 
 
 class Parameters(BaseModel):
@@ -158,7 +194,7 @@ class Parameters(BaseModel):
     rule: Literal["sigma", "success"]
     target: float
     threshold_radius: float  # inscribed radius a candidate needs to be kept outright [m]
-    objective: Literal["stops", "time"]
+    objective: Literal["stops", "time", "expected-time"]
     error_model: Literal["bounded", "gaussian"]
     yaw_sigma: float
     samples: int
@@ -169,6 +205,7 @@ class Parameters(BaseModel):
     max_acceleration: float
     stop_time: float
     pick_time: float
+    failure: FailureModel | None = None  # what a failed arrival costs
 
 
 class Timings(BaseModel):
@@ -203,6 +240,12 @@ class Plan(BaseModel):
     naive: Naive
     optimal: bool  # the stop selection was proven optimal
     candidates: list[IntersectionRecord]
+    tradeoff: list[TradeoffRow] | None = Field(
+        default=None,
+        description="expected-time objective: for each number of stops, the least expected "
+        "time and its success over the same candidates (the chosen row verified, the others "
+        "not)",
+    )
     timings: Timings
     verified: bool = Field(
         default=True,

@@ -63,6 +63,26 @@ def sample_errors(
     return ErrorDist(kind, sigma, yaw_sigma=yaw_sigma).sample(n, rng)
 
 
+def density(kind: Kind, sigma: float, dxy: np.ndarray) -> np.ndarray:
+    """The position error's probability density [1/m^2] at offsets ``dxy: (..., 2)`` [m]
+    (``sigma > 0``): what the fast success estimate (:mod:`pickstop.sequence.estimate`)
+    integrates, the same distribution :func:`sample_errors` draws from."""
+    dxy = np.asarray(dxy, float)
+    assert dxy.shape[-1] == 2 and sigma > 0
+    r2 = (dxy * dxy).sum(-1)
+    if kind == "bounded":
+        return np.where(r2 <= sigma * sigma, 1.0 / (math.pi * sigma * sigma), 0.0)
+    s2 = rayleigh_scale(sigma) ** 2
+    return np.exp(-r2 / (2.0 * s2)) / (2.0 * math.pi * s2)
+
+
+def support(kind: Kind, sigma: float) -> float:
+    """The radius [m] holding all of :func:`density` but a mass below 1e-5."""
+    if kind == "bounded":
+        return sigma
+    return rayleigh_scale(sigma) * math.sqrt(-2.0 * math.log(1e-5))
+
+
 @dataclass(frozen=True)
 class Rate:
     """A success rate with its 95% Wilson score interval."""
