@@ -276,3 +276,45 @@ class Job(BaseModel):
                 "result": json.loads(row["result"]) if row["result"] else None,
             }
         )
+
+
+# -- placement -------------------------------------------------------------------------------------
+Coordinate = Annotated[float, Field(ge=-1e4, le=1e4, allow_inf_nan=False)]
+
+
+class PlacementRequest(BatchItem):
+    """Where a tray of the scene would stand with its footprint at ``(x, y, yaw)``."""
+
+    tray: str = Field(description="a tray of the scene (its own place does not count)")
+    x: Coordinate
+    y: Coordinate
+    yaw: Coordinate = 0.0
+    z_hint: Coordinate | None = Field(
+        default=None, description="the tray's pose height now [m]: of the supports under the "
+        "footprint, the free one nearest this height (a tray dragged along a shelf stays on it)"
+    )  # fmt: skip
+
+
+class PlacementAnswer(BaseModel):
+    """The support under the footprint (an obstacle id, ``floor``, or null), the pose height
+    that rests the tray there [m] and whether it stands free (else ``problem`` says why)."""
+
+    tray: str
+    x: float
+    y: float
+    yaw: float
+    z: float | None
+    support: str | None
+    free: bool
+    problem: str | None = None
+
+
+class CopyRequest(BatchItem):
+    tray: str = Field(description="the tray to copy onto a free spot of its support")
+
+
+class CopyAnswer(BaseModel):
+    tray: dict[str, Any] | None = Field(
+        description="the copy (new ids for it and its parts) on the nearest free spot of the "
+        "same support, as a tray document; null if the support has no free spot"
+    )
