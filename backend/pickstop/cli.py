@@ -352,6 +352,8 @@ def _plan_row(plan: Any) -> dict[str, Any]:
 def cmd_plan(args: argparse.Namespace) -> int:
     options = _plan_options(args)
     src = Path(args.scene)
+    if args.orders is not None:
+        return _plan_mix(src, args, options)
     if src.is_dir():
         return _plan_batch(src, args, options)
     pool = _pool(args)
@@ -369,6 +371,45 @@ def cmd_plan(args: argparse.Namespace) -> int:
     else:
         _emit(doc)
     return 0
+
+
+def _plan_mix(src: Path, args: argparse.Namespace, options: Any) -> int:
+    """Every order of a mix on the scene's layout (``--orders``: the scene's, or a file's):
+    one plan per order and the mix document in ``--out`` (a folder), the mix on stdout.
+    Exit 3 if an order has no plan."""
+    from pickstop.scene.load import load_scene
+    from pickstop.scene.orders import load_orders, scene_orders
+    from pickstop.sequence.mix import mix_document, plan_mix
+
+    if src.is_dir():
+        raise InputError(f"--orders: {src} is a folder; give one scene file", field="orders")
+    out = Path(args.out) if args.out else None
+    if out is not None and out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: must be a folder for the orders' plans", field="out")
+    scene = load_scene(src)
+    orders = scene_orders(scene) if args.orders is True else load_orders(args.orders, scene)
+    pool = _pool(args)
+    try:
+        slot = pool.scene_slot(scene, src.resolve().parent, args.db)
+        slot.regions.workers = args.workers
+        mix = plan_mix(slot.planner, scene, orders, options)
+    finally:
+        pool.close()
+    refs: list[str | None] = [None] * len(mix.orders)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        for k, op in enumerate(mix.orders):
+            if op.plan is not None:
+                refs[k] = f"{op.order.id}.plan.json"
+                _write_json(out / refs[k], op.plan.model_dump(mode="json"))
+    doc = mix_document(mix, refs).model_dump(mode="json")
+    if out is not None:
+        _write_json(out / "mix.json", doc)
+    _emit(doc)
+    failed = [op for op in mix.orders if op.plan is None]
+    for op in failed:
+        print(f"pickstop: order {op.order.id}: {op.error}", file=sys.stderr)
+    return 3 if failed else 0
 
 
 def _write_json(path: Path, doc: Any) -> None:
@@ -632,6 +673,15 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--seed", type=int, help="Monte Carlo seed")
     pl.add_argument("--time-limit", type=finite_float, help="stop selection time limit [s]")
     pl.add_argument("--out", help="write the plan here (a folder when planning a folder)")
+    pl.add_argument(
+        "--orders",
+        nargs="?",
+        const=True,
+        metavar="FILE",
+        help="plan every order of a product mix on the scene's layout: the scene's orders, or "
+        "a JSON list of {id, trays | parts, weight} in FILE; --out: a folder for one plan per "
+        "order and mix.json",
+    )
     pl.add_argument("--json", action="store_true", help="folder: the summary as JSON, not a table")
     pl.add_argument("--db", help="reachability database id (default: the largest for the robot)")
     pl.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1)

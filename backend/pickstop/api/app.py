@@ -23,7 +23,16 @@ from pickstop.api.fleet import DispatchRequest
 from pickstop.api.limits import Limits
 from pickstop.api.middleware import API, BodyLimit, StoredPlanFastPath
 from pickstop.api.problems import install, server_roots
-from pickstop.api.routes import databases, health, jobs, placements, plans, robots, scenes
+from pickstop.api.routes import (
+    databases,
+    health,
+    jobs,
+    mixes,
+    placements,
+    plans,
+    robots,
+    scenes,
+)
 from pickstop.api.schemas import (
     BatchRequest,
     BuildRequest,
@@ -37,7 +46,7 @@ from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
-           jobs.router, placements.router)  # fmt: skip
+           jobs.router, placements.router, mixes.router)  # fmt: skip
 
 
 def create_app(

@@ -43,7 +43,7 @@ log = logging.getLogger("pickstop.api")
 
 POLL = 0.05  # seconds between checks for a Cancelled while waiting on the child
 ACK_WAIT = 30.0  # seconds a stopped computation may take to unwind before the child restarts
-KINDS = ("plan", "preview", "plan_json", "preview_json", "regions")
+KINDS = ("plan", "preview", "plan_json", "preview_json", "regions", "plan_mix")
 SETTINGS_ENV = "PICKSTOP_CHILD_SETTINGS"
 #: The child's lower priority: when the API process needs a core to answer a read, the
 #: planner yields it (a nice-3 process weighs half of a nice-0 one); alone, it plans at
@@ -211,6 +211,11 @@ class PlannerProcess:
 
     def preview_json(self, scene: Any, options: Any, db_id: str | None = None) -> bytes:
         return self.call("preview_json", scene, options, db_id)
+
+    def plan_mix(
+        self, scene: Any, orders: Any, options: Any, db_id: str | None = None, prepare: Any = None
+    ) -> Any:
+        return self.call("plan_mix", scene, orders, options, db_id, prepare)
 
     def regions(
         self, scene: Any, sigma: float | None, db_id: str | None, rule: str = "sigma",

@@ -24,7 +24,8 @@ import shapely
 from pickstop.api.registry import RobotRegistry
 from pickstop.errors import PickStopError
 from pickstop.pool import PlannerPool, PlannerSlot
-from pickstop.scene.model import Scene
+from pickstop.scene.model import Order, Scene
+from pickstop.sequence.mix import MixPlans, plan_mix
 from pickstop.sequence.plan import route_points, route_yaws
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
@@ -124,6 +125,20 @@ class Planning:
         self._generation += 1
         self.background.submit(self._plan_ahead, slot, scene, options, self._generation)
         return plan
+
+    def plan_mix(
+        self,
+        scene: Scene,
+        orders: list[Order],
+        options: PlanOptions,
+        db_id: str | None = None,
+        prepare: list[Order] | None = None,
+    ) -> MixPlans:
+        """Every order's plan on the scene's layout (:func:`pickstop.sequence.mix.plan_mix`;
+        ``prepare``: the orders whose regions to compute first). Nothing is planned ahead."""
+        slot = self.slot(scene, db_id)
+        with self._locked(slot):
+            return plan_mix(slot.planner, scene, orders, options, prepare=prepare)
 
     def plan_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
         """:meth:`plan` as the JSON the API answers with, serialised once where it is made

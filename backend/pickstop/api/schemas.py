@@ -14,6 +14,8 @@ from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, model_validat
 
 from pickstop.api.limits import Limits
 from pickstop.robot.floor import FLOOR_CLEARANCE, MAX_CLEARANCE
+from pickstop.scene.model import Order
+from pickstop.sequence.mix_model import Mix
 from pickstop.sequence.plan_model import Plan, PlanOptions
 
 API_PREFIX = "/api/v1"
@@ -222,6 +224,13 @@ class PlanRequest(BatchItem):
     store: bool = Field(
         default=True, description="keep the plan as a record (false: answered, not stored)"
     )
+    orders: list[Order] | Literal["scene"] | None = Field(
+        default=None,
+        description="plan a product mix on the scene's layout: every order (a list of {id, "
+        "trays | parts, weight}, or 'scene' for the scene's own orders) planned, each tray's "
+        "region computed once; answered with a mix record, each order's plan stored as a plan "
+        "(mode 'sync' or 'job'; at most `max_orders` orders, see /limits)",
+    )
 
 
 class PlanRecord(BaseModel):
@@ -248,6 +257,32 @@ class PlanSummary(BaseModel):
         return cls(**{**row, "options": json.loads(row["options"])})
 
 
+# -- mixes ----------------------------------------------------------------------------------------
+class MixRecord(BaseModel):
+    """A stored mix: its document names each order's stored plan by id (``orders[].plan``)."""
+
+    id: str | None  # None if not stored
+    scene_id: str | None
+    scene_revision: int | None
+    created: str
+    options: dict[str, Any]
+    mix: Mix
+
+
+class MixSummary(BaseModel):
+    id: str
+    scene_id: str | None
+    scene_revision: int | None
+    options: dict[str, Any]
+    created: str
+    orders: int | None
+    time: float | None
+
+    @classmethod
+    def of(cls, row: dict[str, Any]) -> MixSummary:
+        return cls(**{**row, "options": json.loads(row["options"])})
+
+
 # -- jobs -----------------------------------------------------------------------------------------
 class BatchRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
@@ -258,7 +293,7 @@ class BatchRequest(BaseModel):
 
 class Job(BaseModel):
     id: str
-    kind: Literal["build", "batch", "dispatch"]
+    kind: Literal["build", "batch", "dispatch", "mix", "layout"]
     state: Literal["queued", "running", "done", "failed", "cancelled", "interrupted"]
     progress: float
     params: dict[str, Any]

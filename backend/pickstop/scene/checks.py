@@ -11,6 +11,7 @@ from shapely.geometry import Point
 from shapely.geometry.base import BaseGeometry
 
 from pickstop.scene.model import Scene, Tray
+from pickstop.scene.orders import order_problems
 from pickstop.scene.outline import (  # noqa: F401  (re-exported: the checks' geometry)
     TOUCH,
     footprint,
@@ -38,7 +39,9 @@ def _dups(ids: list[str]) -> list[str]:
 
 #: The fields :func:`check_scene` reads: a change of sigma, the error model, the motion or
 #: the names checks nothing anew.
-CHECKED_FIELDS = frozenset(("floor", "trays", "obstacles", "task", "base_grid", "start", "goal"))
+CHECKED_FIELDS = frozenset(
+    ("floor", "trays", "obstacles", "task", "base_grid", "start", "goal", "orders")
+)
 
 
 class CheckedScenes:
@@ -104,6 +107,7 @@ def check_scene(scene: Scene) -> list[tuple[str, str]]:
     for i, tray in enumerate(scene.trays):
         # each pair of trays once: the obstacles, then the trays before this one
         problems += _tray_problems(floor, faces, others[: n_obstacles + i], i, tray)
+    problems += order_problems(scene, scene.orders or [])
     for name in ("start", "goal"):
         bp = getattr(scene, name)
         if not floor.contains(Point(bp.x, bp.y)):

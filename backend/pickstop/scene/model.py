@@ -267,6 +267,27 @@ class ErrorModel(_Strict):
     yaw_sigma: NonNegative = 0.0  # [rad]
 
 
+MAX_ORDERS = 1000  # orders a scene document may carry (the API's limit is lower)
+
+
+class Order(_Strict):
+    """One product of a mix: the trays it needs (or the parts: each brings its tray) and
+    how often it is made (``weight``, e.g. per shift). The scene's ``task`` is the one-order
+    case."""
+
+    id: Ident
+    name: str = ""
+    trays: list[Ident] | None = None
+    parts: list[Ident] | None = None
+    weight: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1.0
+
+    @model_validator(mode="after")
+    def _needs_something(self) -> Order:
+        if not (self.trays or self.parts):
+            raise ValueError("an order needs at least one tray or part")
+        return self
+
+
 class Scene(_Strict):
     format: Literal["pickstop.scene"] = "pickstop.scene"
     version: Literal[1] = 1
@@ -287,6 +308,8 @@ class Scene(_Strict):
     sigma: Annotated[float, Field(ge=0, le=1.0)] = defaults.SIGMA  # base positioning error [m]
     error_model: ErrorModel = ErrorModel()
     motion: Motion = Motion()
+    # the product mix: each order's trays planned on this one layout
+    orders: Annotated[list[Order], Field(max_length=MAX_ORDERS)] | None = None
 
     @property
     def grid_extent(self) -> Extent:
@@ -301,6 +324,15 @@ class Scene(_Strict):
     @property
     def task_trays(self) -> list[str]:
         return list(self.task) if self.task is not None else [t.id for t in self.trays]
+
+    def order_trays(self, order: Order) -> list[str]:
+        """The trays ``order`` needs: its trays, then the tray of each of its parts, each once
+        (unknown ids are left out: the scene checks name them)."""
+        of_part = {p.id: t.id for t in self.trays for p in t.parts}
+        known = {t.id for t in self.trays}
+        listed = [t for t in order.trays or [] if t in known]
+        listed += [of_part[p] for p in order.parts or [] if p in of_part]
+        return list(dict.fromkeys(listed))
 
 
 def resolve_mesh_paths(
