@@ -144,3 +144,30 @@ def test_a_full_support_has_no_free_spot():
     scene = load_scene(EXAMPLES / "factory_cell.json")
     big = scene.tray("tray_07")  # turned: 0.42 m deep, and table_2 is full along its length
     assert free_spot(scene, big.model_copy(update={"id": "copy"})) is None
+
+
+@pytest.mark.parametrize(("name", "tray_id"), [("paper_experiment", "tray_4"),
+                                               ("factory_cell", "tray_07"),
+                                               ("rack_cell", "lower_tray"),
+                                               ("rack_cell", "floor_bin")])  # fmt: skip
+def test_a_stand_area_holds_exactly_the_places_a_tray_stands_free(name, tray_id):
+    """Random centres near each stand area: inside it where (and only where) place_tray puts
+    the tray free on that support at that height."""
+    import numpy as np
+    import shapely
+
+    from pickstop.scene.supports import stand_areas
+
+    scene = load_scene(EXAMPLES / f"{name}.json")
+    tray = scene.tray(tray_id)
+    rng = np.random.default_rng(7)
+    areas = stand_areas(scene, tray)
+    assert areas
+    for a in areas:
+        x0, y0, x1, y1 = a.area.buffer(0.05).bounds
+        for x, y in rng.uniform((x0, y0), (x1, y1), (150, 2)):
+            if a.area.boundary.distance(shapely.Point(x, y)) < 1e-6:
+                continue
+            p = place_tray(scene, tray_id, x, y, tray.pose.yaw, a.z)
+            stands = p.free and p.support == a.support and p.z == pytest.approx(a.z)
+            assert a.area.contains(shapely.Point(x, y)) == stands, (a.support, x, y, p)

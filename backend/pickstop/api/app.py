@@ -25,6 +25,7 @@ from pickstop.api.middleware import API, BodyLimit, StoredPlanFastPath
 from pickstop.api.problems import install, server_roots
 from pickstop.api.routes import (
     databases,
+    guidance,
     health,
     jobs,
     mixes,
@@ -37,6 +38,7 @@ from pickstop.api.schemas import (
     BatchRequest,
     BuildRequest,
     CopyRequest,
+    GuidanceRequest,
     PlacementRequest,
     PlanRequest,
     ProblemDetails,
@@ -46,7 +48,7 @@ from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
-           jobs.router, placements.router, mixes.router)  # fmt: skip
+           jobs.router, placements.router, mixes.router, guidance.router)  # fmt: skip
 
 
 def create_app(
@@ -94,5 +96,6 @@ def create_app(
         "BatchRequest": BatchRequest, "BuildRequest": BuildRequest,
         "ProblemDetails": ProblemDetails, "Limits": Limits, "DispatchRequest": DispatchRequest,
         "PlacementRequest": PlacementRequest, "CopyRequest": CopyRequest,
+        "GuidanceRequest": GuidanceRequest,
     })  # fmt: skip
     return app

@@ -43,7 +43,7 @@ log = logging.getLogger("pickstop.api")
 
 POLL = 0.05  # seconds between checks for a Cancelled while waiting on the child
 ACK_WAIT = 30.0  # seconds a stopped computation may take to unwind before the child restarts
-KINDS = ("plan", "preview", "plan_json", "preview_json", "regions", "plan_mix")
+KINDS = ("plan", "preview", "plan_json", "preview_json", "regions", "plan_mix", "guidance")
 SETTINGS_ENV = "PICKSTOP_CHILD_SETTINGS"
 #: The child's lower priority: when the API process needs a core to answer a read, the
 #: planner yields it (a nice-3 process weighs half of a nice-0 one); alone, it plans at
@@ -216,6 +216,12 @@ class PlannerProcess:
         self, scene: Any, orders: Any, options: Any, db_id: str | None = None, prepare: Any = None
     ) -> Any:
         return self.call("plan_mix", scene, orders, options, db_id, prepare)
+
+    def guidance(
+        self, scene: Any, tray: str, order: str | None = None, mix: bool = False,
+        sigma: float | None = None, db_id: str | None = None,
+    ) -> Any:  # fmt: skip
+        return self.call("guidance", scene, tray, order, mix, sigma, db_id)
 
     def regions(
         self, scene: Any, sigma: float | None, db_id: str | None, rule: str = "sigma",

@@ -140,6 +140,26 @@ class Planning:
         with self._locked(slot):
             return plan_mix(slot.planner, scene, orders, options, prepare=prepare)
 
+    def guidance(
+        self,
+        scene: Scene,
+        tray: str,
+        order: str | None = None,
+        mix: bool = False,
+        sigma: float | None = None,
+        db_id: str | None = None,
+    ) -> dict[str, Any]:
+        """Placement guidance for ``tray`` (:func:`pickstop.layout.guidance.guidance`) as
+        GeoJSON: with the partners of the order ``order``, of every order (``mix``), or of
+        the task."""
+        from pickstop.layout.guidance import guidance, guidance_geojson, partner_groups
+
+        slot = self.slot(scene, db_id)
+        groups = partner_groups(scene, tray, order, mix)
+        with self._locked(slot):
+            g = guidance(slot.regions, scene, tray, groups, sigma)
+        return guidance_geojson(g)
+
     def plan_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
         """:meth:`plan` as the JSON the API answers with, serialised once where it is made
         (a planner process then sends bytes, not a model to pickle and serialise again)."""

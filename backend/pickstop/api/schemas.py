@@ -353,3 +353,40 @@ class CopyAnswer(BaseModel):
         description="the copy (new ids for it and its parts) on the nearest free spot of the "
         "same support, as a tray document; null if the support has no free spot"
     )
+
+
+# -- guidance -------------------------------------------------------------------------------------
+class GuidanceRequest(BatchItem):
+    """Where a tray of the scene could go, and what that does to its order's stops."""
+
+    tray: str = Field(description="a tray of the scene")
+    order: str | None = Field(
+        default=None, description="judge it with this order's trays (default: the task's)"
+    )
+    mix: bool = Field(default=False, description="with the trays of every order that needs it")
+    sigma: float | None = Field(
+        default=None, ge=0, le=1, allow_inf_nan=False, description="default: the scene's [m]"
+    )
+    database: str | None = Field(default=None, description="reachability database id")
+
+
+class GuidanceInfo(BaseModel):
+    tray: str
+    sigma: float
+    groups: list[list[str]] = Field(description="the partner trays, one list per order shown")
+    here: Literal["shares", "own", "unreachable", "unknown"] = Field(
+        description="the zone the tray stands in now"
+    )
+    seconds: float
+
+
+class Guidance(BaseModel):
+    """Zones of positions of the tray's centre (world x, y [m]) on the supports it may stand
+    on, as GeoJSON: ``kind`` 'shares' (it shares a stop of inscribed radius >= sigma with the
+    feature's ``trays``), 'own' (it needs a stop of its own), 'unreachable', or 'unknown' (a
+    support at another height: drop it there to know). Predicted from known regions (carried
+    with the tray); the exact plan decides once the tray is dropped."""
+
+    type: Literal["FeatureCollection"] = "FeatureCollection"
+    properties: GuidanceInfo
+    features: list[Feature]

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
+import shapely.affinity
 from shapely.geometry import Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
@@ -358,7 +359,7 @@ def spots(
         xs = near[0] + step * np.arange(math.floor((x0 - near[0]) / step), (x1 - near[0]) / step)
         ys = near[1] + step * np.arange(math.floor((y0 - near[1]) / step), (y1 - near[1]) / step)
     gx, gy = (a.ravel() for a in np.meshgrid(xs, ys))
-    grown = outline.buffer(SUPPORT_OVERHANG, join_style="mitre")
+    grown = outline.buffer(SUPPORT_OVERHANG)
     shapely.prepare(grown)
     ok = np.ones(len(gx), bool)
     for cx, cy in corners:  # a convex face holds the outline where it holds its corners
@@ -382,3 +383,58 @@ def tray_copy(scene: Scene, tray_id: str, step: float = 0.025) -> Tray | None:
     copy = original.model_copy(update={"id": f"{tray_id}_{n}", "parts": parts})
     spot = free_spot(scene, copy, step=step)
     return None if spot is None else moved(copy, spot.x, spot.y, spot.yaw, spot.z or 0.0)
+
+
+# -- every place a tray can stand ------------------------------------------------------------------
+@dataclass(frozen=True)
+class StandArea:
+    """Where the centre of a tray (its yaw and tilt as they are) may go on one face: it lies on
+    the face (within the overhang), inside the floor, clear of every other tray and solid.
+    ``z`` [m]: the pose height that rests it there."""
+
+    support: str
+    top: float
+    z: float
+    area: BaseGeometry
+
+
+def stand_areas(scene: Scene, tray: Tray, floor: bool = False) -> list[StandArea]:
+    """The areas of every face of ``scene`` where ``tray`` (of the scene, or a copy) may
+    stand, its own old place aside; the floor only if it stands on the floor now or
+    ``floor``."""
+    at0 = tray_footprint(moved(tray, 0.0, 0.0, tray.pose.yaw))
+    corners = np.asarray(at0.exterior.coords)[:-1]
+    z0, z1 = tray_z_range(moved(tray, 0.0, 0.0, tray.pose.yaw))
+    placer = _Placer.of(scene, tray.id)
+    here = placer.place(tray, tray.pose.x, tray.pose.y, tray.pose.yaw, tray.pose.z)
+    inside = _within(placer.floor.buffer(TOUCH), corners)
+    out = []
+    for face in placer.faces:
+        if face.id == FLOOR and not (floor or here.support == FLOOR):
+            continue
+        grown = face.outline.buffer(SUPPORT_OVERHANG)
+        area = _within(grown, corners).intersection(inside)
+        lo, hi = face.top, face.top + z1 - z0
+        for other in placer.others:
+            if min(hi, other.z1) - max(lo, other.z0) > TOUCH and not area.is_empty:
+                area = area.difference(_minkowski(other.outline, -corners))
+        if not area.is_empty:
+            out.append(StandArea(face.id, face.top, face.top - z0, area))
+    return out
+
+
+def _within(outline: BaseGeometry, corners: np.ndarray) -> BaseGeometry:
+    """The centres at which every corner (offsets ``corners: (K, 2)`` [m]) of a convex outline
+    lies in ``outline`` (convex: then the outline lies in it)."""
+    area = outline
+    for cx, cy in corners:
+        area = area.intersection(shapely.affinity.translate(outline, -cx, -cy))
+    return area
+
+
+def _minkowski(outline: BaseGeometry, offsets: np.ndarray) -> BaseGeometry:
+    """The convex hull of ``outline`` swept by ``offsets: (K, 2)`` [m]: the centres at which a
+    convex outline with corners ``-offsets`` meets it."""
+    pts = np.asarray(outline.convex_hull.exterior.coords)[:-1]  # type: ignore[attr-defined]
+    swept = (pts[:, None, :] + offsets[None, :, :]).reshape(-1, 2)
+    return shapely.MultiPoint(swept).convex_hull
