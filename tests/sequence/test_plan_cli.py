@@ -124,3 +124,20 @@ def test_orders_the_scene_lacks_or_a_tray_in_mid_air_exit_2(tmp_path, capsys):
     code = main(["--data-dir", str(tmp_path), "plan", str(tmp_path / "air.json")])
     err = capsys.readouterr().err
     assert code == 2 and "tray 'tray_4' stands on nothing: its bottom is 0.720 m" in err
+
+
+def test_layout_suggestions_to_a_file(region_db, tmp_path, capsys):
+    folder, db = region_db
+    out = tmp_path / "layout.json"
+    code, stdout, _ = _run(
+        capsys, "--data-dir", str(folder), "layout", str(EXAMPLES / "paper_experiment.json"),
+        "--movable", "tray_4", "--turns", "0", "--step", "0.2", "--samples", "0",
+        "--suggestions", "1", "--shortlist", "4", "--out", str(out), "--db", db.id, "--quiet",
+    )  # fmt: skip
+    assert code == 0
+    summary, doc = json.loads(stdout), json.loads(out.read_text())
+    assert doc["format"] == "pickstop.layout" and summary["out"] == str(out)
+    assert summary["before"] == doc["before"]["totals"] and doc["orders"] == ["task"]
+    code, _, err = _run(capsys, "--data-dir", str(folder), "layout",
+                        str(EXAMPLES / "paper_experiment.json"), "--movable", "tray_3")  # fmt: skip
+    assert code == 2 and "no order needs tray 'tray_3'" in err

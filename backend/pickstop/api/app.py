@@ -28,6 +28,7 @@ from pickstop.api.routes import (
     guidance,
     health,
     jobs,
+    layouts,
     mixes,
     placements,
     plans,
@@ -39,6 +40,7 @@ from pickstop.api.schemas import (
     BuildRequest,
     CopyRequest,
     GuidanceRequest,
+    LayoutRequest,
     PlacementRequest,
     PlanRequest,
     ProblemDetails,
@@ -48,7 +50,8 @@ from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
-           jobs.router, placements.router, mixes.router, guidance.router)  # fmt: skip
+           jobs.router, placements.router, mixes.router, guidance.router,
+           layouts.router)  # fmt: skip
 
 
 def create_app(
@@ -96,6 +99,6 @@ def create_app(
         "BatchRequest": BatchRequest, "BuildRequest": BuildRequest,
         "ProblemDetails": ProblemDetails, "Limits": Limits, "DispatchRequest": DispatchRequest,
         "PlacementRequest": PlacementRequest, "CopyRequest": CopyRequest,
-        "GuidanceRequest": GuidanceRequest,
+        "GuidanceRequest": GuidanceRequest, "LayoutRequest": LayoutRequest,
     })  # fmt: skip
     return app

@@ -160,6 +160,31 @@ class Planning:
             g = guidance(slot.regions, scene, tray, groups, sigma)
         return guidance_geojson(g)
 
+    def layout(
+        self,
+        scene: Scene,
+        orders: list[Order],
+        movable: list[str],
+        options: PlanOptions,
+        settings: Any,
+        db_id: str | None = None,
+        progress: Callable[[float, str], None] | None = None,
+    ) -> dict[str, Any]:
+        """Suggested layouts (:func:`pickstop.layout.search.suggest`) as the layout document;
+        the planners are held while the search runs."""
+        from pickstop.layout.search import suggest
+        from pickstop.layout.verify import LocalEvaluator
+
+        slot = self.slot(scene, db_id)
+        with self._locked(slot):
+            evaluator = LocalEvaluator(slot.planner, orders, options)
+            try:
+                doc = suggest(slot.regions, evaluator, scene, orders, movable, options, settings,
+                              progress)  # fmt: skip
+            finally:
+                evaluator.close()
+        return doc.model_dump(mode="json")
+
     def plan_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
         """:meth:`plan` as the JSON the API answers with, serialised once where it is made
         (a planner process then sends bytes, not a model to pickle and serialise again)."""

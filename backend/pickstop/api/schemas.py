@@ -390,3 +390,26 @@ class Guidance(BaseModel):
     type: Literal["FeatureCollection"] = "FeatureCollection"
     properties: GuidanceInfo
     features: list[Feature]
+
+
+# -- layouts --------------------------------------------------------------------------------------
+class LayoutRequest(BatchItem):
+    """Suggested moves of trays for the mix (a job: progress, result, cancel)."""
+
+    orders: list[Order] | Literal["scene"] | None = Field(
+        default=None, description="the mix (default: the scene's orders, else its task)"
+    )
+    movable: list[str] | None = Field(
+        default=None, max_length=6, description="trays that may move (default: every tray an "
+        "order needs, at most 6)"
+    )  # fmt: skip
+    options: PlanOptions = PlanOptions()
+    database: str | None = Field(default=None, description="reachability database id")
+    step: float = Field(default=0.1, ge=0.025, le=1.0, allow_inf_nan=False,
+                        description="slot spacing [m]")  # fmt: skip
+    turns: list[Literal[0, 90, 180, 270]] = Field(
+        default=[0, 90, 180, 270], min_length=1, max_length=4, description="turns tried [deg]"
+    )
+    suggestions: int = Field(default=3, ge=1, le=10)
+    shortlist: int = Field(default=12, ge=1, le=64,
+                           description="best predicted layouts planned exactly")  # fmt: skip

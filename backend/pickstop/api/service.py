@@ -25,6 +25,7 @@ from typing import Any
 from pickstop.api import limits as lim
 from pickstop.api import planner_process
 from pickstop.api.jobs import JobRunner, batch_job, build_job
+from pickstop.api.layouts import layout_job, layout_params
 from pickstop.api.mixes import mix_job, request_orders
 from pickstop.api.plan_bodies import PlanBodies
 from pickstop.api.planner_process import PlannerProcess
@@ -70,6 +71,7 @@ class Service:
             "build": build_job(self.robots, self.data_dir),
             "batch": batch_job(self.scenes.parse, self.planning.plan),
             "mix": mix_job(self.scenes.parse, self.planning.plan_mix, self.limits),
+            "layout": layout_job(self.scenes.parse, self.planning.layout),
         }
         self.jobs = JobRunner(self.store, settings, kinds, start=job_runner)
 
@@ -95,6 +97,11 @@ class Service:
         return self.jobs.submit("mix", {"scene_id": body.scene_id, "scene": body.scene,
                                         "orders": orders, "options": body.options.model_dump(),
                                         "database": body.database})  # fmt: skip
+
+    def submit_layout(self, body: Any) -> dict[str, Any]:
+        """A layout search as a job, its scene, options, orders and movable trays checked."""
+        _, _, scene = self.scenes.prepare(body)
+        return self.jobs.submit("layout", layout_params(body, scene, self.limits))
 
     def submit_batch(self, body: Any) -> dict[str, Any]:
         self.scenes.check_options(body.options)

@@ -40,7 +40,7 @@ def _dups(ids: list[str]) -> list[str]:
 #: The fields :func:`check_scene` reads: a change of sigma, the error model, the motion or
 #: the names checks nothing anew.
 CHECKED_FIELDS = frozenset(
-    ("floor", "trays", "obstacles", "task", "base_grid", "start", "goal", "orders")
+    ("floor", "trays", "obstacles", "task", "base_grid", "start", "goal", "orders", "zones")
 )
 
 
@@ -108,6 +108,7 @@ def check_scene(scene: Scene) -> list[tuple[str, str]]:
         # each pair of trays once: the obstacles, then the trays before this one
         problems += _tray_problems(floor, faces, others[: n_obstacles + i], i, tray)
     problems += order_problems(scene, scene.orders or [])
+    problems += _zone_problems(scene)
     for name in ("start", "goal"):
         bp = getattr(scene, name)
         if not floor.contains(Point(bp.x, bp.y)):
@@ -150,4 +151,21 @@ def _part_problems(where: str, tray: Tray) -> list[tuple[str, str]]:
                 msg = f"part {part.id!r} overlaps part {tray.parts[j].id!r}"
                 out.append((f"{where}.parts.{k}", msg))
         part_fps.append((k, pfp))
+    return out
+
+
+def _zone_problems(scene: Scene) -> list[tuple[str, str]]:
+    """Zones whose outline is no simple polygon of some area, or that admit unknown trays."""
+    out: list[tuple[str, str]] = []
+    trays = {t.id for t in scene.trays}
+    for d in _dups([z.id for z in scene.zones or []]):
+        out.append(("zones", f"duplicate zone id {d!r}"))
+    for i, zone in enumerate(scene.zones or []):
+        poly = shapely.Polygon(zone.outline)
+        if not poly.is_valid or poly.area < 1e-6:
+            out.append((f"zones.{i}.outline", f"zone {zone.id!r}: the outline must be a simple "
+                        "polygon with an area (no edge crossing another)"))  # fmt: skip
+        for j, t in enumerate(zone.trays or []):
+            if t not in trays:
+                out.append((f"zones.{i}.trays.{j}", f"zone {zone.id!r}: unknown tray {t!r}"))
     return out

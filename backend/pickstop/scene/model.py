@@ -288,6 +288,16 @@ class Order(_Strict):
         return self
 
 
+class LayoutZone(_Strict):
+    """An area of the floor plane where trays may be placed when a layout is searched: a
+    tray that may move goes only where its outline lies within a zone that admits it."""
+
+    id: Ident
+    name: str = ""
+    outline: Annotated[list[tuple[Finite, Finite]], Field(min_length=3, max_length=256)]
+    trays: list[Ident] | None = None  # the trays it admits (default: every tray)
+
+
 class Scene(_Strict):
     format: Literal["pickstop.scene"] = "pickstop.scene"
     version: Literal[1] = 1
@@ -310,6 +320,8 @@ class Scene(_Strict):
     motion: Motion = Motion()
     # the product mix: each order's trays planned on this one layout
     orders: Annotated[list[Order], Field(max_length=MAX_ORDERS)] | None = None
+    # where trays may go when a layout is searched (default: anywhere on their supports)
+    zones: Annotated[list[LayoutZone], Field(max_length=64)] | None = None
 
     @property
     def grid_extent(self) -> Extent:
