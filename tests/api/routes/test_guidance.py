@@ -16,8 +16,11 @@ def test_guidance_of_a_stored_and_an_inline_scene(client):
     assert g["properties"]["groups"] == [["tray_1", "tray_2"]]
     kinds = {(f["properties"]["kind"], tuple(f["properties"]["trays"])) for f in g["features"]}
     assert ("shares", ("tray_1", "tray_2")) in kinds
-    inline = client.post("/api/v1/guidance", json={"scene": doc, "tray": "tray_4", "order": "a"})
+    inline = client.post(
+        "/api/v1/guidance", json={"scene": doc, "tray": "tray_4", "order": "a"}, headers=AUTH
+    )
     assert inline.json()["properties"]["groups"] == [["tray_1"]]
     problem(client.get(f"/api/v1/scenes/{sid}/guidance", params={"tray": "nope"}), 422, "tray")
-    problem(client.post("/api/v1/guidance", json={"scene": doc, "tray": "tray_2", "order": "a"}),
+    problem(client.post("/api/v1/guidance", json={"scene": doc, "tray": "tray_2", "order": "a"},
+                        headers=AUTH),
             422, "order")  # fmt: skip

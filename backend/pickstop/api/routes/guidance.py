@@ -8,7 +8,7 @@ from fastapi import APIRouter, Query, Request
 from starlette.concurrency import run_in_threadpool
 
 from pickstop.api.body import validate
-from pickstop.api.deps import JsonBody, ReadKey, ServiceDep
+from pickstop.api.deps import JsonBody, ReadKey, ServiceDep, WriteKey
 from pickstop.api.openapi import json_request
 from pickstop.api.problems import Problem
 from pickstop.api.schemas import Guidance, GuidanceRequest
@@ -62,7 +62,7 @@ async def scene_guidance(
 
 @router.post(
     "/guidance",
-    dependencies=[ReadKey],
+    dependencies=[WriteKey],
     openapi_extra=json_request("GuidanceRequest", "a scene (stored or inline) and a tray"),
 )
 async def guidance(request: Request, service: ServiceDep, doc: JsonBody) -> Guidance:

@@ -8,7 +8,7 @@ from dataclasses import asdict
 from fastapi import APIRouter
 
 from pickstop.api.body import validate
-from pickstop.api.deps import JsonBody, ReadKey, ServiceDep
+from pickstop.api.deps import JsonBody, ServiceDep, WriteKey
 from pickstop.api.openapi import json_request
 from pickstop.api.problems import Problem
 from pickstop.api.schemas import CopyAnswer, CopyRequest, PlacementAnswer, PlacementRequest
@@ -25,7 +25,7 @@ def _tray(scene: Scene, tray_id: str) -> None:
 
 @router.post(
     "/placements",
-    dependencies=[ReadKey],
+    dependencies=[WriteKey],
     openapi_extra=json_request("PlacementRequest", "a tray and where its footprint would go"),
 )
 def placement(service: ServiceDep, doc: JsonBody) -> PlacementAnswer:
@@ -40,7 +40,7 @@ def placement(service: ServiceDep, doc: JsonBody) -> PlacementAnswer:
 
 @router.post(
     "/placements/copy",
-    dependencies=[ReadKey],
+    dependencies=[WriteKey],
     openapi_extra=json_request("CopyRequest", "the tray to copy"),
 )
 def copy(service: ServiceDep, doc: JsonBody) -> CopyAnswer:
