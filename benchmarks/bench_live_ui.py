@@ -283,11 +283,11 @@ def main() -> None:
             pg.wait_for_function("document.body.innerText.includes('Status: ready')",
                                  timeout=120_000)  # fmt: skip
             time.sleep(1.0)
-            # (2) + (3) A real drag of tray_4's gizmo arrow, 0.3 m back and forth.
+            # (2) + (3) A real drag of tray_4's gizmo arrow, 0.2 m back and forth (on its table).
             cam = next(iter(app.server.get_clients().values())).camera
             base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
             a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
-            b = _project(cam, base + np.array([-0.09, 0.0, 0.0]))
+            b = _project(cam, base + np.array([0.01, 0.0, 0.0]))
             pg.evaluate(COUNT_PREVIEWS)
             pg.evaluate(TIMER)
             t0 = time.perf_counter()
@@ -310,7 +310,7 @@ def main() -> None:
             tray = next(t for t in app.state.doc["trays"] if t["id"] == "tray_4")
             base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
             a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
-            b = _project(cam, base + np.array([0.51, 0.0, 0.0]))
+            b = _project(cam, base + np.array([0.41, 0.0, 0.0]))
             pg.evaluate(TIMER)
             _drag(pg, a, b, 20, 0.05, hold=HOLD_STILL)
             pg.wait_for_function("document.body.innerText.includes('Status: ready')",

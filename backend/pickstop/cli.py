@@ -417,6 +417,8 @@ def _plan_row(plan: Any) -> dict[str, Any]:
 def cmd_plan(args: argparse.Namespace) -> int:
     options = _plan_options(args)
     src = Path(args.scene)
+    if args.orders is not None:
+        return _plan_mix(src, args, options)
     if src.is_dir():
         return _plan_batch(src, args, options)
     pool = _pool(args)
@@ -434,6 +436,148 @@ def cmd_plan(args: argparse.Namespace) -> int:
     else:
         _emit(doc)
     return 0
+
+
+def _plan_mix(src: Path, args: argparse.Namespace, options: Any) -> int:
+    """Every order of a mix on the scene's layout (``--orders``: the scene's, or a file's):
+    one plan per order and the mix document in ``--out`` (a folder), the mix on stdout.
+    Exit 3 if an order has no plan."""
+    from pickstop.scene.load import load_scene
+    from pickstop.scene.orders import load_orders, scene_orders
+    from pickstop.sequence.mix import mix_document, plan_mix
+
+    if src.is_dir():
+        raise InputError(f"--orders: {src} is a folder; give one scene file", field="orders")
+    out = Path(args.out) if args.out else None
+    if out is not None and out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: must be a folder for the orders' plans", field="out")
+    scene = load_scene(src)
+    orders = scene_orders(scene) if args.orders is True else load_orders(args.orders, scene)
+    pool = _pool(args)
+    try:
+        slot = pool.scene_slot(scene, src.resolve().parent, args.db)
+        slot.regions.workers = args.workers
+        mix = plan_mix(slot.planner, scene, orders, options)
+    finally:
+        pool.close()
+    refs: list[str | None] = [None] * len(mix.orders)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        for k, op in enumerate(mix.orders):
+            if op.plan is not None:
+                refs[k] = f"{op.order.id}.plan.json"
+                _write_json(out / refs[k], op.plan.model_dump(mode="json"))
+    doc = mix_document(mix, refs).model_dump(mode="json")
+    if out is not None:
+        _write_json(out / "mix.json", doc)
+    _emit(doc)
+    failed = [op for op in mix.orders if op.plan is None]
+    for op in failed:
+        print(f"pickstop: order {op.order.id}: {op.error}", file=sys.stderr)
+    return 3 if failed else 0
+
+
+def _mix_orders(scene: Any, path: str | None) -> Any:
+    """The orders of a layout search: a file's, else the scene's, else its task as one."""
+    from pickstop.scene.model import Order
+    from pickstop.scene.orders import load_orders
+
+    if path is not None:
+        return load_orders(path, scene)
+    return list(scene.orders) if scene.orders else [Order(id="task", trays=scene.task_trays)]
+
+
+def _layout_settings(args: argparse.Namespace) -> Any:
+    from pickstop.layout.search import SearchSettings
+
+    try:
+        turns = tuple(int(t) for t in args.turns.split(","))
+    except ValueError:
+        raise InputError(f"--turns {args.turns!r}: give degrees like 0,90,180,270",
+                         field="turns") from None  # fmt: skip
+    if any(t % 90 for t in turns) or 0 not in turns:
+        raise InputError("--turns: multiples of 90 degrees, 0 among them", field="turns")
+    if not 0.01 <= args.step <= 1.0:
+        raise InputError("--step: between 0.01 and 1 m", field="step")
+    return SearchSettings(step=args.step, turns=tuple(dict.fromkeys(t % 360 for t in turns)),
+                          suggestions=args.suggestions, shortlist=args.shortlist)  # fmt: skip
+
+
+def cmd_layout(args: argparse.Namespace) -> int:
+    """Suggested layouts: moves of the movable trays, each with its moved scene and the
+    before/after figures of exact verified plans of every order."""
+    from pickstop.layout.search import check_request, suggest
+    from pickstop.layout.verify import LocalEvaluator
+    from pickstop.scene.load import load_scene
+    from pickstop.sequence.mix import mix_trays
+
+    options, settings = _plan_options(args), _layout_settings(args)
+    src = Path(args.scene)
+    scene = load_scene(src)
+    orders = _mix_orders(scene, args.orders)
+    movable = args.movable.split(",") if args.movable else mix_trays(scene, orders)
+    check_request(scene, orders, movable)
+    pool = _pool(args)
+    client = None
+    try:
+        slot = pool.scene_slot(scene, src.resolve().parent, args.db)
+        slot.regions.workers = args.workers
+        if args.dask:
+            from pickstop.distributed import DaskEvaluator, client_for
+
+            client = client_for(args.dask)
+            evaluator: Any = DaskEvaluator(client, src.resolve().parent, pool.data_dir,
+                                           slot.regions.db.id, orders, options)  # fmt: skip
+        else:
+            evaluator = LocalEvaluator(slot.planner, orders, options)
+        bar = _StageBar(not args.quiet)
+        try:
+            doc = suggest(slot.regions, evaluator, scene, orders, movable, options, settings, bar)
+        finally:
+            bar.close()
+            evaluator.close()
+    finally:
+        if client is not None:
+            client.close()
+        pool.close()
+    out = doc.model_dump(mode="json")
+    if args.out:
+        _write_json(Path(args.out), out)
+        _emit(_layout_summary(out) | {"out": args.out})
+    else:
+        _emit(out)
+    return 0
+
+
+def _layout_summary(doc: dict[str, Any]) -> dict[str, Any]:
+    """The layout document without the moved scenes and per-order figures."""
+    return {
+        "scene": doc["scene"],
+        "movable": doc["movable"],
+        "before": doc["before"]["totals"],
+        "suggestions": [
+            {"rank": s["rank"], "moves": s["moves"], "gain": s["gain"],
+             "after": s["after"]["totals"]}
+            for s in doc["suggestions"]
+        ],
+        "notes": doc["notes"],
+        "search": doc["search"],
+    }  # fmt: skip
+
+
+class _StageBar:
+    """The search's progress on stderr: fraction done and what it is doing."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled, self.last = enabled, ""
+
+    def __call__(self, fraction: float, message: str) -> None:
+        if self.enabled and message != self.last:
+            print(f"layout: {fraction:4.0%} {message}", file=sys.stderr, flush=True)
+            self.last = message
+
+    def close(self) -> None:
+        pass
 
 
 def _write_json(path: Path, doc: Any) -> None:
@@ -753,12 +897,47 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--seed", type=int, help="Monte Carlo seed")
     pl.add_argument("--time-limit", type=finite_float, help="stop selection time limit [s]")
     pl.add_argument("--out", help="write the plan here (a folder when planning a folder)")
+    pl.add_argument(
+        "--orders",
+        nargs="?",
+        const=True,
+        metavar="FILE",
+        help="plan every order of a product mix on the scene's layout: the scene's orders, or "
+        "a JSON list of {id, trays | parts, weight} in FILE; --out: a folder for one plan per "
+        "order and mix.json",
+    )
     pl.add_argument("--json", action="store_true", help="folder: the summary as JSON, not a table")
     pl.add_argument("--db", help="reachability database id (default: the largest for the robot)")
     pl.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1)
     pl.add_argument("--dask", help="folder: one Dask task per scene ('local' or tcp://host:8786)")
     pl.add_argument("--robot", help=_ROBOT_HELP)
     pl.set_defaults(func=cmd_plan)
+
+    ly = sub.add_parser("layout", help="suggest where to move trays so the mix runs faster")
+    ly.add_argument("scene", help="scene JSON file")
+    ly.add_argument("--orders", metavar="FILE",
+                    help="the mix (a JSON list of {id, trays | parts, weight}); default: the "
+                    "scene's orders, else its task")  # fmt: skip
+    ly.add_argument("--movable", help="trays that may move, comma-separated (default: every "
+                    "tray an order needs)")  # fmt: skip
+    ly.add_argument("--out", help="write the layout document here (the moved scenes in it)")
+    ly.add_argument("--dask", help="plan the candidate layouts on Dask ('local' or an address)")
+    ly.add_argument("--step", type=finite_float, default=0.1, help="slot spacing [m]")
+    ly.add_argument("--turns", default="0,90,180,270", help="turns to try [deg]")
+    ly.add_argument("--suggestions", type=positive_int, default=3)
+    ly.add_argument("--shortlist", type=positive_int, default=12,
+                    help="best predicted layouts planned exactly")  # fmt: skip
+    for flag in ("--sigma", "--target", "--time-limit"):
+        ly.add_argument(flag, type=finite_float)
+    ly.add_argument("--rule", choices=["sigma", "success"])
+    ly.add_argument("--objective", choices=["stops", "time"])
+    ly.add_argument("--samples", type=int, help="Monte Carlo samples per stop of the verified "
+                    "plans (default 1000)")  # fmt: skip
+    ly.add_argument("--seed", type=int)
+    ly.add_argument("--db", help="reachability database id")
+    ly.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1)
+    ly.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    ly.set_defaults(func=cmd_layout)
 
     sv = sub.add_parser("serve", help="run the REST API (uvicorn)")
     sv.add_argument("--host", help="listen address (default: $PICKSTOP_HOST or 127.0.0.1)")

@@ -1,4 +1,4 @@
-"""Scale-out on Dask (distributed): database builds and batch planning.
+"""Scale-out on Dask (distributed): database builds, batch planning and layout search.
 
 ``--dask tcp://host:8786`` uses a running scheduler, ``--dask local`` starts a local cluster
 (2 worker processes, one thread each). Workers must see the same data folder (a shared volume).
@@ -8,6 +8,8 @@
   task's result has arrived, so the catalog never names an incomplete shard. A worker that dies
   loses only its running chunks: Dask reruns them (``retries``), and chunks are deterministic, so
   the rerun writes the same bytes.
+- Layout search: one task per candidate layout (every order planned), ranked on the
+  worker's planner or verified on a from-scratch one it keeps (:class:`DaskEvaluator`).
 - Batch: one task per scene, keyed by the scene's position; each worker process keeps a
   planner pool (robot, database, planners and their caches) between tasks
   (:class:`PoolPlugin`). Results are gathered by key, so a task rerun after a worker died
@@ -185,3 +187,74 @@ def _digest(doc: dict[str, Any]) -> str:
     import hashlib
 
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:12]
+
+
+# -- layout search ----------------------------------------------------------------------------
+_SCRATCH: dict[str, Any] = {}  # this worker's from-scratch stop planners, by data folder and db
+
+
+def layout_task(
+    doc: dict[str, Any],
+    orders: list[dict[str, Any]],
+    options: dict[str, Any],
+    root: str,
+    data_dir: str,
+    db_id: str | None,
+    verify: bool,
+) -> Any:
+    """Every order of one candidate layout planned (:class:`~pickstop.sequence.mix.MixPlans`):
+    without Monte Carlo on the worker's planner to rank it, or with the options on a planner
+    of its own that computes regions from scratch to verify it."""
+    import os
+
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    from pickstop.layout.verify import scratch_planner
+    from pickstop.scene.load import parse_scene
+    from pickstop.scene.model import Order, resolve_mesh_paths
+    from pickstop.sequence.mix import plan_mix
+    from pickstop.sequence.plan_model import PlanOptions
+
+    scene = parse_scene(resolve_mesh_paths(doc, Path(root), source=root), root)
+    slot = worker_pool(Path(data_dir)).scene_slot(scene, Path(root), db_id)
+    opts = PlanOptions(**options)
+    with slot.lock:
+        if verify:
+            key = f"{data_dir}|{slot.regions.db.id}|{slot.regions.robot.robot_hash}"
+            if key not in _SCRATCH:
+                _SCRATCH[key] = scratch_planner(slot.regions)
+            sp = _SCRATCH[key]
+        else:
+            sp, opts = slot.planner, opts.model_copy(update={"samples": 0})
+        return plan_mix(sp, scene, [Order(**o) for o in orders], opts)
+
+
+class DaskEvaluator:
+    """:class:`~pickstop.layout.verify.Evaluator` on a Dask cluster: one task per layout."""
+
+    def __init__(
+        self, client: Any, root: Path, data_dir: Path, db_id: str | None, orders: list[Any],
+        options: Any,
+    ) -> None:  # fmt: skip
+        self.client, self.root, self.data_dir, self.db_id = client, root, data_dir, db_id
+        self.orders = [o.model_dump() for o in orders]
+        self.options = options.model_dump()
+        client.register_plugin(PoolPlugin(), name=PoolPlugin.name)
+
+    def _run(self, scenes: list[Any], verify: bool) -> list[Any]:
+        docs = [json.loads(s.model_dump_json()) for s in scenes]
+        futures = [
+            self.client.submit(layout_task, doc, self.orders, self.options, str(self.root),
+                               str(self.data_dir), self.db_id, verify, retries=RETRIES,
+                               key=f"layout-{int(verify)}-{k}-{_digest(doc)}", pure=False)
+            for k, doc in enumerate(docs)
+        ]  # fmt: skip
+        return [f.result() for f in futures]
+
+    def rank(self, scenes: list[Any]) -> list[Any]:
+        return self._run(scenes, verify=False)
+
+    def verify(self, scenes: list[Any]) -> list[Any]:
+        return self._run(scenes, verify=True)
+
+    def close(self) -> None:
+        pass

@@ -61,6 +61,7 @@ class Settings(BaseSettings):
     max_grid_cells: int = Field(default=250_000, ge=1, description="base grid cells per scene")
     max_samples: int = Field(default=50_000_000, ge=1, description="samples per database build")
     max_batch: int = Field(default=200, ge=1, description="scenes per batch job")
+    max_orders: int = Field(default=200, ge=1, description="orders of a mix per request")
     max_trays: int = Field(default=40, ge=1, description="trays per scene")
     max_parts_per_tray: int = Field(default=50, ge=1, description="parts per tray")
     max_parts: int = Field(default=300, ge=1, description="parts per scene, all trays")

@@ -627,6 +627,11 @@ def test_a_preview_carries_the_nearest_region_with_cells_and_takes_a_held_region
         tray = next(t for t in doc["trays"] if t["id"] == "tray_2")
         tray["pose"]["x"] += dx
         tray["pose"]["z"] += dz
+        if dz:  # raised on a column standing on its table
+            size = [0.4, 0.3, dz]
+            pose = {"x": tray["pose"]["x"], "y": tray["pose"]["y"], "z": 0.72}
+            doc["obstacles"].append({"id": "column", "geometry": {"shape": "box", "size": size},
+                                     "pose": pose})  # fmt: skip
         return parse_scene(doc)
 
     high = moved(dz=1.5)  # out of the arm's reach: planned empty, now the newest region

@@ -116,7 +116,10 @@ def test_neighbouring_part_blocks_a_grasp(hand):
 @pytest.mark.parametrize(("axis", "angle"), [("x", 0.26), ("y", -0.3)])
 def test_tilted_tray_grasps_approach_along_its_tilted_normal(hand, axis, angle):
     doc = json.loads(json.dumps(PAPER))
-    doc["trays"][0]["pose"]["z"] += 0.1  # lifted clear of the table, whatever the tilt
+    tray = doc["trays"][0]
+    # lifted so that its low edge rests on the table
+    half = tray["inner_size"][1 if axis == "x" else 0] / 2 + tray["wall_thickness"]
+    tray["pose"]["z"] += half * np.sin(abs(angle)) + 0.002
     doc["trays"][0]["tilt"] = {"axis": axis, "angle": angle}
     scene = parse_scene(doc)
     tray = scene.tray("tray_1")
@@ -140,7 +143,8 @@ def test_tilted_tray_grasps_approach_along_its_tilted_normal(hand, axis, angle):
 def test_grasps_too_close_to_the_floor_are_dropped(hand):
     """A tray on the floor: top-down grasps put the open hand within the clearance."""
     doc = json.loads(json.dumps(PAPER))
-    doc["obstacles"] = []
+    doc["obstacles"] = []  # the tables gone, the other trays with them
+    doc["trays"], doc["task"] = doc["trays"][:1], None
     doc["trays"][0]["pose"]["z"] = doc["trays"][0]["floor_thickness"]
     tray_id = doc["trays"][0]["id"]
     counts = {}

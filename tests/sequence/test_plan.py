@@ -179,7 +179,10 @@ def test_sigma_too_large_names_trays_and_radii(stop_planner, paper_doc):
 def test_tray_out_of_reach_has_an_empty_region(stop_planner, paper_doc):
     doc = copy.deepcopy(paper_doc)
     tray = next(t for t in doc["trays"] if t["id"] == "tray_4")
-    tray["pose"]["z"] = 2.4  # far above the arm's reach
+    tray["pose"]["z"] = 2.4  # far above the arm's reach, on a column standing on its table
+    column = {"shape": "box", "size": [0.4, 0.3, 1.675]}
+    at = {"x": tray["pose"]["x"], "y": tray["pose"]["y"], "z": 0.72}
+    doc["obstacles"].append({"id": "column", "geometry": column, "pose": at})
     with pytest.raises(InfeasiblePlanError) as e:
         stop_planner.plan(parse_scene(doc), PlanOptions(samples=0))
     assert "tray tray_4 has an empty base region" in e.value.message

@@ -103,3 +103,59 @@ def test_expected_time_objective_carries_its_trade_off(region_db, tmp_path, caps
     summary = json.loads(stdout)
     assert summary["expected_s"] == round(plan["totals"]["time"]["expected"], 1)
     assert summary["expected_s"] >= summary["time_s"]
+
+
+def test_plan_every_order_of_a_mix_to_a_folder(region_db, tmp_path, capsys):
+    folder, db = region_db
+    orders = tmp_path / "orders.json"
+    orders.write_text(json.dumps([{"id": "a", "trays": ["tray_1", "tray_2"], "weight": 2},
+                                  {"id": "b", "parts": ["p4a"]}]))  # fmt: skip
+    out = tmp_path / "mix"
+    code, stdout, _ = _run(
+        capsys, "--data-dir", str(folder), "plan", str(EXAMPLES / "paper_experiment.json"),
+        "--orders", str(orders), "--samples", "0", "--out", str(out), "--db", db.id,
+    )  # fmt: skip
+    assert code == 0
+    mix = json.loads(stdout)
+    assert mix == json.loads((out / "mix.json").read_text())
+    assert mix["format"] == "pickstop.mix" and mix["totals"]["planned"] == 2
+    assert sorted(p.name for p in out.iterdir()) == ["a.plan.json", "b.plan.json", "mix.json"]
+    b = json.loads((out / "b.plan.json").read_text())
+    assert b["format"] == "pickstop.plan" and b["trays"] == ["tray_4"]
+    assert mix["orders"][1] == {**mix["orders"][1], "plan": "b.plan.json", "trays": ["tray_4"],
+                                "stops": 1, "naive_stops": 1}  # fmt: skip
+
+
+def test_orders_the_scene_lacks_or_a_tray_in_mid_air_exit_2(tmp_path, capsys):
+    scene = str(EXAMPLES / "paper_experiment.json")
+    code = main(["--data-dir", str(tmp_path), "plan", scene, "--orders"])
+    assert code == 2 and "the scene has no orders" in capsys.readouterr().err
+    bad = tmp_path / "orders.json"
+    bad.write_text(json.dumps([{"id": "a", "trays": ["tray_7"]}]))
+    code = main(["--data-dir", str(tmp_path), "plan", scene, "--orders", str(bad)])
+    assert code == 2 and "orders.0.trays.0: order 'a': unknown tray 'tray_7'" in (
+        capsys.readouterr().err
+    )
+    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
+    doc["trays"][3]["pose"]["y"] = 1.1  # beside its table
+    (tmp_path / "air.json").write_text(json.dumps(doc))
+    code = main(["--data-dir", str(tmp_path), "plan", str(tmp_path / "air.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and "tray 'tray_4' stands on nothing: its bottom is 0.720 m" in err
+
+
+def test_layout_suggestions_to_a_file(region_db, tmp_path, capsys):
+    folder, db = region_db
+    out = tmp_path / "layout.json"
+    code, stdout, _ = _run(
+        capsys, "--data-dir", str(folder), "layout", str(EXAMPLES / "paper_experiment.json"),
+        "--movable", "tray_4", "--turns", "0", "--step", "0.2", "--samples", "0",
+        "--suggestions", "1", "--shortlist", "4", "--out", str(out), "--db", db.id, "--quiet",
+    )  # fmt: skip
+    assert code == 0
+    summary, doc = json.loads(stdout), json.loads(out.read_text())
+    assert doc["format"] == "pickstop.layout" and summary["out"] == str(out)
+    assert summary["before"] == doc["before"]["totals"] and doc["orders"] == ["task"]
+    code, _, err = _run(capsys, "--data-dir", str(folder), "layout",
+                        str(EXAMPLES / "paper_experiment.json"), "--movable", "tray_3")  # fmt: skip
+    assert code == 2 and "no order needs tray 'tray_3'" in err

@@ -24,15 +24,37 @@ from pickstop.api.fleet import DispatchRequest
 from pickstop.api.limits import Limits
 from pickstop.api.middleware import API, BodyLimit, ErrorGuard, Head, StoredPlanFastPath
 from pickstop.api.problems import install, server_roots
-from pickstop.api.routes import databases, errors, health, jobs, plans, robots, scenes
+from pickstop.api.routes import (
+    databases,
+    errors,
+    guidance,
+    health,
+    jobs,
+    layouts,
+    mixes,
+    placements,
+    plans,
+    robots,
+    scenes,
+)
 from pickstop.api.routes.errors import FitRequest
-from pickstop.api.schemas import BatchRequest, BuildRequest, PlanRequest, ProblemDetails
+from pickstop.api.schemas import (
+    BatchRequest,
+    BuildRequest,
+    CopyRequest,
+    GuidanceRequest,
+    LayoutRequest,
+    PlacementRequest,
+    PlanRequest,
+    ProblemDetails,
+)
 from pickstop.api.service import Service
 from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
-           jobs.router, errors.router)  # fmt: skip
+           jobs.router, errors.router, placements.router, mixes.router, guidance.router,
+           layouts.router)  # fmt: skip
 
 
 def create_app(
@@ -88,5 +110,7 @@ def create_app(
         "BatchRequest": BatchRequest, "BuildRequest": BuildRequest,
         "ProblemDetails": ProblemDetails, "Limits": Limits, "DispatchRequest": DispatchRequest,
         "FitRequest": FitRequest,
+        "PlacementRequest": PlacementRequest, "CopyRequest": CopyRequest,
+        "GuidanceRequest": GuidanceRequest, "LayoutRequest": LayoutRequest,
     })  # fmt: skip
     return app

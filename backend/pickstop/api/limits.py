@@ -28,6 +28,7 @@ class Limits(BaseModel):
     max_grid_cells: int = Field(description="base grid cells per scene")
     max_mc_samples: int = Field(description="Monte Carlo samples per stop")
     max_batch: int = Field(description="scenes per batch job")
+    max_orders: int = Field(default=200, description="orders of a mix per request")
     max_build_samples: int = Field(description="samples per database build")
     request_deadline_s: float = Field(description="computation time of a synchronous request [s]")
     job_deadline_s: float = Field(description="run time of a job [s]")
@@ -45,6 +46,7 @@ class Limits(BaseModel):
             max_grid_cells=s.max_grid_cells,
             max_mc_samples=s.max_mc_samples,
             max_batch=s.max_batch,
+            max_orders=s.max_orders,
             max_build_samples=s.max_samples,
             request_deadline_s=s.request_deadline,
             job_deadline_s=s.job_deadline,

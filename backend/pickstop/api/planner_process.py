@@ -30,6 +30,7 @@ import socket
 import subprocess
 import sys
 import threading
+from collections.abc import Callable
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from multiprocessing.connection import Connection
@@ -43,7 +44,11 @@ log = logging.getLogger("pickstop.api")
 
 POLL = 0.05  # seconds between checks for a Cancelled while waiting on the child
 ACK_WAIT = 30.0  # seconds a stopped computation may take to unwind before the child restarts
-KINDS = ("plan", "preview", "plan_json", "preview_json", "regions")
+KINDS = ("plan", "preview", "plan_json", "preview_json", "regions", "plan_mix", "guidance",
+         "layout")  # fmt: skip
+#: Calls that report progress: the child passes them a ``progress(fraction, message)`` that
+#: sends it to the parent, where the caller's own ``progress`` gets it.
+PROGRESS = ("layout",)
 SETTINGS_ENV = "PICKSTOP_CHILD_SETTINGS"
 #: The child's lower priority: when the API process needs a core to answer a read, the
 #: planner yields it (a nice-3 process weighs half of a nice-0 one); alone, it plans at
@@ -67,6 +72,7 @@ class PlannerProcess:
         self._ids = itertools.count(1)
         # each waiting call's future, with the connection of the child computing it
         self._pending: dict[int, tuple[Connection, Future[Any]]] = {}
+        self._progress: dict[int, Callable[[float, str], None]] = {}  # by call, if it reports
         self._proc: Any = None
         self._conn: Connection | None = None
         self._closed = False
@@ -112,6 +118,12 @@ class PlannerProcess:
             if status == "loaded":
                 self.loaded = payload
                 continue
+            if status == "progress":
+                report = self._progress.get(rid)
+                if report is not None:
+                    with contextlib.suppress(Exception):  # a report never stops the work
+                        report(*payload)
+                continue
             with self._lock:
                 entry = self._pending.pop(rid, None)
             if entry is None:
@@ -143,8 +155,11 @@ class PlannerProcess:
         if not self._closed:
             log.warning("planner process %s stopped (exit code %s)", proc.pid, code)
 
-    def call(self, kind: str, *args: Any) -> Any:
-        """``Planning.<kind>(*args)`` computed in the child; blocks this thread until done."""
+    def call(
+        self, kind: str, *args: Any, progress: Callable[[float, str], None] | None = None
+    ) -> Any:
+        """``Planning.<kind>(*args)`` computed in the child; blocks this thread until done.
+        progress: gets what a call of :data:`PROGRESS` reports, as it comes."""
         if kind not in KINDS:
             raise ValueError(f"unknown planner call {kind!r}")
         fut: Future[Any] = Future()
@@ -152,6 +167,8 @@ class PlannerProcess:
             conn = self._ensure()
             rid = next(self._ids)
             self._pending[rid] = (conn, fut)
+            if progress is not None:
+                self._progress[rid] = progress
             conn.send(("run", rid, kind, args))
         try:
             while True:
@@ -162,6 +179,8 @@ class PlannerProcess:
         except Cancelled:
             self._stop(rid, fut)
             raise
+        finally:
+            self._progress.pop(rid, None)
 
     def _stop(self, rid: int, fut: Future[Any]) -> None:
         """Stop request ``rid`` in the child and wait until it has let go of its planner."""
@@ -211,6 +230,24 @@ class PlannerProcess:
 
     def preview_json(self, scene: Any, options: Any, db_id: str | None = None) -> bytes:
         return self.call("preview_json", scene, options, db_id)
+
+    def plan_mix(
+        self, scene: Any, orders: Any, options: Any, db_id: str | None = None, prepare: Any = None
+    ) -> Any:
+        return self.call("plan_mix", scene, orders, options, db_id, prepare)
+
+    def guidance(
+        self, scene: Any, tray: str, order: str | None = None, mix: bool = False,
+        sigma: float | None = None, db_id: str | None = None,
+    ) -> Any:  # fmt: skip
+        return self.call("guidance", scene, tray, order, mix, sigma, db_id)
+
+    def layout(
+        self, scene: Any, orders: Any, movable: Any, options: Any, settings: Any,
+        db_id: str | None = None, progress: Callable[[float, str], None] | None = None,
+    ) -> Any:  # fmt: skip
+        return self.call("layout", scene, orders, movable, options, settings, db_id,
+                         progress=progress)  # fmt: skip
 
     def regions(
         self, scene: Any, sigma: float | None, db_id: str | None, rule: str = "sigma",
@@ -274,6 +311,8 @@ def _serve(conn: Connection, service: Any) -> None:
                     send((rid, "cancelled", None))
                     continue
                 current[:] = [rid, work]
+            if kind in PROGRESS:  # the call's reports go to the parent as they come
+                args = (*args, lambda f, msg, rid=rid: send((rid, "progress", (f, msg))))
             try:
                 out = work.run(getattr(service, kind), *args)
                 send((rid, "ok", out))

@@ -24,7 +24,8 @@ import shapely
 from pickstop.api.registry import RobotRegistry
 from pickstop.errors import PickStopError
 from pickstop.pool import PlannerPool, PlannerSlot
-from pickstop.scene.model import Scene
+from pickstop.scene.model import Order, Scene
+from pickstop.sequence.mix import MixPlans, plan_mix
 from pickstop.sequence.plan import route_points, route_yaws
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
@@ -124,6 +125,65 @@ class Planning:
         self._generation += 1
         self.background.submit(self._plan_ahead, slot, scene, options, self._generation)
         return plan
+
+    def plan_mix(
+        self,
+        scene: Scene,
+        orders: list[Order],
+        options: PlanOptions,
+        db_id: str | None = None,
+        prepare: list[Order] | None = None,
+    ) -> MixPlans:
+        """Every order's plan on the scene's layout (:func:`pickstop.sequence.mix.plan_mix`;
+        ``prepare``: the orders whose regions to compute first). Nothing is planned ahead."""
+        slot = self.slot(scene, db_id)
+        with self._locked(slot):
+            return plan_mix(slot.planner, scene, orders, options, prepare=prepare)
+
+    def guidance(
+        self,
+        scene: Scene,
+        tray: str,
+        order: str | None = None,
+        mix: bool = False,
+        sigma: float | None = None,
+        db_id: str | None = None,
+    ) -> dict[str, Any]:
+        """Placement guidance for ``tray`` (:func:`pickstop.layout.guidance.guidance`) as
+        GeoJSON: with the partners of the order ``order``, of every order (``mix``), or of
+        the task."""
+        from pickstop.layout.guidance import guidance, guidance_geojson, partner_groups
+
+        slot = self.slot(scene, db_id)
+        groups = partner_groups(scene, tray, order, mix)
+        with self._locked(slot):
+            g = guidance(slot.regions, scene, tray, groups, sigma)
+        return guidance_geojson(g)
+
+    def layout(
+        self,
+        scene: Scene,
+        orders: list[Order],
+        movable: list[str],
+        options: PlanOptions,
+        settings: Any,
+        db_id: str | None = None,
+        progress: Callable[[float, str], None] | None = None,
+    ) -> dict[str, Any]:
+        """Suggested layouts (:func:`pickstop.layout.search.suggest`) as the layout document;
+        the planners are held while the search runs."""
+        from pickstop.layout.search import suggest
+        from pickstop.layout.verify import LocalEvaluator
+
+        slot = self.slot(scene, db_id)
+        with self._locked(slot):
+            evaluator = LocalEvaluator(slot.planner, orders, options)
+            try:
+                doc = suggest(slot.regions, evaluator, scene, orders, movable, options, settings,
+                              progress)  # fmt: skip
+            finally:
+                evaluator.close()
+        return doc.model_dump(mode="json")
 
     def plan_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
         """:meth:`plan` as the JSON the API answers with, serialised once where it is made

@@ -14,6 +14,8 @@ from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, model_validat
 
 from pickstop.api.limits import Limits
 from pickstop.robot.floor import FLOOR_CLEARANCE, MAX_CLEARANCE
+from pickstop.scene.model import Order
+from pickstop.sequence.mix_model import Mix
 from pickstop.sequence.plan_model import Plan, PlanOptions
 
 API_PREFIX = "/api/v1"
@@ -237,6 +239,13 @@ class PlanRequest(BatchItem):
     store: bool = Field(
         default=True, description="keep the plan as a record (false: answered, not stored)"
     )
+    orders: list[Order] | Literal["scene"] | None = Field(
+        default=None,
+        description="plan a product mix on the scene's layout: every order (a list of {id, "
+        "trays | parts, weight}, or 'scene' for the scene's own orders) planned, each tray's "
+        "region computed once; answered with a mix record, each order's plan stored as a plan "
+        "(mode 'sync' or 'job'; at most `max_orders` orders, see /limits)",
+    )
 
 
 class PlanRecord(BaseModel):
@@ -263,6 +272,32 @@ class PlanSummary(BaseModel):
         return cls(**{**row, "options": json.loads(row["options"])})
 
 
+# -- mixes ----------------------------------------------------------------------------------------
+class MixRecord(BaseModel):
+    """A stored mix: its document names each order's stored plan by id (``orders[].plan``)."""
+
+    id: str | None  # None if not stored
+    scene_id: str | None
+    scene_revision: int | None
+    created: str
+    options: dict[str, Any]
+    mix: Mix
+
+
+class MixSummary(BaseModel):
+    id: str
+    scene_id: str | None
+    scene_revision: int | None
+    options: dict[str, Any]
+    created: str
+    orders: int | None
+    time: float | None
+
+    @classmethod
+    def of(cls, row: dict[str, Any]) -> MixSummary:
+        return cls(**{**row, "options": json.loads(row["options"])})
+
+
 # -- jobs -----------------------------------------------------------------------------------------
 class BatchRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
@@ -273,7 +308,7 @@ class BatchRequest(BaseModel):
 
 class Job(BaseModel):
     id: str
-    kind: Literal["build", "batch", "dispatch"]
+    kind: Literal["build", "batch", "dispatch", "mix", "layout"]
     state: Literal["queued", "running", "done", "failed", "cancelled", "interrupted"]
     progress: float
     params: dict[str, Any]
@@ -291,3 +326,105 @@ class Job(BaseModel):
                 "result": json.loads(row["result"]) if row["result"] else None,
             }
         )
+
+
+# -- placement -------------------------------------------------------------------------------------
+Coordinate = Annotated[float, Field(ge=-1e4, le=1e4, allow_inf_nan=False)]
+
+
+class PlacementRequest(BatchItem):
+    """Where a tray of the scene would stand with its footprint at ``(x, y, yaw)``."""
+
+    tray: str = Field(description="a tray of the scene (its own place does not count)")
+    x: Coordinate
+    y: Coordinate
+    yaw: Coordinate = 0.0
+    z_hint: Coordinate | None = Field(
+        default=None, description="the tray's pose height now [m]: of the supports under the "
+        "footprint, the free one nearest this height (a tray dragged along a shelf stays on it)"
+    )  # fmt: skip
+
+
+class PlacementAnswer(BaseModel):
+    """The support under the footprint (an obstacle id, ``floor``, or null), the pose height
+    that rests the tray there [m] and whether it stands free (else ``problem`` says why)."""
+
+    tray: str
+    x: float
+    y: float
+    yaw: float
+    z: float | None
+    support: str | None
+    free: bool
+    problem: str | None = None
+
+
+class CopyRequest(BatchItem):
+    tray: str = Field(description="the tray to copy onto a free spot of its support")
+
+
+class CopyAnswer(BaseModel):
+    tray: dict[str, Any] | None = Field(
+        description="the copy (new ids for it and its parts) on the nearest free spot of the "
+        "same support, as a tray document; null if the support has no free spot"
+    )
+
+
+# -- guidance -------------------------------------------------------------------------------------
+class GuidanceRequest(BatchItem):
+    """Where a tray of the scene could go, and what that does to its order's stops."""
+
+    tray: str = Field(description="a tray of the scene")
+    order: str | None = Field(
+        default=None, description="judge it with this order's trays (default: the task's)"
+    )
+    mix: bool = Field(default=False, description="with the trays of every order that needs it")
+    sigma: float | None = Field(
+        default=None, ge=0, le=1, allow_inf_nan=False, description="default: the scene's [m]"
+    )
+    database: str | None = Field(default=None, description="reachability database id")
+
+
+class GuidanceInfo(BaseModel):
+    tray: str
+    sigma: float
+    groups: list[list[str]] = Field(description="the partner trays, one list per order shown")
+    here: Literal["shares", "own", "unreachable", "unknown"] = Field(
+        description="the zone the tray stands in now"
+    )
+    seconds: float
+
+
+class Guidance(BaseModel):
+    """Zones of positions of the tray's centre (world x, y [m]) on the supports it may stand
+    on, as GeoJSON: ``kind`` 'shares' (it shares a stop of inscribed radius >= sigma with the
+    feature's ``trays``), 'own' (it needs a stop of its own), 'unreachable', or 'unknown' (a
+    support at another height: drop it there to know). Predicted from known regions (carried
+    with the tray); the exact plan decides once the tray is dropped."""
+
+    type: Literal["FeatureCollection"] = "FeatureCollection"
+    properties: GuidanceInfo
+    features: list[Feature]
+
+
+# -- layouts --------------------------------------------------------------------------------------
+class LayoutRequest(BatchItem):
+    """Suggested moves of trays for the mix (a job: progress, result, cancel)."""
+
+    orders: list[Order] | Literal["scene"] | None = Field(
+        default=None, description="the mix (default: the scene's orders, else its task)"
+    )
+    movable: list[str] | None = Field(
+        default=None, max_length=6, description="trays that may move (default: every tray an "
+        "order needs, at most 6)"
+    )  # fmt: skip
+    options: PlanOptions = PlanOptions()
+    database: str | None = Field(default=None, description="reachability database id")
+    step: float = Field(default=0.1, ge=0.025, le=1.0, allow_inf_nan=False,
+                        description="slot spacing [m]")  # fmt: skip
+    turns: list[Literal[0, 90, 180, 270]] = Field(
+        default=[0, 90, 180, 270], min_length=1, max_length=4, description="turns tried [deg]"
+    )
+    suggestions: int = Field(default=3, ge=1, le=10)
+    shortlist: int = Field(default=12, ge=1, le=64,
+                           description="best predicted layouts planned exactly")  # fmt: skip

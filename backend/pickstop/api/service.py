@@ -7,8 +7,9 @@
   once per robot and database and shared by requests, each with its lock;
 - ``planning`` (:mod:`pickstop.api.planning`): plans, previews and regions on them;
 - ``bodies`` (:mod:`pickstop.api.plan_bodies`): stored plans as the bytes the API answers;
-- ``jobs`` (:mod:`pickstop.api.jobs`): builds and batch plans, one at a time, recorded in
-  SQLite so that their state survives a restart.
+- ``jobs`` (:mod:`pickstop.api.jobs`): builds, batch plans and mixes
+  (:mod:`pickstop.api.mixes`), one at a time, recorded in SQLite so that their state survives
+  a restart.
 
 CPU-heavy work (regions, plans) runs off the event loop: in a planner process
 (:mod:`pickstop.api.planner_process`, the default) or in the ``threads`` pool.
@@ -25,6 +26,8 @@ from typing import Any
 from pickstop.api import limits as lim
 from pickstop.api import planner_process
 from pickstop.api.jobs import JobRunner, batch_job, build_job
+from pickstop.api.layouts import layout_job, layout_params
+from pickstop.api.mixes import mix_job, request_orders
 from pickstop.api.plan_bodies import PlanBodies
 from pickstop.api.planner_process import PlannerProcess
 from pickstop.api.planning import Planning
@@ -68,6 +71,8 @@ class Service:
         kinds = {
             "build": build_job(self.robots, self.data_dir, self.after_build),
             "batch": batch_job(self.scenes.parse, self.planning.plan),
+            "mix": mix_job(self.scenes.parse, self.planning.plan_mix, self.limits),
+            "layout": layout_job(self.scenes.parse, self.planning.layout),
         }
         self.jobs = JobRunner(self.store, settings, kinds, start=job_runner)
         if job_runner:
@@ -86,6 +91,20 @@ class Service:
         item = {"scene_id": body.scene_id, "scene": body.scene}
         return self.jobs.submit("batch", {"scenes": [item], "options": body.options.model_dump(),
                                           "database": body.database})  # fmt: skip
+
+    def submit_mix_job(self, body: Any) -> dict[str, Any]:
+        """A mix as a job, its scene, options and orders checked first."""
+        _, _, scene = self.scenes.prepare(body)
+        request_orders(body.orders, scene, self.limits)
+        orders = body.orders if body.orders == "scene" else [o.model_dump() for o in body.orders]
+        return self.jobs.submit("mix", {"scene_id": body.scene_id, "scene": body.scene,
+                                        "orders": orders, "options": body.options.model_dump(),
+                                        "database": body.database})  # fmt: skip
+
+    def submit_layout(self, body: Any) -> dict[str, Any]:
+        """A layout search as a job, its scene, options, orders and movable trays checked."""
+        _, _, scene = self.scenes.prepare(body)
+        return self.jobs.submit("layout", layout_params(body, scene, self.limits))
 
     def submit_batch(self, body: Any) -> dict[str, Any]:
         self.scenes.check_options(body.options)

@@ -6,87 +6,42 @@ import hashlib
 import threading
 from collections import Counter, OrderedDict
 
-import numpy as np
 import shapely
-from shapely.geometry import Point, Polygon
+from shapely.geometry import Point
 from shapely.geometry.base import BaseGeometry
 
-from pickstop.frames import R_z, rot2
-from pickstop.scene.model import Box, Cylinder, Mesh, Obstacle, Pose, Scene, Tray
-
-TOUCH = 1e-6  # [m] resting on a surface is not intersecting it
-
-
-def rect(cx: float, cy: float, yaw: float, sx: float, sy: float) -> Polygon:
-    """Rectangle of size ``sx x sy`` [m] centred at ``(cx, cy)``, rotated by ``yaw`` [rad]."""
-    corners = np.array([(-sx / 2, -sy / 2), (sx / 2, -sy / 2), (sx / 2, sy / 2), (-sx / 2, sy / 2)])
-    return Polygon(corners @ rot2(yaw).T + (cx, cy))
-
-
-def footprint(geometry: Box | Cylinder | Mesh, pose: Pose) -> BaseGeometry | None:
-    """Floor footprint of a shape at ``pose`` (None for meshes: unknown until loaded)."""
-    if isinstance(geometry, Box):
-        return rect(pose.x, pose.y, pose.yaw, geometry.size[0], geometry.size[1])
-    if isinstance(geometry, Cylinder):
-        return Point(pose.x, pose.y).buffer(geometry.radius, quad_segs=16)
-    return None
-
-
-def height(geometry: Box | Cylinder | Mesh) -> float | None:
-    if isinstance(geometry, Box):
-        return geometry.size[2]
-    if isinstance(geometry, Cylinder):
-        return geometry.height
-    return None
-
-
-def tray_corners(tray: Tray) -> list[tuple[float, float, float]]:
-    """World corners of the tray's outer box (floor bottom to wall top), tilt included."""
-    ox, oy = tray.outer_size
-    R_world_tray = R_z(tray.pose.yaw)
-    if tray.tilt is not None:
-        R_world_tray = R_world_tray @ tray.tilt.matrix()
-    corners = np.array(
-        [
-            (x, y, z)
-            for x in (-ox / 2, ox / 2)
-            for y in (-oy / 2, oy / 2)
-            for z in (-tray.floor_thickness, tray.wall_height)
-        ]
-    )
-    world = corners @ R_world_tray.T + (tray.pose.x, tray.pose.y, tray.pose.z)
-    return [(float(x), float(y), float(z)) for x, y, z in world]
-
-
-def tray_footprint(tray: Tray) -> Polygon:
-    if tray.tilt is None:
-        return rect(tray.pose.x, tray.pose.y, tray.pose.yaw, *tray.outer_size)
-    hull = shapely.MultiPoint([(x, y) for x, y, _ in tray_corners(tray)]).convex_hull
-    assert isinstance(hull, Polygon)
-    return hull
-
-
-def tray_z_range(tray: Tray) -> tuple[float, float]:
-    zs = [z for _, _, z in tray_corners(tray)]
-    return (min(zs), max(zs))
-
-
-def _overlap(a: BaseGeometry, b: BaseGeometry) -> bool:
-    return bool(a.intersects(b)) and a.intersection(b).area > TOUCH
+from pickstop.scene.model import Scene, Tray
+from pickstop.scene.orders import order_problems
+from pickstop.scene.outline import (  # noqa: F401  (re-exported: the checks' geometry)
+    TOUCH,
+    footprint,
+    height,
+    overlap_depth,
+    overlaps,
+    rect,
+    tray_corners,
+    tray_footprint,
+    tray_z_range,
+)
+from pickstop.scene.supports import (
+    Solid2,
+    Surface,
+    intersection_problem,
+    resting_problem,
+    solids,
+    surfaces,
+)
 
 
 def _dups(ids: list[str]) -> list[str]:
     return sorted(k for k, v in Counter(ids).items() if v > 1)
 
 
-def _obstacle_z(ob: Obstacle) -> tuple[float, float] | None:
-    h = height(ob.geometry)
-    return None if h is None else (ob.pose.z, ob.pose.z + h)
-
-
 #: The fields :func:`check_scene` reads: a change of sigma, the error model, the motion or
 #: the names checks nothing anew.
-CHECKED_FIELDS = frozenset(("floor", "trays", "obstacles", "task", "base_grid", "start", "goal"))
+CHECKED_FIELDS = frozenset(
+    ("floor", "trays", "obstacles", "task", "base_grid", "start", "goal", "orders", "zones")
+)
 
 
 class CheckedScenes:
@@ -116,8 +71,9 @@ class CheckedScenes:
 
 
 def check_scene(scene: Scene) -> list[tuple[str, str]]:
-    """The geometry's problems as (field, message): duplicate ids, trays off the floor or
-    inside obstacles and each other, parts outside their tray, start or goal off the floor."""
+    """The geometry's problems as (field, message): duplicate ids, trays off the floor,
+    inside obstacles and each other (by how much), standing on nothing
+    (:mod:`pickstop.scene.supports`), parts outside their tray, start or goal off the floor."""
     problems: list[tuple[str, str]] = []
     floor = shapely.box(
         scene.floor.min[0], scene.floor.min[1], scene.floor.max[0], scene.floor.max[1]
@@ -145,49 +101,71 @@ def check_scene(scene: Scene) -> list[tuple[str, str]]:
         if nx * ny > 4_000_000:
             problems.append(("base_grid", f"grid of {nx:.0f} x {ny:.0f} cells is over 4 million"))
 
+    faces = surfaces(scene)
+    others = solids(scene)
+    n_obstacles = sum(o.kind == "obstacle" for o in others)
     for i, tray in enumerate(scene.trays):
-        where = f"trays.{i}"
-        fp = tray_footprint(tray)
-        if not floor.contains(fp):
-            problems.append((f"{where}.pose", f"tray {tray.id!r} is not inside the floor"))
-        # Parts are checked in the tray's own frame (the same whether or not it is tilted).
-        inner = rect(0.0, 0.0, 0.0, *tray.inner_size)
-        part_fps: list[tuple[int, BaseGeometry]] = []
-        for k, part in enumerate(tray.parts):
-            pfp = footprint(part.geometry, part.pose)
-            if pfp is None:
-                continue
-            if not inner.buffer(TOUCH).contains(pfp):
-                problems.append(
-                    (f"{where}.parts.{k}.pose", f"part {part.id!r} is outside tray {tray.id!r}")
-                )
-            if part.pose.z < -TOUCH:
-                problems.append(
-                    (f"{where}.parts.{k}.pose.z", "a part cannot sink below its tray floor")
-                )
-            for j, other in part_fps:
-                if _overlap(pfp, other):
-                    problems.append(
-                        (
-                            f"{where}.parts.{k}",
-                            f"part {part.id!r} overlaps part {tray.parts[j].id!r}",
-                        )
-                    )
-            part_fps.append((k, pfp))
-        z0, z1 = tray_z_range(tray)
-        for ob in scene.obstacles:
-            ofp = footprint(ob.geometry, ob.pose)
-            oz = _obstacle_z(ob)
-            if ofp is None or oz is None:
-                continue
-            if _overlap(fp, ofp) and min(z1, oz[1]) - max(z0, oz[0]) > TOUCH:
-                problems.append((where, f"tray {tray.id!r} intersects obstacle {ob.id!r}"))
-        for other in scene.trays[:i]:
-            oz0, oz1 = tray_z_range(other)
-            if _overlap(fp, tray_footprint(other)) and min(z1, oz1) - max(z0, oz0) > TOUCH:
-                problems.append((where, f"tray {tray.id!r} intersects tray {other.id!r}"))
+        # each pair of trays once: the obstacles, then the trays before this one
+        problems += _tray_problems(floor, faces, others[: n_obstacles + i], i, tray)
+    problems += order_problems(scene, scene.orders or [])
+    problems += _zone_problems(scene)
     for name in ("start", "goal"):
         bp = getattr(scene, name)
         if not floor.contains(Point(bp.x, bp.y)):
             problems.append((name, f"{name} ({bp.x}, {bp.y}) is not on the floor"))
     return problems
+
+
+def _tray_problems(
+    floor: BaseGeometry, faces: list[Surface], others: list[Solid2], i: int, tray: Tray
+) -> list[tuple[str, str]]:
+    """The problems of ``scene.trays[i]``: off the floor, its parts, what it meets (of
+    ``others``) and, if none of that, what it stands on."""
+    where = f"trays.{i}"
+    out = _part_problems(where, tray)
+    if not floor.contains(tray_footprint(tray)):
+        return [(f"{where}.pose", f"tray {tray.id!r} is not inside the floor"), *out]
+    hits = [why for o in others if (why := intersection_problem(tray, o)) is not None]
+    out += [(where, why) for why in hits]
+    if not hits and (why := resting_problem(faces, tray)) is not None:
+        out.append((f"{where}.pose", why))
+    return out
+
+
+def _part_problems(where: str, tray: Tray) -> list[tuple[str, str]]:
+    """Parts outside their tray, sunk below its floor or overlapping each other (checked in
+    the tray's own frame: the same whether or not it is tilted)."""
+    out: list[tuple[str, str]] = []
+    inner = rect(0.0, 0.0, 0.0, *tray.inner_size)
+    part_fps: list[tuple[int, BaseGeometry]] = []
+    for k, part in enumerate(tray.parts):
+        pfp = footprint(part.geometry, part.pose)
+        if pfp is None:
+            continue
+        if not inner.buffer(TOUCH).contains(pfp):
+            out.append((f"{where}.parts.{k}.pose", f"part {part.id!r} is outside tray {tray.id!r}"))
+        if part.pose.z < -TOUCH:
+            out.append((f"{where}.parts.{k}.pose.z", "a part cannot sink below its tray floor"))
+        for j, other in part_fps:
+            if overlaps(pfp, other):
+                msg = f"part {part.id!r} overlaps part {tray.parts[j].id!r}"
+                out.append((f"{where}.parts.{k}", msg))
+        part_fps.append((k, pfp))
+    return out
+
+
+def _zone_problems(scene: Scene) -> list[tuple[str, str]]:
+    """Zones whose outline is no simple polygon of some area, or that admit unknown trays."""
+    out: list[tuple[str, str]] = []
+    trays = {t.id for t in scene.trays}
+    for d in _dups([z.id for z in scene.zones or []]):
+        out.append(("zones", f"duplicate zone id {d!r}"))
+    for i, zone in enumerate(scene.zones or []):
+        poly = shapely.Polygon(zone.outline)
+        if not poly.is_valid or poly.area < 1e-6:
+            out.append((f"zones.{i}.outline", f"zone {zone.id!r}: the outline must be a simple "
+                        "polygon with an area (no edge crossing another)"))  # fmt: skip
+        for j, t in enumerate(zone.trays or []):
+            if t not in trays:
+                out.append((f"zones.{i}.trays.{j}", f"zone {zone.id!r}: unknown tray {t!r}"))
+    return out

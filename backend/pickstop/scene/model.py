@@ -393,6 +393,37 @@ class FailureModel(_Strict):
     operator_time: NonNegative = 300.0  # [s] an operator's call after the last retry
 
 
+MAX_ORDERS = 1000  # orders a scene document may carry (the API's limit is lower)
+
+
+class Order(_Strict):
+    """One product of a mix: the trays it needs (or the parts: each brings its tray) and
+    how often it is made (``weight``, e.g. per shift). The scene's ``task`` is the one-order
+    case."""
+
+    id: Ident
+    name: str = ""
+    trays: list[Ident] | None = None
+    parts: list[Ident] | None = None
+    weight: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1.0
+
+    @model_validator(mode="after")
+    def _needs_something(self) -> Order:
+        if not (self.trays or self.parts):
+            raise ValueError("an order needs at least one tray or part")
+        return self
+
+
+class LayoutZone(_Strict):
+    """An area of the floor plane where trays may be placed when a layout is searched: a
+    tray that may move goes only where its outline lies within a zone that admits it."""
+
+    id: Ident
+    name: str = ""
+    outline: Annotated[list[tuple[Finite, Finite]], Field(min_length=3, max_length=256)]
+    trays: list[Ident] | None = None  # the trays it admits (default: every tray)
+
+
 class Scene(_Strict):
     format: Literal["pickstop.scene"] = "pickstop.scene"
     version: Literal[1] = 1
@@ -414,6 +445,10 @@ class Scene(_Strict):
     error_model: ErrorModel = ErrorModel()
     motion: Motion = Motion()
     failure: FailureModel = FailureModel()
+    # the product mix: each order's trays planned on this one layout
+    orders: Annotated[list[Order], Field(max_length=MAX_ORDERS)] | None = None
+    # where trays may go when a layout is searched (default: anywhere on their supports)
+    zones: Annotated[list[LayoutZone], Field(max_length=64)] | None = None
 
     @model_validator(mode="after")
     def _station_trays(self) -> Scene:
@@ -439,6 +474,15 @@ class Scene(_Strict):
     @property
     def task_trays(self) -> list[str]:
         return list(self.task) if self.task is not None else [t.id for t in self.trays]
+
+    def order_trays(self, order: Order) -> list[str]:
+        """The trays ``order`` needs: its trays, then the tray of each of its parts, each once
+        (unknown ids are left out: the scene checks name them)."""
+        of_part = {p.id: t.id for t in self.trays for p in t.parts}
+        known = {t.id for t in self.trays}
+        listed = [t for t in order.trays or [] if t in known]
+        listed += [of_part[p] for p in order.parts or [] if p in of_part]
+        return list(dict.fromkeys(listed))
 
 
 def resolve_mesh_paths(

@@ -1,4 +1,4 @@
-"""The service's records in the SQLite catalog: scenes, plans, jobs, robots.
+"""The service's records in the SQLite catalog: scenes, plans, mixes, jobs, robots.
 
 One connection per thread (SQLite connections are not shared across threads); WAL mode lets
 readers run while a writer commits. Updates that must not race (a scene's ETag check and
@@ -149,6 +149,39 @@ class ServiceStore:
             [*params, limit, offset],
         )
 
+    # -- mixes -------------------------------------------------------------------------------
+    def add_mix(
+        self,
+        scene_id: str | None,
+        revision: int | None,
+        options: dict[str, Any],
+        doc: dict[str, Any],
+    ) -> dict[str, Any]:
+        """Store a mix document (its orders' plans stored already, named by their ids)."""
+        row = {
+            "id": new_id("mix"),
+            "scene_id": scene_id,
+            "scene_revision": revision,
+            "options": json.dumps(options),
+            "doc": json.dumps(doc),
+            "created": now(),
+        }
+        self.catalog.insert("mixes", row)
+        return row
+
+    def mix(self, mix_id: str) -> dict[str, Any] | None:
+        return self.catalog.one("SELECT * FROM mixes WHERE id = ?", [mix_id])
+
+    def mixes(self, scene_id: str | None, limit: int, offset: int) -> list[dict[str, Any]]:
+        where, params = ("WHERE scene_id = ?", [scene_id]) if scene_id else ("", [])
+        return self.rows(
+            "SELECT id, scene_id, scene_revision, options, created, "
+            "json_extract(doc, '$.totals.orders') AS orders, "
+            "json_extract(doc, '$.totals.time') AS time "
+            f"FROM mixes {where} ORDER BY created, id LIMIT ? OFFSET ?",
+            [*params, limit, offset],
+        )
+
     # -- jobs --------------------------------------------------------------------------------
     def add_job(self, kind: str, params: dict[str, Any]) -> dict[str, Any]:
         t = now()
@@ -175,10 +208,11 @@ class ServiceStore:
         )
 
     def next_queued_job(self) -> str | None:
-        """The oldest queued build or batch job, if any (dispatch jobs run on their own)."""
+        """The oldest queued build, batch, mix or layout job, if any (dispatch jobs run on
+        their own)."""
         rows = self.rows(
-            "SELECT id FROM jobs WHERE state = 'queued' AND kind IN ('build', 'batch') "
-            "ORDER BY created, id LIMIT 1"
+            "SELECT id FROM jobs WHERE state = 'queued' "
+            "AND kind IN ('build', 'batch', 'mix', 'layout') ORDER BY created, id LIMIT 1"
         )
         return str(rows[0]["id"]) if rows else None
 
