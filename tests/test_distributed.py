@@ -69,3 +69,33 @@ def test_killed_worker_during_a_batch_still_yields_every_plan_once(cluster_clien
         assert "error" not in res, res
         assert res["format"] == "pickstop.plan" and res["scene"] == f"scene-{k}"
         assert res["parameters"]["sigma"] == pytest.approx(0.03 + 0.01 * k)
+
+
+def test_a_layout_searched_on_dask_verifies_as_a_local_search_does(cluster_client, region_db,
+                                                                   planner):  # fmt: skip
+    """Candidate layouts ranked and verified as Dask tasks give the figures the same layouts
+    get verified in this process (from scratch, whatever each worker did before)."""
+    from pickstop.distributed import DaskEvaluator
+    from pickstop.layout.search import SearchSettings, suggest
+    from pickstop.layout.verify import scratch_planner
+    from pickstop.scene.load import parse_scene
+    from pickstop.scene.model import Order
+    from pickstop.sequence.mix import mix_document, plan_mix
+    from pickstop.sequence.plan_model import PlanOptions
+
+    folder, db = region_db
+    scene = parse_scene(json.loads(SCENE.read_text()))
+    orders = [Order(id="task", trays=scene.task_trays)]
+    options = PlanOptions(samples=20)
+    ev = DaskEvaluator(cluster_client, SCENE.parent, folder, db.id, orders, options)
+    settings = SearchSettings(step=0.2, turns=(0,), suggestions=1, shortlist=3)
+    doc = suggest(planner, ev, scene, orders, ["tray_4"], options, settings)
+    local = scratch_planner(planner)
+    try:
+        for s in doc.suggestions:
+            mix = plan_mix(local, parse_scene(s.scene), orders, options)
+            assert mix_document(mix).totals == s.after.totals
+        before = plan_mix(local, scene, orders, options)
+        assert mix_document(before).totals == doc.before.totals
+    finally:
+        local.regions.close()
