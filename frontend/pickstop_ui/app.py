@@ -37,11 +37,13 @@ from pickstop.sequence.plan_model import Plan
 from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
+from pickstop_ui.history import History
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
-from pickstop_ui.scene_view import Item, camera_view, initial_sigma, scene_drawing, tray_colours
+from pickstop_ui.scene_layer import SceneLayer
+from pickstop_ui.scene_view import Item, camera_view, initial_sigma, tray_colours
 
 log = logging.getLogger("pickstop.ui")
 
@@ -67,7 +69,11 @@ class PlannerState:
     mc_ms: float | None = None  # the last Monte Carlo, request to drawn [ms]
     mc_t0: float = 0.0  # when the running Monte Carlo started [s, perf_counter]
     busy: bool = False
-    dirty: bool = False  # edited since the last save
+    history: History | None = None  # the edits, for undo and redo (made with the state)
+
+    def __post_init__(self) -> None:
+        if self.history is None:
+            self.history = History.start(self.doc)
 
 
 class PlannerApp:
@@ -117,23 +123,17 @@ class PlannerApp:
 
     # -- the scene ---------------------------------------------------------------------------
     def _draw_scene(self) -> None:
-        sc, d = self.server.scene, scene_drawing(self.state.doc)
+        sc = self.server.scene
         sc.set_up_direction("+z")
         # No shadow pass: it doubles the cost of every frame in a browser without a GPU.
         sc.configure_default_lights(enabled=True, cast_shadow=False)
         if self.flat_lighting:
             sc.configure_environment_map(None)
             sc.add_light_hemisphere("/lights/flat", ground_color=(170, 170, 170), intensity=2.0)
+        self.scene = SceneLayer(self.server, make_root=self._gizmo_root)
+        d = self.scene.sync(self.state.doc)
         w, h = d.floor_size
         sc.add_grid("/floor", width=w, height=h, cell_size=0.5, position=d.floor_centre)
-        for item in d.items:
-            self._draw_item(item)
-        for m in d.markers:
-            sc.add_icosphere(f"/{m.name}", radius=m.position[2], color=m.colour,
-                             position=m.position)  # fmt: skip
-            sc.add_label(f"/{m.name}/label", m.name, position=(0, 0, 0.2))
-        if d.undrawn:
-            log.warning("not drawn (mesh shapes): %s", ", ".join(d.undrawn))
         if self._urdf is not None:
             from viser.extras import ViserUrdf
 
@@ -141,32 +141,19 @@ class PlannerApp:
             sc.add_frame("/robot", show_axes=False, position=(x, y, 0.0), wxyz=yaw_quat(yaw))
             self._robot = ViserUrdf(self.server, self._urdf, root_node_name="/robot")
 
-    def _draw_item(self, item: Item) -> None:
-        """A tray or obstacle: its gizmo (dragged on the floor) and its shapes below it."""
-        sc, root = self.server.scene, f"/{item.kind}/{item.id}"
+    def _gizmo_root(self, item: Item) -> Any:
+        """A tray's or obstacle's root: its gizmo (dragged on the floor)."""
         scale, opacity = GIZMO[item.kind]
-        ctl = sc.add_transform_controls(
-            root, scale=scale, active_axes=(True, True, False), depth_test=False,
-            position=item.position, wxyz=item.wxyz, opacity=opacity,
+        ctl = self.server.scene.add_transform_controls(
+            f"/{item.kind}/{item.id}", scale=scale, active_axes=(True, True, False),
+            depth_test=False, position=item.position, wxyz=item.wxyz, opacity=opacity,
         )  # fmt: skip
-        if item.body_wxyz is not None:
-            sc.add_frame(f"{root}/body", show_axes=False, wxyz=item.body_wxyz)
-        for s in item.shapes:
-            name = f"{root}/{s.name}"
-            if s.kind == "box":
-                sx, sy, sz = s.dims
-                sc.add_box(name, dimensions=(sx, sy, sz), color=s.colour, position=s.position,
-                           wxyz=s.wxyz)  # fmt: skip
-            else:
-                r, height = s.dims
-                sc.add_cylinder(name, radius=r, height=height, color=s.colour,
-                                position=s.position, wxyz=s.wxyz)  # fmt: skip
-        if item.label is not None:
-            sc.add_label(f"{root}/label", item.label[0], position=item.label[1])
 
         @ctl.on_update
         def _(event: Any) -> None:  # previews while dragging, the exact plan on release
             self._moved(item.kind, item.id, ctl, final=event.phase == "end")
+
+        return ctl
 
     def _moved(self, kind: str, oid: str, ctl: Any, final: bool = True) -> None:
         """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
@@ -174,7 +161,8 @@ class PlannerApp:
         x, y, yaw = float(ctl.position[0]), float(ctl.position[1]), quat_yaw(ctl.wxyz)
         with self._lock:
             pose = edits.move(self.state.doc, kind, oid, x, y, yaw)
-            self.state.dirty = True
+            if pose is not None and final:
+                self._record(edits.move_label(self.state.history.doc(), self.state.doc, kind, oid))
         if pose is None:
             return
         if final:
@@ -182,12 +170,48 @@ class PlannerApp:
             ctl.wxyz = yaw_quat(pose["yaw"])
         self.request(f"moved {oid}" if final else f"dragging {oid}", preview=not final)
 
+    # -- undo and redo ---------------------------------------------------------------------------
+    def _record(self, label: str) -> None:
+        """The working document as it is now is one undoable step ``label`` (lock held)."""
+        st = self.state
+        st.history = st.history.record(label, st.doc)
+        self._history_changed()
+
+    def _travel(self, how: str) -> None:
+        """Undo, redo or revert to saved (``how``): the document, the scene, the panel and
+        the plan follow."""
+        with self._lock:
+            h = self.state.history
+            label = {"undo": h.undo_label, "redo": h.redo_label}.get(how, "revert to saved")
+            new = {"undo": h.undo, "redo": h.redo, "revert": h.revert}[how]()
+            if new is h:
+                return
+            self.state.history, self.state.doc = new, new.doc()
+            self._history_changed()
+        self._show_doc()
+        self.request(f"{how} {label}")
+
+    def _show_doc(self) -> None:
+        """Draw the working document: the scene's nodes and the trays' panel."""
+        self.scene.sync(self.state.doc)
+        self._sync_tray_gui()
+
+    def _history_changed(self) -> None:
+        """The undo and redo buttons and the scene's line say what they would do."""
+        h = self.state.history
+        self.undo_btn.disabled, self.redo_btn.disabled = h.undo_label is None, h.redo_label is None
+        self.undo_btn.label = f"Undo {h.undo_label}" if h.undo_label else "Undo"
+        self.redo_btn.label = f"Redo {h.redo_label}" if h.redo_label else "Redo"
+        self.revert_btn.disabled = not h.dirty
+        self.saved.content = panel.scene_revision(self.state.stored, dirty=h.dirty)
+
     # -- the panel ---------------------------------------------------------------------------
     def _build_gui(self) -> None:
         gui, st = self.server.gui, self.state
         gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
         self.draft = DraftResolution(self.server, self.draft_scale)
         self.status = gui.add_markdown("**Status:** loading")
+        self._build_history_gui()
         self.summary = gui.add_markdown("")
         with gui.add_folder("Planning"):
             self.sigma = gui.add_slider("sigma [m]", min=0.0, max=SIGMA_MAX, step=0.005,
@@ -205,7 +229,12 @@ class PlannerApp:
         self.trays_folder = gui.add_folder("Trays")
         self._build_tray_gui()
         with gui.add_folder("Scene"):
-            gui.add_button("Save scene").on_click(lambda _: self._save())
+            gui.add_button("Save scene", icon=viser.Icon.DEVICE_FLOPPY).on_click(
+                lambda _: self._save()
+            )
+            self.revert_btn = gui.add_button("Revert to saved", icon=viser.Icon.RESTORE,
+                                             disabled=True)  # fmt: skip
+            self.revert_btn.on_click(lambda _: self._travel("revert"))
             self.saved = gui.add_markdown(panel.scene_revision(st.stored))
         with gui.add_folder("Plan"):
             gui.add_button("Play route").on_click(
@@ -219,6 +248,37 @@ class PlannerApp:
         self.fleet = FleetView(self.server, self.api, self._store_plan)
         self.stops_md = gui.add_markdown("")
 
+    def _build_history_gui(self) -> None:
+        """Undo and redo: two buttons and their keys (Ctrl+Z, Ctrl+Shift+Z or Ctrl+Y)."""
+        gui = self.server.gui
+        self.undo_btn = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP, disabled=True,
+                                       hint="Ctrl+Z")  # fmt: skip
+        self.redo_btn = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP, disabled=True,
+                                       hint="Ctrl+Shift+Z or Ctrl+Y")  # fmt: skip
+        self.undo_btn.on_click(lambda _: self._travel("undo"))
+        self.redo_btn.on_click(lambda _: self._travel("redo"))
+        for label, key, modifier, how in (
+            ("Undo", "Z", "cmd/ctrl", "undo"),
+            ("Redo", "Z", "cmd/ctrl+shift", "redo"),
+            ("Redo", "Y", "cmd/ctrl", "redo"),
+        ):
+            cmd = gui.add_command(label, hotkey=key, modifier=modifier)  # type: ignore[arg-type]
+            cmd.on_trigger(lambda _, how=how: self._travel(how))
+
+    def _sync_tray_gui(self) -> None:
+        """The trays' panel shows the working document: rebuilt when trays came or went, else
+        its ticks and the name field set in place."""
+        doc = self.state.doc
+        ids = [t["id"] for t in doc["trays"]]
+        if [k.removeprefix("cb:") for k in self._tray_ui if k.startswith("cb:")] != ids:
+            self._build_tray_gui()
+            return
+        task = set(edits.task_of(doc))
+        for tid in ids:
+            self._tray_ui[f"cb:{tid}"].value = tid in task
+        sel = self._tray_ui["sel"]
+        self._tray_ui["name"].value = self._tray_name(sel.value)
+
     def _build_tray_gui(self) -> None:
         for h in self._tray_ui.values():
             h.remove()
@@ -228,30 +288,28 @@ class PlannerApp:
         with self.trays_folder:
             for tid in ids:
                 cb = self._tray_ui[f"cb:{tid}"] = gui.add_checkbox(f"needed: {tid}", tid in task)
-                cb.on_update(lambda e: self._edit(
+                cb.on_update(lambda e: e.client is not None and self._edit(
                     edits.set_needed, e.target.label.removeprefix("needed: "), e.target.value,
                     cause="task"))  # fmt: skip
             sel = gui.add_dropdown("tray", ids, initial_value=ids[0])
             name = gui.add_text("name", doc["trays"][0].get("name", ""))
             sel.on_update(lambda _: setattr(name, "value", self._tray_name(sel.value)))
-            for label, edit, named, layout in (
-                ("Rename", edits.rename_tray, True, False),
-                ("Add a copy", edits.copy_tray, True, True),
-                ("Remove", edits.remove_tray, False, True),
+            for label, edit, named in (
+                ("Rename", edits.rename_tray, True),
+                ("Add a copy", edits.copy_tray, True),
+                ("Remove", edits.remove_tray, False),
             ):
                 b = self._tray_ui[label] = gui.add_button(label)
-                b.on_click(self._tray_button(edit, sel, name if named else None, layout))
+                b.on_click(self._tray_button(edit, sel, name if named else None))
             self._tray_ui.update(sel=sel, name=name)
 
-    def _tray_button(
-        self, edit: Callable[..., Any], sel: Any, name: Any, layout: bool
-    ) -> Callable[[Any], None]:
+    def _tray_button(self, edit: Callable[..., Any], sel: Any, name: Any) -> Callable[[Any], None]:
         """A click applies ``edit`` to the selected tray (and the name field's text, if given)."""
         cause = edit.__name__.removesuffix("_tray")
 
         def click(_: Any) -> None:
             args = () if name is None else (name.value,)
-            self._edit(edit, sel.value, *args, cause=cause, layout=layout)
+            self._edit(edit, sel.value, *args, cause=cause)
 
         return click
 
@@ -259,23 +317,20 @@ class PlannerApp:
         with self._lock:
             return str(edits.tray(self.state.doc, tid).get("name", ""))
 
-    def _edit(
-        self, edit: Callable[..., Any], tid: str, *args: Any, cause: str, layout: bool = False
-    ) -> None:
-        """Apply a pure document edit to tray ``tid``, redraw the layout if trays came or went,
+    def _edit(self, edit: Callable[..., Any], tid: str, *args: Any, cause: str) -> None:
+        """Apply a pure document edit to tray ``tid`` as one undoable step, draw what changed
         and re-plan; an edit the scene cannot take is told and changes nothing."""
         try:
             with self._lock:
+                name = edits.display_name(self.state.doc, tid)
                 edit(self.state.doc, tid, *args)
-                self.state.dirty = True
+                self._record(f"{cause} {name}")
         except edits.EditError as e:
             self._notify(str(e))
             return
-        if layout:
-            self.server.scene.reset()
-            self.layer.forget()
-            self._draw_scene()
-            self._build_tray_gui()
+        self._show_doc()
+        if cause == "remove":
+            self._notify(f"Removed {name}. Undo (Ctrl+Z) brings it back.")
         self.request(f"{cause} {tid}")
 
     def _notify(self, text: str, error: bool = False) -> None:
@@ -353,7 +408,9 @@ class PlannerApp:
             self.saved.content = panel.save_problem(e)
             self._notify(self.saved.content, error=True)
             return
-        st.stored, st.dirty = new, False
+        with self._lock:
+            st.stored, st.history = new, st.history.mark_saved()
+            self._history_changed()
         self.saved.content = panel.scene_revision(new, saved=True)
 
     def _store_plan(self) -> str | None:

@@ -46,6 +46,32 @@ def move(
     return None
 
 
+def pose_of(doc: dict[str, Any], kind: str, oid: str) -> dict[str, Any] | None:
+    """The pose of tray or obstacle ``oid`` (``kind``: "trays" or "obstacles"), None if none."""
+    for item in doc.get(kind, []):
+        if item["id"] == oid:
+            return dict(item.get("pose", {}))
+    return None
+
+
+def display_name(doc: dict[str, Any], oid: str) -> str:
+    """What the engineer calls tray or obstacle ``oid``: a tray's name, else its id."""
+    for t in doc.get("trays", []):
+        if t["id"] == oid:
+            return str(t.get("name") or oid)
+    return oid
+
+
+def move_label(before: dict[str, Any], after: dict[str, Any], kind: str, oid: str) -> str:
+    """The undo step of a drag of ``oid`` from document ``before`` to ``after``: "move",
+    "turn" or "move and turn" with the item's name."""
+    p0, p1 = pose_of(before, kind, oid) or {}, pose_of(after, kind, oid) or {}
+    moved = any(p0.get(k, 0.0) != p1.get(k, 0.0) for k in ("x", "y", "z"))
+    turned = p0.get("yaw", 0.0) != p1.get("yaw", 0.0)
+    verb = "move and turn" if moved and turned else "turn" if turned else "move"
+    return f"{verb} {display_name(after, oid)}"
+
+
 def tray(doc: dict[str, Any], tid: str) -> dict[str, Any]:
     """The tray ``tid`` of ``doc`` (EditError if there is none)."""
     for t in doc["trays"]:

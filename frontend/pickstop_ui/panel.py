@@ -99,8 +99,10 @@ def success_rates_failed(status: str, e: ApiProblem) -> str:
     return status.split(" · ⏳")[0] + f" · ⚠ success rates failed: {e.title}"
 
 
-def scene_revision(stored: StoredScene, saved: bool = False) -> str:
-    return f"{'Saved: s' if saved else 'S'}cene `{stored.id}`, revision {stored.revision}"
+def scene_revision(stored: StoredScene, saved: bool = False, dirty: bool = False) -> str:
+    """The stored scene's line: its id and revision, and whether the layout on screen differs."""
+    head = f"{'Saved: s' if saved else 'S'}cene `{stored.id}`, revision {stored.revision}"
+    return head + (" · **unsaved changes**" if dirty else "")
 
 
 def save_problem(e: ApiProblem) -> str:

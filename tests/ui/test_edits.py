@@ -77,3 +77,16 @@ def test_remove_and_rename(doc):
         edits.remove_tray(doc, ids[-1])
     assert doc == before  # a refused edit changes nothing
     parse_scene(doc)
+
+
+def test_a_drag_is_named_by_what_changed_and_by_the_trays_name(doc):
+    before = copy.deepcopy(doc)
+    edits.rename_tray(doc, "tray_4", "brackets B-12")
+    edits.move(doc, "trays", "tray_4", 3.7, 1.5, 0.0)
+    assert edits.move_label(before, doc, "trays", "tray_4") == "move brackets B-12"
+    turned = copy.deepcopy(doc)
+    edits.move(turned, "trays", "tray_4", 3.7, 1.5, 0.5)
+    assert edits.move_label(doc, turned, "trays", "tray_4") == "turn brackets B-12"
+    edits.move(turned, "obstacles", "table_b", 3.0, 1.0, 0.1)
+    assert edits.move_label(doc, turned, "obstacles", "table_b") == "move and turn table_b"
+    assert edits.pose_of(doc, "trays", "nope") is None

@@ -1,0 +1,149 @@
+"""Shared helpers of the planner's browser tests: Debian's headless Chromium under Playwright,
+a planner started in the test's process over the live API on 127.0.0.1, mouse gestures at
+projected world points, waits on the page and on the planner."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import shutil
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tests.conftest import LIVE_KEY, free_port
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = [
+    "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--no-first-run",
+]  # fmt: skip
+ARTIFACTS = Path(__file__).parents[1] / "artifacts" / "ui"
+SCENES = Path(__file__).parents[2] / "examples" / "scenes"
+PAPER = SCENES / "paper_experiment.json"
+SIZE = (1280, 800)  # the page's viewport [CSS px]
+
+needs_chromium = pytest.mark.skipif(
+    shutil.which("chromium") is None, reason="Debian's chromium is not installed"
+)
+
+
+@contextlib.contextmanager
+def planner(live_api: str, scene: Path = PAPER, **kwargs: Any) -> Iterator[Any]:
+    """A planner window of ``scene`` (stored anew in the API) on a free port."""
+    from pickstop_ui.app import PlannerApp
+    from pickstop_ui.client import PickStopClient
+
+    client = PickStopClient(live_api, LIVE_KEY)
+    stored = client.create_scene(json.loads(scene.read_text()))
+    app = PlannerApp(client, stored.id, port=free_port(), **kwargs)
+    try:
+        yield app
+    finally:
+        app.close()
+
+
+@contextlib.contextmanager
+def page(app: Any) -> Iterator[Any]:
+    """A headless Chromium page on ``app``, its first plan ready and drawn."""
+    playwright = pytest.importorskip("playwright.sync_api")
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    with playwright.sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        try:
+            pg = browser.new_page(viewport={"width": SIZE[0], "height": SIZE[1]},
+                                  accept_downloads=True)  # fmt: skip
+            pg.goto(f"http://127.0.0.1:{app.port}/")
+            ready(pg, 180_000)
+            for button in pg.locator(".mantine-Notification-closeButton").all():
+                button.click()
+            time.sleep(2)  # let the software renderer finish the first frames
+            yield pg
+        finally:
+            browser.close()
+
+
+def ready(pg: Any, timeout: float = 60_000) -> None:
+    """Wait until the panel says the plan is ready (success rates in)."""
+    pg.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=timeout)
+
+
+def camera(app: Any) -> Any:
+    return next(iter(app.server.get_clients().values())).camera
+
+
+def project(cam: Any, p: Any, size: tuple[int, int] = SIZE) -> tuple[float, float]:
+    """World point -> page pixel (CSS), from the camera the browser reported (OpenCV frame,
+    vertical fov), the canvas filling the page of ``size``."""
+    from viser import transforms as tf
+
+    R = tf.SO3(np.asarray(cam.wxyz)).as_matrix()
+    pc = R.T @ (np.asarray(p, float) - np.asarray(cam.position))
+    w, h = size
+    f = (h / 2) / math.tan(cam.fov / 2)
+    return w / 2 + f * pc[0] / pc[2], h / 2 + f * pc[1] / pc[2]
+
+
+def drag(pg: Any, a: Any, b: Any, steps: int = 12, button: str = "left") -> None:
+    """Press ``button`` at ``a``, move to ``b`` in ``steps`` moves, release."""
+    pg.mouse.move(*a)
+    pg.mouse.down(button=button)
+    for k in range(1, steps + 1):
+        pg.mouse.move(a[0] + (b[0] - a[0]) * k / steps, a[1] + (b[1] - a[1]) * k / steps)
+        time.sleep(0.03)
+    pg.mouse.up(button=button)
+
+
+def wait_for(cond: Callable[[], bool], timeout: float = 30.0, what: str = "condition") -> None:
+    end = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < end, f"timed out waiting for {what}"
+        time.sleep(0.05)
+
+
+def settled(app: Any, timeout: float = 60.0) -> None:
+    """Wait until the newest request's plan, with its success rates, is drawn."""
+    wait_for(lambda: not app.state.busy and app.state.drawn_seq == app.state.seq
+             and app.replanner.drawn_seq == app.state.seq, timeout, "the plan")  # fmt: skip
+
+
+def node_position(pg: Any, name: str) -> list[float] | None:
+    """The position of scene node ``name`` as the browser holds it (None: not there)."""
+    return pg.evaluate(
+        """n => { const m = window.__viserMutable, o = m.nodeRefFromName[n];
+                  if (!o) return null;
+                  const p = m.nodePoseData[n];
+                  return p && p.position ? [...p.position]
+                                         : [o.position.x, o.position.y, o.position.z]; }""",
+        name,
+    )
+
+
+def shot(pg: Any, name: str) -> np.ndarray:
+    import imageio.v3 as iio
+
+    path = ARTIFACTS / f"{name}.png"
+    pg.screenshot(path=str(path))
+    return iio.imread(path)[..., :3].astype(int)
+
+
+def tray(app: Any, tid: str) -> dict[str, Any]:
+    return next(t for t in app.state.doc["trays"] if t["id"] == tid)
+
+
+def stops(plan: Any) -> list[tuple[float, float, float, tuple[str, ...]]]:
+    return [(s.x, s.y, s.yaw, tuple(s.trays)) for s in plan.stops]
+
+
+def grab_x_arrow(pg: Any, app: Any, tid: str, base: Any, dx: float) -> tuple[Any, Any]:
+    """Where to press on tray ``tid``'s gizmo x arrow and where to release to pull it ``dx``
+    [m] along x (the arrow is 0.3 m long: grabbed at 70%)."""
+    cam = camera(app)
+    a = project(cam, np.asarray(base) + np.array([0.21, 0.0, 0.0]))
+    return a, project(cam, np.asarray(base) + np.array([0.21 + dx, 0.0, 0.0]))
