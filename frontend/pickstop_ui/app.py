@@ -20,37 +20,40 @@ While the engineer edits, a browser without a GPU draws at draft resolution
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import io
 import json
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
 import viser
 
-from pickstop.frames import quat_yaw, yaw_quat
+from pickstop.frames import yaw_quat
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
 from pickstop_ui.history import History
+from pickstop_ui.overlay import Overlay
+from pickstop_ui.picking import item_box, pick
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 from pickstop_ui.scene_layer import SceneLayer
-from pickstop_ui.scene_view import Item, camera_view, initial_sigma, tray_colours
+from pickstop_ui.scene_view import camera_view, initial_sigma, tray_colours
+from pickstop_ui.selection import Key, Selection
 
 log = logging.getLogger("pickstop.ui")
 
 #: The sigma slider's range ends here [m]: the widest stops of the example scenes reach
 #: about 0.3 m, and a layout beyond this is infeasible for any real base.
 SIGMA_MAX = 0.5
-GIZMO = {"trays": (0.3, 1.0), "obstacles": (0.4, 0.8)}  # kind -> (scale, opacity)
 
 
 @dataclass
@@ -130,8 +133,10 @@ class PlannerApp:
         if self.flat_lighting:
             sc.configure_environment_map(None)
             sc.add_light_hemisphere("/lights/flat", ground_color=(170, 170, 170), intensity=2.0)
-        self.scene = SceneLayer(self.server, make_root=self._gizmo_root)
+        self.scene = SceneLayer(self.server)
         d = self.scene.sync(self.state.doc)
+        self.selection = Selection(self.server, self._dragged)
+        sc.on_click()(self._clicked)
         w, h = d.floor_size
         sc.add_grid("/floor", width=w, height=h, cell_size=0.5, position=d.floor_centre)
         if self._urdf is not None:
@@ -141,33 +146,51 @@ class PlannerApp:
             sc.add_frame("/robot", show_axes=False, position=(x, y, 0.0), wxyz=yaw_quat(yaw))
             self._robot = ViserUrdf(self.server, self._urdf, root_node_name="/robot")
 
-    def _gizmo_root(self, item: Item) -> Any:
-        """A tray's or obstacle's root: its gizmo (dragged on the floor)."""
-        scale, opacity = GIZMO[item.kind]
-        ctl = self.server.scene.add_transform_controls(
-            f"/{item.kind}/{item.id}", scale=scale, active_axes=(True, True, False),
-            depth_test=False, position=item.position, wxyz=item.wxyz, opacity=opacity,
-        )  # fmt: skip
-
-        @ctl.on_update
-        def _(event: Any) -> None:  # previews while dragging, the exact plan on release
-            self._moved(item.kind, item.id, ctl, final=event.phase == "end")
-
-        return ctl
-
-    def _moved(self, kind: str, oid: str, ctl: Any, final: bool = True) -> None:
-        """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
-        was; a preview while the drag goes on, the exact plan when it ends."""
-        x, y, yaw = float(ctl.position[0]), float(ctl.position[1]), quat_yaw(ctl.wxyz)
+    def _clicked(self, event: Any) -> None:
+        """A click in the 3D view selects the item under it, or clears the selection."""
         with self._lock:
-            pose = edits.move(self.state.doc, kind, oid, x, y, yaw)
+            boxes = [b for b in map(item_box, self.scene.drawn_items()) if b is not None]
+        hit = pick(boxes, event.ray_origin, event.ray_direction)
+        if hit is None:
+            self.deselect()
+        else:
+            self.select((hit.kind, hit.id))
+
+    def select(self, key: Key) -> None:
+        """Put the gizmo on tray or obstacle ``key`` (kind, id)."""
+        with self._lock:
+            pose = edits.pose_of(self.state.doc, *key)
+        if pose is None:
+            return
+        self.selection.select(key, pose)
+        self._selection_changed()
+
+    def deselect(self) -> None:
+        self.selection.clear()
+        self._selection_changed()
+
+    def _selection_changed(self) -> None:
+        key = self.selection.key
+        with self._lock:
+            name = None if key is None else edits.display_name(self.state.doc, key[1])
+        self.selected_md.content = panel.selected_line(key, name)
+        self.remove_sel.disabled = key is None or key[0] != "trays"
+
+    def _dragged(self, key: Key, pos: tuple[float, float, float], yaw: float, final: bool) -> None:
+        """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
+        was; the item follows at once, a preview is planned while the drag goes on, the
+        exact plan when it ends (then the move is one undoable step)."""
+        kind, oid = key
+        with self._lock:
+            pose = edits.move(self.state.doc, kind, oid, pos[0], pos[1], yaw)
             if pose is not None and final:
                 self._record(edits.move_label(self.state.history.doc(), self.state.doc, kind, oid))
         if pose is None:
             return
+        z = float(pose.get("z", 0.0))
+        self.scene.place(kind, oid, pose["x"], pose["y"], z, pose["yaw"])
         if final:
-            ctl.position = (pose["x"], pose["y"], pose.get("z", 0.0))
-            ctl.wxyz = yaw_quat(pose["yaw"])
+            self.selection.place(pose)
         self.request(f"moved {oid}" if final else f"dragging {oid}", preview=not final)
 
     # -- undo and redo ---------------------------------------------------------------------------
@@ -192,8 +215,15 @@ class PlannerApp:
         self.request(f"{how} {label}")
 
     def _show_doc(self) -> None:
-        """Draw the working document: the scene's nodes and the trays' panel."""
+        """Draw the working document: the scene's nodes, the gizmo and the trays' panel."""
         self.scene.sync(self.state.doc)
+        key = self.selection.key
+        pose = None if key is None else edits.pose_of(self.state.doc, *key)
+        if key is not None and pose is None:
+            self.deselect()
+        elif key is not None and pose is not None:
+            self.selection.place(pose)
+            self._selection_changed()
         self._sync_tray_gui()
 
     def _history_changed(self) -> None:
@@ -210,6 +240,7 @@ class PlannerApp:
         gui, st = self.server.gui, self.state
         gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
         self.draft = DraftResolution(self.server, self.draft_scale)
+        self.overlay = Overlay(self.server)
         self.status = gui.add_markdown("**Status:** loading")
         self._build_history_gui()
         self.summary = gui.add_markdown("")
@@ -226,6 +257,7 @@ class PlannerApp:
             self.show_robots.on_update(lambda _: self.layer.ghosts_visible(self.show_robots.value))
         for h in (self.sigma, self.rule, self.target, self.objective):
             h.on_update(lambda e: self.request(f"{e.target.label} changed"))
+        self._build_selection_gui()
         self.trays_folder = gui.add_folder("Trays")
         self._build_tray_gui()
         with gui.add_folder("Scene"):
@@ -264,6 +296,31 @@ class PlannerApp:
         ):
             cmd = gui.add_command(label, hotkey=key, modifier=modifier)  # type: ignore[arg-type]
             cmd.on_trigger(lambda _, how=how: self._travel(how))
+
+    def _build_selection_gui(self) -> None:
+        """The selected item's folder: what it is, and Deselect (Esc) and Remove (Delete)."""
+        gui = self.server.gui
+        with gui.add_folder("Selected"):
+            self.selected_md = gui.add_markdown(panel.selected_line(None, None))
+            gui.add_button("Deselect", icon=viser.Icon.X, hint="Esc").on_click(
+                lambda _: self.deselect()
+            )
+            self.remove_sel = gui.add_button(
+                "Remove selected tray", icon=viser.Icon.TRASH, disabled=True,
+                hint="Delete; Undo brings it back",
+            )  # fmt: skip
+            self.remove_sel.on_click(lambda _: self._remove_selected())
+        gui.add_command("Deselect", hotkey="escape").on_trigger(lambda _: self.deselect())
+        gui.add_command("Remove selected tray", hotkey="delete").on_trigger(
+            lambda _: self._remove_selected()
+        )
+
+    def _remove_selected(self) -> None:
+        key = self.selection.key
+        if key is None or key[0] != "trays":
+            return
+        self.deselect()
+        self._edit(edits.remove_tray, key[1], cause="remove")
 
     def _sync_tray_gui(self) -> None:
         """The trays' panel shows the working document: rebuilt when trays came or went, else
@@ -430,15 +487,26 @@ class PlannerApp:
             return
         if self.state.plan is not None:
             body = json.dumps(self.state.plan.model_dump(mode="json"), indent=1).encode()
-            event.client.send_file_download("plan.json", body)
+            event.client.send_file_download("plan.json", body, save_immediately=True)
 
     def _snapshot(self, event: Any) -> None:
         import imageio.v3 as iio
 
-        img = event.client.get_render(height=720, width=1280, transport_format="png")
+        with self._helpers_hidden():
+            img = event.client.get_render(height=720, width=1280, transport_format="png")
         buf = io.BytesIO()
         iio.imwrite(buf, img, extension=".png")
-        event.client.send_file_download("pickstop.png", buf.getvalue())
+        event.client.send_file_download("pickstop.png", buf.getvalue(), save_immediately=True)
+
+    @contextlib.contextmanager
+    def _helpers_hidden(self) -> Iterator[None]:
+        """The gizmo and other helpers hidden (an export shows the layout only)."""
+        shown = self.selection.gizmo.visible
+        self.selection.gizmo.visible = False
+        try:
+            yield
+        finally:
+            self.selection.gizmo.visible = shown and self.selection.key is not None
 
     def _playback(self) -> None:
         """Drive the robot along the route and reach for each part at each stop."""

@@ -99,6 +99,18 @@ def success_rates_failed(status: str, e: ApiProblem) -> str:
     return status.split(" · ⏳")[0] + f" · ⚠ success rates failed: {e.title}"
 
 
+def selected_line(key: tuple[str, str] | None, name: str | None) -> str:
+    """What is selected, and how to act on it."""
+    if key is None:
+        return "*Nothing selected.* Click a tray or an obstacle to move or turn it."
+    kind = "tray" if key[0] == "trays" else "obstacle"
+    if name and name != key[1]:
+        named = f"**{name}** ({kind} `{key[1]}`)"
+    else:
+        named = f"**{key[1]}** ({kind})"
+    return f"Selected: {named}. Drag the gizmo's arrows to move it, its ring to turn it."
+
+
 def scene_revision(stored: StoredScene, saved: bool = False, dirty: bool = False) -> str:
     """The stored scene's line: its id and revision, and whether the layout on screen differs."""
     head = f"{'Saved: s' if saved else 'S'}cene `{stored.id}`, revision {stored.revision}"

@@ -79,6 +79,10 @@ class SceneLayer:
             log.warning("not drawn (mesh shapes): %s", ", ".join(d.undrawn))
         return d
 
+    def drawn_items(self) -> list[Item]:
+        """The items as drawn now."""
+        return [n.item for n in self.items.values()]
+
     def root(self, kind: str, oid: str) -> Any | None:
         nodes = self.items.get((kind, oid))
         return None if nodes is None else nodes.root

@@ -141,9 +141,79 @@ def stops(plan: Any) -> list[tuple[float, float, float, tuple[str, ...]]]:
     return [(s.x, s.y, s.yaw, tuple(s.trays)) for s in plan.stops]
 
 
-def grab_x_arrow(pg: Any, app: Any, tid: str, base: Any, dx: float) -> tuple[Any, Any]:
-    """Where to press on tray ``tid``'s gizmo x arrow and where to release to pull it ``dx``
-    [m] along x (the arrow is 0.3 m long: grabbed at 70%)."""
+def reset_camera(app: Any) -> None:
+    """Back to the planner's first view of the scene (a test that moved the camera)."""
+    from pickstop_ui.scene_view import camera_view
+
     cam = camera(app)
-    a = project(cam, np.asarray(base) + np.array([0.21, 0.0, 0.0]))
-    return a, project(cam, np.asarray(base) + np.array([0.21 + dx, 0.0, 0.0]))
+    cam.position, cam.look_at = camera_view(app.state.doc)
+    time.sleep(0.5)
+
+
+def ray_at(cam: Any, px: Any, size: tuple[int, int] = SIZE) -> tuple[np.ndarray, np.ndarray]:
+    """The world ray (origin, unit direction) through page pixel ``px`` [CSS px]."""
+    from viser import transforms as tf
+
+    w, h = size
+    f = (h / 2) / math.tan(cam.fov / 2)
+    d = tf.SO3(np.asarray(cam.wxyz)).as_matrix() @ np.array([(px[0] - w / 2) / f,
+                                                             (px[1] - h / 2) / f, 1.0])  # fmt: skip
+    return np.asarray(cam.position, float), d / np.linalg.norm(d)
+
+
+def item_point(app: Any, kind: str, oid: str) -> tuple[float, float]:
+    """A pixel on the top of tray or obstacle ``oid`` where a click picks it: the top face's
+    points tried from its centre outwards, each kept only if the rays through it and through
+    the pixels 8 px around it meet this item first, and it lies clear of the gizmo's centre
+    and of the panel."""
+    from pickstop_ui.picking import item_box, pick
+
+    boxes = [x for x in map(item_box, app.scene.drawn_items()) if x is not None]
+    box = next(x for x in boxes if (x.kind, x.id) == (kind, oid))
+    cam = camera(app)
+    gizmo = project(cam, app.selection.gizmo.position) if app.selection.gizmo.visible else None
+    c, s = math.cos(box.yaw), math.sin(box.yaw)
+    grid = [(u, v) for u in np.linspace(-0.8, 0.8, 9) for v in np.linspace(-0.8, 0.8, 9)]
+    for u, v in sorted(grid, key=lambda uv: abs(uv[0]) + abs(uv[1])):
+        lx, ly = u * box.half[0], v * box.half[1]
+        p = np.array([box.centre[0] + c * lx - s * ly, box.centre[1] + s * lx + c * ly,
+                      box.centre[2] + box.half[2]])  # fmt: skip
+        px = project(cam, p)
+        around = [(px[0] + a, px[1] + b) for a, b in ((0, 0), (8, 0), (-8, 0), (0, 8), (0, -8))]
+        hits = all(pick(boxes, *ray_at(cam, q)) is box for q in around)
+        clear = gizmo is None or math.dist(px, gizmo) > 60
+        if hits and clear and 0 < px[0] < 820 and 0 < px[1] < SIZE[1]:
+            return px
+    raise AssertionError(f"no clear point to click on {oid}")
+
+
+def click_item(pg: Any, app: Any, kind: str, oid: str) -> None:
+    """Click the top of tray or obstacle ``oid`` and wait until it is selected."""
+    pg.mouse.click(*item_point(app, kind, oid))
+    wait_for(lambda: app.selection.key == (kind, oid), 10, f"{oid} to be selected")
+    time.sleep(0.3)  # the gizmo reaches the page
+
+
+def gizmo_length(app: Any, at: Any) -> float:
+    """The world length [m] of the gizmo's arrows at point ``at``: they are drawn a fixed
+    number of pixels long."""
+    from pickstop_ui.selection import GIZMO_PX
+
+    cam = camera(app)
+    dist = float(np.linalg.norm(np.asarray(at, float) - np.asarray(cam.position)))
+    return GIZMO_PX * dist * 2 * math.tan(cam.fov / 2) / SIZE[1]
+
+
+def grab_x_arrow(pg: Any, app: Any, tid: str, base: Any, dx: float) -> tuple[Any, Any]:
+    """Select tray ``tid`` (a click), then where to press on its gizmo's x arrow and where to
+    release to pull it ``dx`` [m] along x (the arrow grabbed at 55% of its length, or nearer
+    its root where that lies under the panel)."""
+    if app.selection.key != ("trays", tid):
+        click_item(pg, app, "trays", tid)
+    cam = camera(app)
+    for frac in (0.55, 0.45, 0.35, 0.28):  # the arrow's end may lie under the panel
+        grab = frac * gizmo_length(app, base)
+        a = project(cam, np.asarray(base) + np.array([grab, 0.0, 0.0]))
+        if a[0] < 820:
+            break
+    return a, project(cam, np.asarray(base) + np.array([grab + dx, 0.0, 0.0]))
