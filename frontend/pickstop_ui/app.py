@@ -25,6 +25,7 @@ import copy
 import io
 import json
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -39,8 +40,9 @@ from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
 from pickstop_ui.history import History
+from pickstop_ui.measure import MeasureTool
 from pickstop_ui.overlay import Overlay
-from pickstop_ui.picking import item_box, pick
+from pickstop_ui.picking import hit_point, item_box, pick
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
@@ -150,6 +152,11 @@ class PlannerApp:
         """A click in the 3D view selects the item under it, or clears the selection."""
         with self._lock:
             boxes = [b for b in map(item_box, self.scene.drawn_items()) if b is not None]
+        if self.measure.on:
+            p = hit_point(boxes, event.ray_origin, event.ray_direction)
+            if p is not None:
+                self.measure_md.content = self.measure.add(p)
+            return
         hit = pick(boxes, event.ray_origin, event.ray_direction)
         if hit is None:
             self.deselect()
@@ -175,20 +182,26 @@ class PlannerApp:
             name = None if key is None else edits.display_name(self.state.doc, key[1])
         self.selected_md.content = panel.selected_line(key, name)
         self.remove_sel.disabled = key is None or key[0] != "trays"
+        with self._lock:
+            pose = None if key is None else edits.pose_of(self.state.doc, *key)
+        self._readout(pose)
 
     def _dragged(self, key: Key, pos: tuple[float, float, float], yaw: float, final: bool) -> None:
         """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
         was; the item follows at once, a preview is planned while the drag goes on, the
         exact plan when it ends (then the move is one undoable step)."""
         kind, oid = key
+        steps = {"step": max(float(self.snap.value), 0.0),
+                 "yaw_step": math.radians(max(float(self.turn_snap.value), 0.0))}  # fmt: skip
         with self._lock:
-            pose = edits.move(self.state.doc, kind, oid, pos[0], pos[1], yaw)
+            pose = edits.move(self.state.doc, kind, oid, pos[0], pos[1], yaw, **steps)
             if pose is not None and final:
                 self._record(edits.move_label(self.state.history.doc(), self.state.doc, kind, oid))
         if pose is None:
             return
         z = float(pose.get("z", 0.0))
         self.scene.place(kind, oid, pose["x"], pose["y"], z, pose["yaw"])
+        self._readout(pose)
         if final:
             self.selection.place(pose)
         self.request(f"moved {oid}" if final else f"dragging {oid}", preview=not final)
@@ -298,10 +311,31 @@ class PlannerApp:
             cmd.on_trigger(lambda _, how=how: self._travel(how))
 
     def _build_selection_gui(self) -> None:
-        """The selected item's folder: what it is, and Deselect (Esc) and Remove (Delete)."""
-        gui = self.server.gui
+        """The selected item's folder: what it is, its pose as numbers (shown live while it is
+        dragged, typed and applied with Enter or *Apply*), the snap steps, Deselect (Esc),
+        Remove (Delete), and the measure tool."""
+        gui, doc = self.server.gui, self.state.doc
         with gui.add_folder("Selected"):
             self.selected_md = gui.add_markdown(panel.selected_line(None, None))
+            with gui.add_form(None) as form:
+                self.num = {
+                    "x": gui.add_number("x [m]", 0.0, step=0.001, disabled=True),
+                    "y": gui.add_number("y [m]", 0.0, step=0.001, disabled=True),
+                    "yaw": gui.add_number("yaw [°]", 0.0, step=0.1, disabled=True),
+                    "z": gui.add_number("support height [m]", 0.0, step=0.001, disabled=True,
+                                        hint="z of the item's base: the top of what it stands on"),
+                }  # fmt: skip
+                self.apply_btn = gui.add_button("Apply", icon=viser.Icon.CHECK, disabled=True,
+                                                hint="or Enter in a field")  # fmt: skip
+            self.apply_btn.on_click(lambda _: form.submit())
+            form.on_submit(lambda _: self._typed())
+            self.snap = gui.add_number(
+                "snap [m]", edits.grid_step(doc), min=0.0, max=1.0, step=0.005,
+                hint="drags move by whole steps (0: free); the base grid's cell lets the "
+                "regions be reused",
+            )  # fmt: skip
+            self.turn_snap = gui.add_number("turn snap [°]", 5.0, min=0.0, max=90.0, step=0.5,
+                                            hint="turns go by whole steps; 0: free")  # fmt: skip
             gui.add_button("Deselect", icon=viser.Icon.X, hint="Esc").on_click(
                 lambda _: self.deselect()
             )
@@ -310,10 +344,56 @@ class PlannerApp:
                 hint="Delete; Undo brings it back",
             )  # fmt: skip
             self.remove_sel.on_click(lambda _: self._remove_selected())
-        gui.add_command("Deselect", hotkey="escape").on_trigger(lambda _: self.deselect())
+        with gui.add_folder("Measure"):
+            self.measure_btn = gui.add_button("Measure a distance", icon=viser.Icon.RULER_MEASURE)
+            self.measure_btn.on_click(lambda _: self._toggle_measure())
+            self.measure_md = gui.add_markdown("")
+        self.measure = MeasureTool(self.server)
+        gui.add_command("Deselect", hotkey="escape").on_trigger(lambda _: self._escape())
         gui.add_command("Remove selected tray", hotkey="delete").on_trigger(
             lambda _: self._remove_selected()
         )
+
+    def _escape(self) -> None:
+        """Esc: leave the measure tool if it is on, else clear the selection."""
+        if self.measure.on:
+            self._toggle_measure()
+        else:
+            self.deselect()
+
+    def _toggle_measure(self) -> None:
+        m = self.measure
+        m.on = not m.on
+        m.clear()
+        self.measure_btn.label = "Stop measuring" if m.on else "Measure a distance"
+        self.measure_md.content = panel.MEASURE_HELP if m.on else ""
+
+    def _typed(self) -> None:
+        """The pose typed in the panel, applied exactly to the selected item (one step)."""
+        key = self.selection.key
+        if key is None:
+            return
+        x, y, z = (float(self.num[k].value) for k in ("x", "y", "z"))
+        yaw = math.radians(float(self.num["yaw"].value))
+        try:
+            with self._lock:
+                pose = edits.place(self.state.doc, *key, x, y, yaw, z)
+                self._record(f"place {edits.display_name(self.state.doc, key[1])}")
+        except edits.EditError as e:
+            self._notify(str(e), error=True)
+            return
+        self._show_doc()
+        self._readout(pose)
+        self.request(f"placed {key[1]}")
+
+    def _readout(self, pose: dict[str, Any] | None) -> None:
+        """The numbers show ``pose`` (None: nothing selected, the fields off)."""
+        for name, h in self.num.items():
+            h.disabled = pose is None
+            if pose is not None:
+                v = float(pose.get(name, 0.0))
+                h.value = round(math.degrees(v), 2) if name == "yaw" else round(v, 4)
+        self.apply_btn.disabled = pose is None
 
     def _remove_selected(self) -> None:
         key = self.selection.key
@@ -503,10 +583,12 @@ class PlannerApp:
         """The gizmo and other helpers hidden (an export shows the layout only)."""
         shown = self.selection.gizmo.visible
         self.selection.gizmo.visible = False
+        self.measure.hide_all(True)
         try:
             yield
         finally:
             self.selection.gizmo.visible = shown and self.selection.key is not None
+            self.measure.hide_all(False)
 
     def _playback(self) -> None:
         """Drive the robot along the route and reach for each part at each stop."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui.client import ApiProblem, StoredScene
 
@@ -75,8 +77,8 @@ def stops_list(plan: Plan) -> str:
     for s in plan.stops:
         ok = "" if s.success is None else f" · {s.success.rate:.1%}"
         lines.append(
-            f"{s.index + 1}. ({s.x:.2f}, {s.y:.2f}) → {', '.join(s.trays)} · "
-            f"r = {s.inscribed_radius:.3f} m{ok}"
+            f"{s.index + 1}. ({s.x:.2f}, {s.y:.2f}) m, yaw {math.degrees(s.yaw):.0f}° → "
+            f"{', '.join(s.trays)} · r = {s.inscribed_radius:.3f} m{ok}"
         )
     why = sorted({c.reason for c in plan.candidates if c.status == "rejected" and c.reason})
     if why:
@@ -97,6 +99,12 @@ def failure_summary(e: ApiProblem) -> str:
 def success_rates_failed(status: str, e: ApiProblem) -> str:
     """The status once the Monte Carlo failed: the quick plan stays, without success rates."""
     return status.split(" · ⏳")[0] + f" · ⚠ success rates failed: {e.title}"
+
+
+MEASURE_HELP = (
+    "Click two points in the 3D view (on an item or the floor); a third click starts anew. "
+    "Esc or *Stop measuring* ends the tool."
+)
 
 
 def selected_line(key: tuple[str, str] | None, name: str | None) -> str:

@@ -14,7 +14,6 @@ Each tray or obstacle hangs below a root frame at its pose (``/trays/<id>``,
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,15 +43,10 @@ def _structure(item: Item) -> tuple[Any, ...]:
 class SceneLayer:
     """Scene nodes of trays, obstacles, start and goal for one planner window."""
 
-    def __init__(
-        self, server: viser.ViserServer, make_root: Callable[[Item], Any] | None = None
-    ) -> None:
-        """``make_root``: the root node of a new item (default: a frame at its pose)."""
+    def __init__(self, server: viser.ViserServer) -> None:
         self.server = server
-        self.make_root = make_root
         self.items: dict[tuple[str, str], ItemNodes] = {}
         self.markers: dict[str, Any] = {}
-        self.on_added: Callable[[ItemNodes], None] | None = None  # a new item was drawn
 
     # -- whole scene ------------------------------------------------------------------------------
     def sync(self, doc: dict[str, Any]) -> SceneDrawing:
@@ -68,9 +62,7 @@ class SceneLayer:
                     have.root.remove()
                     have = None
                 if have is None:
-                    self.items[key] = nodes = self._add(item)
-                    if self.on_added is not None:
-                        self.on_added(nodes)
+                    self.items[key] = self._add(item)
                 else:
                     self._update(have, item)
             for m in d.markers:
@@ -98,11 +90,7 @@ class SceneLayer:
     # -- one item ---------------------------------------------------------------------------------
     def _add(self, item: Item) -> ItemNodes:
         sc, root_name = self.server.scene, f"/{item.kind}/{item.id}"
-        if self.make_root is not None:
-            root = self.make_root(item)
-        else:
-            root = sc.add_frame(root_name, show_axes=False, position=item.position,
-                                wxyz=item.wxyz)  # fmt: skip
+        root = sc.add_frame(root_name, show_axes=False, position=item.position, wxyz=item.wxyz)
         if item.body_wxyz is not None:
             sc.add_frame(f"{root_name}/body", show_axes=False, wxyz=item.body_wxyz)
         for s in item.shapes:

@@ -107,8 +107,11 @@ def wait_for(cond: Callable[[], bool], timeout: float = 30.0, what: str = "condi
         time.sleep(0.05)
 
 
-def settled(app: Any, timeout: float = 60.0) -> None:
-    """Wait until the newest request's plan, with its success rates, is drawn."""
+def settled(app: Any, timeout: float = 60.0, since: int | None = None) -> None:
+    """Wait until the newest request's plan, with its success rates, is drawn (``since``: and
+    a request newer than plan number ``since`` was made)."""
+    if since is not None:
+        wait_for(lambda: app.state.seq > since, timeout, "a new request")
     wait_for(lambda: not app.state.busy and app.state.drawn_seq == app.state.seq
              and app.replanner.drawn_seq == app.state.seq, timeout, "the plan")  # fmt: skip
 

@@ -42,9 +42,10 @@ def test_ctrl_z_after_a_drag_puts_the_tray_and_the_plan_back_exactly(pg, app):
     assert b.stops(app.state.plan) != stops0 and app.state.history.undo_label == "move tray_4"
     assert "Undo move tray_4" in pg.inner_text("body")
     pg.mouse.move(300, 700)
+    seq = app.state.seq
     pg.keyboard.press("Control+z")
     b.wait_for(lambda: b.tray(app, "tray_4")["pose"] == pose0, what="the undo")
-    b.settled(app)
+    b.settled(app, since=seq)
     b.ready(pg)
     assert app.state.seq > seq0 + 1 and app.state.plan.verified
     assert b.stops(app.state.plan) == stops0  # the plan as it was, stop for stop
@@ -65,16 +66,18 @@ def test_a_removed_tray_comes_back_with_ctrl_z(pg, app):
     b.ready(pg)
     ids = [t["id"] for t in app.state.doc["trays"]]
     app._tray_ui["sel"].value = "tray_2"
+    seq = app.state.seq
     pg.get_by_role("button", name="Remove", exact=True).click()
     b.wait_for(lambda: "tray_2" not in [t["id"] for t in app.state.doc["trays"]], what="remove")
     b.wait_for(lambda: b.node_position(pg, "/trays/tray_2") is None, 10, "the node to go")
     assert "Removed tray_2" in pg.inner_text("body")
-    b.settled(app)
+    b.settled(app, since=seq)
     assert all("tray_2" not in s[3] for s in b.stops(app.state.plan))
     pg.mouse.move(300, 700)
+    seq = app.state.seq
     pg.keyboard.press("Control+z")
     b.wait_for(lambda: [t["id"] for t in app.state.doc["trays"]] == ids, what="the undo")
     b.wait_for(lambda: b.node_position(pg, "/trays/tray_2") is not None, 10, "the node")
-    b.settled(app)
+    b.settled(app, since=seq)
     assert any("tray_2" in s[3] for s in b.stops(app.state.plan))
     assert pg.get_by_label("needed: tray_2").is_checked()
