@@ -32,6 +32,7 @@ CORE = [
     "pickstop.scene",
     "pickstop.regions",
     "pickstop.sequence",
+    "pickstop.report",
     "pickstop.pool",
 ]
 FORBIDDEN_IN_CORE = ("fastapi", "starlette", "uvicorn", "viser", "sqlite3", "sqlite_utils")

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import io
 import json
 import logging
 import math
@@ -32,6 +31,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import viser
 
 from pickstop.frames import yaw_quat
@@ -39,6 +39,7 @@ from pickstop.sequence.plan_model import Plan
 from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
+from pickstop_ui.exports import compose_png, figure_lines
 from pickstop_ui.history import History
 from pickstop_ui.measure import MeasureTool
 from pickstop_ui.overlay import Overlay
@@ -56,6 +57,7 @@ log = logging.getLogger("pickstop.ui")
 #: The sigma slider's range ends here [m]: the widest stops of the example scenes reach
 #: about 0.3 m, and a layout beyond this is infeasible for any real base.
 SIGMA_MAX = 0.5
+RENDER = (1280, 720)  # the PNG's render of the 3D view, width and height [px]
 
 
 @dataclass
@@ -110,6 +112,7 @@ class PlannerApp:
         self.port = self.server.get_port()
         self._lock = threading.Lock()
         self._tray_ui: dict[str, Any] = {}
+        self._stored_key: str | None = None  # the document and options of state.plan_id
         self._draw_scene()
         self.layer = PlanLayer(self.server, self._urdf)
         self._build_gui()
@@ -285,6 +288,8 @@ class PlannerApp:
             gui.add_button("Play route").on_click(
                 lambda _: threading.Thread(target=self._playback, daemon=True).start()
             )
+            gui.add_button("Download report").on_click(self._download_report)
+            gui.add_button("Download stops CSV").on_click(self._download_stops)
             gui.add_button("Download plan JSON").on_click(self._export)
             gui.add_button("Download PNG snapshot").on_click(self._snapshot)
             self.link = gui.add_markdown("")
@@ -551,32 +556,57 @@ class PlannerApp:
         self.saved.content = panel.scene_revision(new, saved=True)
 
     def _store_plan(self) -> str | None:
+        """Store the plan of the document as it is now (once: the same document and options
+        give the stored plan's id again) and link it in the panel."""
         st = self.state
         if st.plan is None:
             return None
-        res = self.api.plan(st.doc, self.options(MC_SAMPLES), store=True)
-        st.plan_id = res.id
+        opts = self.options(MC_SAMPLES)
+        key = json.dumps([st.doc, opts], sort_keys=True)
+        if st.plan_id is not None and key == self._stored_key:
+            return st.plan_id
+        res = self.api.plan(st.doc, opts, store=True)
+        st.plan_id, self._stored_key = res.id, key
         self.link.content = f"Plan in the REST API: [{res.id}]({self.api.plan_url(res.id or '')})"
         return res.id
 
-    def _export(self, event: Any) -> None:
+    def _download(
+        self, event: Any, name: Callable[[str], str], body: Callable[[str], bytes]
+    ) -> None:
+        """Store the plan, then send ``body(plan_id)`` as the file ``name(plan_id)``."""
+        if event.client is None:
+            return
         try:
-            self._store_plan()
+            pid = self._store_plan()
+            if pid is None:
+                self._notify("No plan to download yet.", error=True)
+                return
+            data = body(pid)
         except ApiProblem as e:
             self._notify(f"{e.title}: {e.detail}", error=True)
             return
-        if self.state.plan is not None:
-            body = json.dumps(self.state.plan.model_dump(mode="json"), indent=1).encode()
-            event.client.send_file_download("plan.json", body, save_immediately=True)
+        event.client.send_file_download(name(pid), data, save_immediately=True)
+
+    def _download_report(self, event: Any) -> None:
+        self._download(event, lambda pid: f"pickstop-report-{pid}.html", self.api.report)
+
+    def _download_stops(self, event: Any) -> None:
+        self._download(event, lambda pid: f"pickstop-stops-{pid}.csv", self.api.stops_csv)
+
+    def _export(self, event: Any) -> None:
+        plan = self.state.plan
+        body = json.dumps(plan.model_dump(mode="json"), indent=1).encode() if plan else b""
+        self._download(event, lambda _: "plan.json", lambda _: body)
 
     def _snapshot(self, event: Any) -> None:
-        import imageio.v3 as iio
-
+        """The 3D view without gizmos, under a title, beside the figures and a legend."""
         with self._helpers_hidden():
-            img = event.client.get_render(height=720, width=1280, transport_format="png")
-        buf = io.BytesIO()
-        iio.imwrite(buf, img, extension=".png")
-        event.client.send_file_download("pickstop.png", buf.getvalue(), save_immediately=True)
+            img = event.client.get_render(height=RENDER[1], width=RENDER[0],
+                                          transport_format="png")  # fmt: skip
+        st = self.state
+        title = f"PickStop: {st.doc.get('name') or st.stored.id}"
+        body = compose_png(np.asarray(img), title, figure_lines(st.plan))
+        event.client.send_file_download("pickstop.png", body, save_immediately=True)
 
     @contextlib.contextmanager
     def _helpers_hidden(self) -> Iterator[None]:

@@ -191,9 +191,16 @@ def item_point(app: Any, kind: str, oid: str) -> tuple[float, float]:
 
 
 def click_item(pg: Any, app: Any, kind: str, oid: str) -> None:
-    """Click the top of tray or obstacle ``oid`` and wait until it is selected."""
-    pg.mouse.click(*item_point(app, kind, oid))
-    wait_for(lambda: app.selection.key == (kind, oid), 10, f"{oid} to be selected")
+    """Click the top of tray or obstacle ``oid`` and wait until it is selected (a click in
+    the moment the gizmo leaves the page can be lost: clicked again, up to three times)."""
+    for attempt in range(3):
+        pg.mouse.click(*item_point(app, kind, oid))
+        try:
+            wait_for(lambda: app.selection.key == (kind, oid), 4, f"{oid} to be selected")
+            break
+        except AssertionError:
+            if attempt == 2:
+                raise
     time.sleep(0.3)  # the gizmo reaches the page
 
 

@@ -23,14 +23,14 @@ from pickstop.api.fleet import DispatchRequest
 from pickstop.api.limits import Limits
 from pickstop.api.middleware import API, BodyLimit, StoredPlanFastPath
 from pickstop.api.problems import install, server_roots
-from pickstop.api.routes import databases, health, jobs, plans, robots, scenes
+from pickstop.api.routes import databases, health, jobs, plans, reports, robots, scenes
 from pickstop.api.schemas import BatchRequest, BuildRequest, PlanRequest, ProblemDetails
 from pickstop.api.service import Service
 from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
-           jobs.router)  # fmt: skip
+           reports.router, jobs.router)  # fmt: skip
 
 
 def create_app(
