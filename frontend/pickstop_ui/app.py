@@ -60,6 +60,15 @@ SIGMA_MAX = 0.5
 RENDER = (1280, 720)  # the PNG's render of the 3D view, width and height [px]
 
 
+class LocalServer(viser.ViserServer):
+    """A viser server that opens no share tunnel: the layout stays in the plant whatever a
+    page asks (the panel has no share control either)."""
+
+    def request_share_url(self, verbose: bool = True) -> str | None:
+        log.warning("a share URL was requested and refused: the planner serves locally only")
+        return None
+
+
 @dataclass
 class PlannerState:
     """What one planner window shows; shared by every browser tab connected to it."""
@@ -108,7 +117,7 @@ class PlannerApp:
         self._urdf = self.robot.urdf if self.robot is not None else None
         self._locked = self.robot.joint_values if self.robot is not None else {}
         self.state = PlannerState(stored, copy.deepcopy(stored.doc))
-        self.server = viser.ViserServer(host=host, port=port, label="PickStop", verbose=False)
+        self.server = LocalServer(host=host, port=port, label="PickStop", verbose=False)
         self.port = self.server.get_port()
         self._lock = threading.Lock()
         self._tray_ui: dict[str, Any] = {}
@@ -254,7 +263,9 @@ class PlannerApp:
     # -- the panel ---------------------------------------------------------------------------
     def _build_gui(self) -> None:
         gui, st = self.server.gui, self.state
-        gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
+        gui.configure_theme(
+            control_width="large", dark_mode=False, show_logo=False, show_share_button=False
+        )
         self.draft = DraftResolution(self.server, self.draft_scale)
         self.overlay = Overlay(self.server)
         self.status = gui.add_markdown("**Status:** loading")
