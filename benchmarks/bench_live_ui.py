@@ -209,6 +209,17 @@ def _project(cam, p, size=(1280, 800)) -> tuple[float, float]:
     return w / 2 + f * pc[0] / pc[2], h / 2 + f * pc[1] / pc[2]
 
 
+def _grab(cam, base) -> float:
+    """Where along the gizmo's x arrow to grab it [m from its root]: 0.21 m on a gizmo of
+    fixed world size (0.3 m), else 45% of an arrow drawn a fixed number of pixels long."""
+    try:
+        from pickstop_ui.selection import GIZMO_PX
+    except ImportError:
+        return 0.21
+    dist = float(np.linalg.norm(np.asarray(base) - np.asarray(cam.position)))
+    return 0.45 * GIZMO_PX * dist * 2 * np.tan(cam.fov / 2) / 800
+
+
 def _drag(pg, a, b, steps: int, pause: float, hold: float = 0.0) -> None:
     """Press at ``a``, move to ``b`` in ``steps`` moves ``pause`` s apart, hold still for
     ``hold`` s, release."""
@@ -283,11 +294,16 @@ def main() -> None:
             pg.wait_for_function("document.body.innerText.includes('Status: ready')",
                                  timeout=120_000)  # fmt: skip
             time.sleep(1.0)
-            # (2) + (3) A real drag of tray_4's gizmo arrow, 0.2 m back and forth (on its table).
+            # (2) + (3) A real drag of tray_4's gizmo arrow, 0.2 m back and forth, on its
+            # table (the tray selected first: only the selected item carries a gizmo).
+            if hasattr(app, "select"):
+                app.select(("trays", "tray_4"))
+                time.sleep(0.5)
             cam = next(iter(app.server.get_clients().values())).camera
             base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
-            a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
-            b = _project(cam, base + np.array([0.01, 0.0, 0.0]))
+            grab = _grab(cam, base)
+            a = _project(cam, base + np.array([grab, 0.0, 0.0]))
+            b = _project(cam, base + np.array([grab - 0.2, 0.0, 0.0]))
             pg.evaluate(COUNT_PREVIEWS)
             pg.evaluate(TIMER)
             t0 = time.perf_counter()
@@ -309,8 +325,9 @@ def main() -> None:
             # (3b) The same drag back, the tray held still for a second before the release.
             tray = next(t for t in app.state.doc["trays"] if t["id"] == "tray_4")
             base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
-            a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
-            b = _project(cam, base + np.array([0.41, 0.0, 0.0]))
+            grab = _grab(cam, base)
+            a = _project(cam, base + np.array([grab, 0.0, 0.0]))
+            b = _project(cam, base + np.array([grab + 0.2, 0.0, 0.0]))
             pg.evaluate(TIMER)
             _drag(pg, a, b, 20, 0.05, hold=HOLD_STILL)
             pg.wait_for_function("document.body.innerText.includes('Status: ready')",

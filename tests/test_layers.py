@@ -33,6 +33,7 @@ CORE = [
     "pickstop.regions",
     "pickstop.sequence",
     "pickstop.layout",
+    "pickstop.report",
     "pickstop.pool",
 ]
 FORBIDDEN_IN_CORE = ("fastapi", "starlette", "uvicorn", "viser", "sqlite3", "sqlite_utils")

@@ -20,35 +20,53 @@ While the engineer edits, a browser without a GPU draws at draft resolution
 
 from __future__ import annotations
 
+import contextlib
 import copy
-import io
 import json
 import logging
+import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import viser
 
-from pickstop.frames import quat_yaw, yaw_quat
+from pickstop.frames import yaw_quat
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
+from pickstop_ui.exports import compose_png, figure_lines
+from pickstop_ui.history import History
+from pickstop_ui.measure import MeasureTool
+from pickstop_ui.overlay import Overlay
+from pickstop_ui.picking import hit_point, item_box, pick
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
-from pickstop_ui.scene_view import Item, camera_view, initial_sigma, scene_drawing, tray_colours
+from pickstop_ui.scene_layer import SceneLayer
+from pickstop_ui.scene_view import camera_view, initial_sigma, tray_colours
+from pickstop_ui.selection import Key, Selection
 
 log = logging.getLogger("pickstop.ui")
 
 #: The sigma slider's range ends here [m]: the widest stops of the example scenes reach
 #: about 0.3 m, and a layout beyond this is infeasible for any real base.
 SIGMA_MAX = 0.5
-GIZMO = {"trays": (0.3, 1.0), "obstacles": (0.4, 0.8)}  # kind -> (scale, opacity)
+RENDER = (1280, 720)  # the PNG's render of the 3D view, width and height [px]
+
+
+class LocalServer(viser.ViserServer):
+    """A viser server that opens no share tunnel: the layout stays in the plant whatever a
+    page asks (the panel has no share control either)."""
+
+    def request_share_url(self, verbose: bool = True) -> str | None:
+        log.warning("a share URL was requested and refused: the planner serves locally only")
+        return None
 
 
 @dataclass
@@ -67,7 +85,11 @@ class PlannerState:
     mc_ms: float | None = None  # the last Monte Carlo, request to drawn [ms]
     mc_t0: float = 0.0  # when the running Monte Carlo started [s, perf_counter]
     busy: bool = False
-    dirty: bool = False  # edited since the last save
+    history: History | None = None  # the edits, for undo and redo (made with the state)
+
+    def __post_init__(self) -> None:
+        if self.history is None:
+            self.history = History.start(self.doc)
 
 
 class PlannerApp:
@@ -95,10 +117,11 @@ class PlannerApp:
         self._urdf = self.robot.urdf if self.robot is not None else None
         self._locked = self.robot.joint_values if self.robot is not None else {}
         self.state = PlannerState(stored, copy.deepcopy(stored.doc))
-        self.server = viser.ViserServer(host=host, port=port, label="PickStop", verbose=False)
+        self.server = LocalServer(host=host, port=port, label="PickStop", verbose=False)
         self.port = self.server.get_port()
         self._lock = threading.Lock()
         self._tray_ui: dict[str, Any] = {}
+        self._stored_key: str | None = None  # the document and options of state.plan_id
         self._draw_scene()
         self.layer = PlanLayer(self.server, self._urdf)
         self._build_gui()
@@ -117,23 +140,19 @@ class PlannerApp:
 
     # -- the scene ---------------------------------------------------------------------------
     def _draw_scene(self) -> None:
-        sc, d = self.server.scene, scene_drawing(self.state.doc)
+        sc = self.server.scene
         sc.set_up_direction("+z")
         # No shadow pass: it doubles the cost of every frame in a browser without a GPU.
         sc.configure_default_lights(enabled=True, cast_shadow=False)
         if self.flat_lighting:
             sc.configure_environment_map(None)
             sc.add_light_hemisphere("/lights/flat", ground_color=(170, 170, 170), intensity=2.0)
+        self.scene = SceneLayer(self.server)
+        d = self.scene.sync(self.state.doc)
+        self.selection = Selection(self.server, self._dragged)
+        sc.on_click()(self._clicked)
         w, h = d.floor_size
         sc.add_grid("/floor", width=w, height=h, cell_size=0.5, position=d.floor_centre)
-        for item in d.items:
-            self._draw_item(item)
-        for m in d.markers:
-            sc.add_icosphere(f"/{m.name}", radius=m.position[2], color=m.colour,
-                             position=m.position)  # fmt: skip
-            sc.add_label(f"/{m.name}/label", m.name, position=(0, 0, 0.2))
-        if d.undrawn:
-            log.warning("not drawn (mesh shapes): %s", ", ".join(d.undrawn))
         if self._urdf is not None:
             from viser.extras import ViserUrdf
 
@@ -141,53 +160,116 @@ class PlannerApp:
             sc.add_frame("/robot", show_axes=False, position=(x, y, 0.0), wxyz=yaw_quat(yaw))
             self._robot = ViserUrdf(self.server, self._urdf, root_node_name="/robot")
 
-    def _draw_item(self, item: Item) -> None:
-        """A tray or obstacle: its gizmo (dragged on the floor) and its shapes below it."""
-        sc, root = self.server.scene, f"/{item.kind}/{item.id}"
-        scale, opacity = GIZMO[item.kind]
-        ctl = sc.add_transform_controls(
-            root, scale=scale, active_axes=(True, True, False), depth_test=False,
-            position=item.position, wxyz=item.wxyz, opacity=opacity,
-        )  # fmt: skip
-        if item.body_wxyz is not None:
-            sc.add_frame(f"{root}/body", show_axes=False, wxyz=item.body_wxyz)
-        for s in item.shapes:
-            name = f"{root}/{s.name}"
-            if s.kind == "box":
-                sx, sy, sz = s.dims
-                sc.add_box(name, dimensions=(sx, sy, sz), color=s.colour, position=s.position,
-                           wxyz=s.wxyz)  # fmt: skip
-            else:
-                r, height = s.dims
-                sc.add_cylinder(name, radius=r, height=height, color=s.colour,
-                                position=s.position, wxyz=s.wxyz)  # fmt: skip
-        if item.label is not None:
-            sc.add_label(f"{root}/label", item.label[0], position=item.label[1])
-
-        @ctl.on_update
-        def _(event: Any) -> None:  # previews while dragging, the exact plan on release
-            self._moved(item.kind, item.id, ctl, final=event.phase == "end")
-
-    def _moved(self, kind: str, oid: str, ctl: Any, final: bool = True) -> None:
-        """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
-        was; a preview while the drag goes on, the exact plan when it ends."""
-        x, y, yaw = float(ctl.position[0]), float(ctl.position[1]), quat_yaw(ctl.wxyz)
+    def _clicked(self, event: Any) -> None:
+        """A click in the 3D view selects the item under it, or clears the selection."""
         with self._lock:
-            pose = edits.move(self.state.doc, kind, oid, x, y, yaw)
-            self.state.dirty = True
+            boxes = [b for b in map(item_box, self.scene.drawn_items()) if b is not None]
+        if self.measure.on:
+            p = hit_point(boxes, event.ray_origin, event.ray_direction)
+            if p is not None:
+                self.measure_md.content = self.measure.add(p)
+            return
+        hit = pick(boxes, event.ray_origin, event.ray_direction)
+        if hit is None:
+            self.deselect()
+        else:
+            self.select((hit.kind, hit.id))
+
+    def select(self, key: Key) -> None:
+        """Put the gizmo on tray or obstacle ``key`` (kind, id)."""
+        with self._lock:
+            pose = edits.pose_of(self.state.doc, *key)
         if pose is None:
             return
+        self.selection.select(key, pose)
+        self._selection_changed()
+
+    def deselect(self) -> None:
+        self.selection.clear()
+        self._selection_changed()
+
+    def _selection_changed(self) -> None:
+        key = self.selection.key
+        with self._lock:
+            name = None if key is None else edits.display_name(self.state.doc, key[1])
+        self.selected_md.content = panel.selected_line(key, name)
+        self.remove_sel.disabled = key is None or key[0] != "trays"
+        with self._lock:
+            pose = None if key is None else edits.pose_of(self.state.doc, *key)
+        self._readout(pose)
+
+    def _dragged(self, key: Key, pos: tuple[float, float, float], yaw: float, final: bool) -> None:
+        """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
+        was; the item follows at once, a preview is planned while the drag goes on, the
+        exact plan when it ends (then the move is one undoable step)."""
+        kind, oid = key
+        steps = {"step": max(float(self.snap.value), 0.0),
+                 "yaw_step": math.radians(max(float(self.turn_snap.value), 0.0))}  # fmt: skip
+        with self._lock:
+            pose = edits.move(self.state.doc, kind, oid, pos[0], pos[1], yaw, **steps)
+            if pose is not None and final:
+                self._record(edits.move_label(self.state.history.doc(), self.state.doc, kind, oid))
+        if pose is None:
+            return
+        z = float(pose.get("z", 0.0))
+        self.scene.place(kind, oid, pose["x"], pose["y"], z, pose["yaw"])
+        self._readout(pose)
         if final:
-            ctl.position = (pose["x"], pose["y"], pose.get("z", 0.0))
-            ctl.wxyz = yaw_quat(pose["yaw"])
+            self.selection.place(pose)
         self.request(f"moved {oid}" if final else f"dragging {oid}", preview=not final)
+
+    # -- undo and redo ---------------------------------------------------------------------------
+    def _record(self, label: str) -> None:
+        """The working document as it is now is one undoable step ``label`` (lock held)."""
+        st = self.state
+        st.history = st.history.record(label, st.doc)
+        self._history_changed()
+
+    def _travel(self, how: str) -> None:
+        """Undo, redo or revert to saved (``how``): the document, the scene, the panel and
+        the plan follow."""
+        with self._lock:
+            h = self.state.history
+            label = {"undo": h.undo_label, "redo": h.redo_label}.get(how, "revert to saved")
+            new = {"undo": h.undo, "redo": h.redo, "revert": h.revert}[how]()
+            if new is h:
+                return
+            self.state.history, self.state.doc = new, new.doc()
+            self._history_changed()
+        self._show_doc()
+        self.request(f"{how} {label}")
+
+    def _show_doc(self) -> None:
+        """Draw the working document: the scene's nodes, the gizmo and the trays' panel."""
+        self.scene.sync(self.state.doc)
+        key = self.selection.key
+        pose = None if key is None else edits.pose_of(self.state.doc, *key)
+        if key is not None and pose is None:
+            self.deselect()
+        elif key is not None and pose is not None:
+            self.selection.place(pose)
+            self._selection_changed()
+        self._sync_tray_gui()
+
+    def _history_changed(self) -> None:
+        """The undo and redo buttons and the scene's line say what they would do."""
+        h = self.state.history
+        self.undo_btn.disabled, self.redo_btn.disabled = h.undo_label is None, h.redo_label is None
+        self.undo_btn.label = f"Undo {h.undo_label}" if h.undo_label else "Undo"
+        self.redo_btn.label = f"Redo {h.redo_label}" if h.redo_label else "Redo"
+        self.revert_btn.disabled = not h.dirty
+        self.saved.content = panel.scene_revision(self.state.stored, dirty=h.dirty)
 
     # -- the panel ---------------------------------------------------------------------------
     def _build_gui(self) -> None:
         gui, st = self.server.gui, self.state
-        gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
+        gui.configure_theme(
+            control_width="large", dark_mode=False, show_logo=False, show_share_button=False
+        )
         self.draft = DraftResolution(self.server, self.draft_scale)
+        self.overlay = Overlay(self.server)
         self.status = gui.add_markdown("**Status:** loading")
+        self._build_history_gui()
         self.summary = gui.add_markdown("")
         with gui.add_folder("Planning"):
             self.sigma = gui.add_slider("sigma [m]", min=0.0, max=SIGMA_MAX, step=0.005,
@@ -204,15 +286,23 @@ class PlannerApp:
             self.show_robots.on_update(lambda _: self.layer.ghosts_visible(self.show_robots.value))
         for h in (self.sigma, self.rule, self.target, self.objective):
             h.on_update(lambda e: self.request(f"{e.target.label} changed"))
+        self._build_selection_gui()
         self.trays_folder = gui.add_folder("Trays")
         self._build_tray_gui()
         with gui.add_folder("Scene"):
-            gui.add_button("Save scene").on_click(lambda _: self._save())
+            gui.add_button("Save scene", icon=viser.Icon.DEVICE_FLOPPY).on_click(
+                lambda _: self._save()
+            )
+            self.revert_btn = gui.add_button("Revert to saved", icon=viser.Icon.RESTORE,
+                                             disabled=True)  # fmt: skip
+            self.revert_btn.on_click(lambda _: self._travel("revert"))
             self.saved = gui.add_markdown(panel.scene_revision(st.stored))
         with gui.add_folder("Plan"):
             gui.add_button("Play route").on_click(
                 lambda _: threading.Thread(target=self._playback, daemon=True).start()
             )
+            gui.add_button("Download report").on_click(self._download_report)
+            gui.add_button("Download stops CSV").on_click(self._download_stops)
             gui.add_button("Download plan JSON").on_click(self._export)
             gui.add_button("Download PNG snapshot").on_click(self._snapshot)
             self.link = gui.add_markdown("")
@@ -220,6 +310,129 @@ class PlannerApp:
 
         self.fleet = FleetView(self.server, self.api, self._store_plan)
         self.stops_md = gui.add_markdown("")
+
+    def _build_history_gui(self) -> None:
+        """Undo and redo: two buttons and their keys (Ctrl+Z, Ctrl+Shift+Z or Ctrl+Y)."""
+        gui = self.server.gui
+        self.undo_btn = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP, disabled=True,
+                                       hint="Ctrl+Z")  # fmt: skip
+        self.redo_btn = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP, disabled=True,
+                                       hint="Ctrl+Shift+Z or Ctrl+Y")  # fmt: skip
+        self.undo_btn.on_click(lambda _: self._travel("undo"))
+        self.redo_btn.on_click(lambda _: self._travel("redo"))
+        for label, key, modifier, how in (
+            ("Undo", "Z", "cmd/ctrl", "undo"),
+            ("Redo", "Z", "cmd/ctrl+shift", "redo"),
+            ("Redo", "Y", "cmd/ctrl", "redo"),
+        ):
+            cmd = gui.add_command(label, hotkey=key, modifier=modifier)  # type: ignore[arg-type]
+            cmd.on_trigger(lambda _, how=how: self._travel(how))
+
+    def _build_selection_gui(self) -> None:
+        """The selected item's folder: what it is, its pose as numbers (shown live while it is
+        dragged, typed and applied with Enter or *Apply*), the snap steps, Deselect (Esc),
+        Remove (Delete), and the measure tool."""
+        gui, doc = self.server.gui, self.state.doc
+        with gui.add_folder("Selected"):
+            self.selected_md = gui.add_markdown(panel.selected_line(None, None))
+            with gui.add_form(None) as form:
+                self.num = {
+                    "x": gui.add_number("x [m]", 0.0, step=0.001, disabled=True),
+                    "y": gui.add_number("y [m]", 0.0, step=0.001, disabled=True),
+                    "yaw": gui.add_number("yaw [°]", 0.0, step=0.1, disabled=True),
+                    "z": gui.add_number("support height [m]", 0.0, step=0.001, disabled=True,
+                                        hint="z of the item's base: the top of what it stands on"),
+                }  # fmt: skip
+                self.apply_btn = gui.add_button("Apply", icon=viser.Icon.CHECK, disabled=True,
+                                                hint="or Enter in a field")  # fmt: skip
+            self.apply_btn.on_click(lambda _: form.submit())
+            form.on_submit(lambda _: self._typed())
+            self.snap = gui.add_number(
+                "snap [m]", edits.grid_step(doc), min=0.0, max=1.0, step=0.005,
+                hint="drags move by whole steps (0: free); the base grid's cell lets the "
+                "regions be reused",
+            )  # fmt: skip
+            self.turn_snap = gui.add_number("turn snap [°]", 5.0, min=0.0, max=90.0, step=0.5,
+                                            hint="turns go by whole steps; 0: free")  # fmt: skip
+            gui.add_button("Deselect", icon=viser.Icon.X, hint="Esc").on_click(
+                lambda _: self.deselect()
+            )
+            self.remove_sel = gui.add_button(
+                "Remove selected tray", icon=viser.Icon.TRASH, disabled=True,
+                hint="Delete; Undo brings it back",
+            )  # fmt: skip
+            self.remove_sel.on_click(lambda _: self._remove_selected())
+        with gui.add_folder("Measure"):
+            self.measure_btn = gui.add_button("Measure a distance", icon=viser.Icon.RULER_MEASURE)
+            self.measure_btn.on_click(lambda _: self._toggle_measure())
+            self.measure_md = gui.add_markdown("")
+        self.measure = MeasureTool(self.server)
+        gui.add_command("Deselect", hotkey="escape").on_trigger(lambda _: self._escape())
+        gui.add_command("Remove selected tray", hotkey="delete").on_trigger(
+            lambda _: self._remove_selected()
+        )
+
+    def _escape(self) -> None:
+        """Esc: leave the measure tool if it is on, else clear the selection."""
+        if self.measure.on:
+            self._toggle_measure()
+        else:
+            self.deselect()
+
+    def _toggle_measure(self) -> None:
+        m = self.measure
+        m.on = not m.on
+        m.clear()
+        self.measure_btn.label = "Stop measuring" if m.on else "Measure a distance"
+        self.measure_md.content = panel.MEASURE_HELP if m.on else ""
+
+    def _typed(self) -> None:
+        """The pose typed in the panel, applied exactly to the selected item (one step)."""
+        key = self.selection.key
+        if key is None:
+            return
+        x, y, z = (float(self.num[k].value) for k in ("x", "y", "z"))
+        yaw = math.radians(float(self.num["yaw"].value))
+        try:
+            with self._lock:
+                pose = edits.place(self.state.doc, *key, x, y, yaw, z)
+                self._record(f"place {edits.display_name(self.state.doc, key[1])}")
+        except edits.EditError as e:
+            self._notify(str(e), error=True)
+            return
+        self._show_doc()
+        self._readout(pose)
+        self.request(f"placed {key[1]}")
+
+    def _readout(self, pose: dict[str, Any] | None) -> None:
+        """The numbers show ``pose`` (None: nothing selected, the fields off)."""
+        for name, h in self.num.items():
+            h.disabled = pose is None
+            if pose is not None:
+                v = float(pose.get(name, 0.0))
+                h.value = round(math.degrees(v), 2) if name == "yaw" else round(v, 4)
+        self.apply_btn.disabled = pose is None
+
+    def _remove_selected(self) -> None:
+        key = self.selection.key
+        if key is None or key[0] != "trays":
+            return
+        self.deselect()
+        self._edit(edits.remove_tray, key[1], cause="remove")
+
+    def _sync_tray_gui(self) -> None:
+        """The trays' panel shows the working document: rebuilt when trays came or went, else
+        its ticks and the name field set in place."""
+        doc = self.state.doc
+        ids = [t["id"] for t in doc["trays"]]
+        if [k.removeprefix("cb:") for k in self._tray_ui if k.startswith("cb:")] != ids:
+            self._build_tray_gui()
+            return
+        task = set(edits.task_of(doc))
+        for tid in ids:
+            self._tray_ui[f"cb:{tid}"].value = tid in task
+        sel = self._tray_ui["sel"]
+        self._tray_ui["name"].value = self._tray_name(sel.value)
 
     def _build_tray_gui(self) -> None:
         for h in self._tray_ui.values():
@@ -230,30 +443,28 @@ class PlannerApp:
         with self.trays_folder:
             for tid in ids:
                 cb = self._tray_ui[f"cb:{tid}"] = gui.add_checkbox(f"needed: {tid}", tid in task)
-                cb.on_update(lambda e: self._edit(
+                cb.on_update(lambda e: e.client is not None and self._edit(
                     edits.set_needed, e.target.label.removeprefix("needed: "), e.target.value,
                     cause="task"))  # fmt: skip
             sel = gui.add_dropdown("tray", ids, initial_value=ids[0])
             name = gui.add_text("name", doc["trays"][0].get("name", ""))
             sel.on_update(lambda _: setattr(name, "value", self._tray_name(sel.value)))
-            for label, edit, named, layout in (
-                ("Rename", edits.rename_tray, True, False),
-                ("Add a copy", edits.copy_tray, True, True),
-                ("Remove", edits.remove_tray, False, True),
+            for label, edit, named in (
+                ("Rename", edits.rename_tray, True),
+                ("Add a copy", edits.copy_tray, True),
+                ("Remove", edits.remove_tray, False),
             ):
                 b = self._tray_ui[label] = gui.add_button(label)
-                b.on_click(self._tray_button(edit, sel, name if named else None, layout))
+                b.on_click(self._tray_button(edit, sel, name if named else None))
             self._tray_ui.update(sel=sel, name=name)
 
-    def _tray_button(
-        self, edit: Callable[..., Any], sel: Any, name: Any, layout: bool
-    ) -> Callable[[Any], None]:
+    def _tray_button(self, edit: Callable[..., Any], sel: Any, name: Any) -> Callable[[Any], None]:
         """A click applies ``edit`` to the selected tray (and the name field's text, if given)."""
         cause = edit.__name__.removesuffix("_tray")
 
         def click(_: Any) -> None:
             args = () if name is None else (name.value,)
-            self._edit(edit, sel.value, *args, cause=cause, layout=layout)
+            self._edit(edit, sel.value, *args, cause=cause)
 
         return click
 
@@ -261,23 +472,20 @@ class PlannerApp:
         with self._lock:
             return str(edits.tray(self.state.doc, tid).get("name", ""))
 
-    def _edit(
-        self, edit: Callable[..., Any], tid: str, *args: Any, cause: str, layout: bool = False
-    ) -> None:
-        """Apply a pure document edit to tray ``tid``, redraw the layout if trays came or went,
+    def _edit(self, edit: Callable[..., Any], tid: str, *args: Any, cause: str) -> None:
+        """Apply a pure document edit to tray ``tid`` as one undoable step, draw what changed
         and re-plan; an edit the scene cannot take is told and changes nothing."""
         try:
             with self._lock:
+                name = edits.display_name(self.state.doc, tid)
                 edit(self.state.doc, tid, *args)
-                self.state.dirty = True
+                self._record(f"{cause} {name}")
         except edits.EditError as e:
             self._notify(str(e))
             return
-        if layout:
-            self.server.scene.reset()
-            self.layer.forget()
-            self._draw_scene()
-            self._build_tray_gui()
+        self._show_doc()
+        if cause == "remove":
+            self._notify(f"Removed {name}. Undo (Ctrl+Z) brings it back.")
         self.request(f"{cause} {tid}")
 
     def _notify(self, text: str, error: bool = False) -> None:
@@ -355,35 +563,75 @@ class PlannerApp:
             self.saved.content = panel.save_problem(e)
             self._notify(self.saved.content, error=True)
             return
-        st.stored, st.dirty = new, False
+        with self._lock:
+            st.stored, st.history = new, st.history.mark_saved()
+            self._history_changed()
         self.saved.content = panel.scene_revision(new, saved=True)
 
     def _store_plan(self) -> str | None:
+        """Store the plan of the document as it is now (once: the same document and options
+        give the stored plan's id again) and link it in the panel."""
         st = self.state
         if st.plan is None:
             return None
-        res = self.api.plan(st.doc, self.options(MC_SAMPLES), store=True)
-        st.plan_id = res.id
+        opts = self.options(MC_SAMPLES)
+        key = json.dumps([st.doc, opts], sort_keys=True)
+        if st.plan_id is not None and key == self._stored_key:
+            return st.plan_id
+        res = self.api.plan(st.doc, opts, store=True)
+        st.plan_id, self._stored_key = res.id, key
         self.link.content = f"Plan in the REST API: [{res.id}]({self.api.plan_url(res.id or '')})"
         return res.id
 
-    def _export(self, event: Any) -> None:
+    def _download(
+        self, event: Any, name: Callable[[str], str], body: Callable[[str], bytes]
+    ) -> None:
+        """Store the plan, then send ``body(plan_id)`` as the file ``name(plan_id)``."""
+        if event.client is None:
+            return
         try:
-            self._store_plan()
+            pid = self._store_plan()
+            if pid is None:
+                self._notify("No plan to download yet.", error=True)
+                return
+            data = body(pid)
         except ApiProblem as e:
             self._notify(f"{e.title}: {e.detail}", error=True)
             return
-        if self.state.plan is not None:
-            body = json.dumps(self.state.plan.model_dump(mode="json"), indent=1).encode()
-            event.client.send_file_download("plan.json", body)
+        event.client.send_file_download(name(pid), data, save_immediately=True)
+
+    def _download_report(self, event: Any) -> None:
+        self._download(event, lambda pid: f"pickstop-report-{pid}.html", self.api.report)
+
+    def _download_stops(self, event: Any) -> None:
+        self._download(event, lambda pid: f"pickstop-stops-{pid}.csv", self.api.stops_csv)
+
+    def _export(self, event: Any) -> None:
+        plan = self.state.plan
+        body = json.dumps(plan.model_dump(mode="json"), indent=1).encode() if plan else b""
+        self._download(event, lambda _: "plan.json", lambda _: body)
 
     def _snapshot(self, event: Any) -> None:
-        import imageio.v3 as iio
+        """The 3D view without gizmos, under a title, beside the figures and a legend."""
+        with self._helpers_hidden():
+            img = event.client.get_render(height=RENDER[1], width=RENDER[0],
+                                          transport_format="png")  # fmt: skip
+        st = self.state
+        title = f"PickStop: {st.doc.get('name') or st.stored.id}"
+        body = compose_png(np.asarray(img), title, figure_lines(st.plan))
+        event.client.send_file_download("pickstop.png", body, save_immediately=True)
 
-        img = event.client.get_render(height=720, width=1280, transport_format="png")
-        buf = io.BytesIO()
-        iio.imwrite(buf, img, extension=".png")
-        event.client.send_file_download("pickstop.png", buf.getvalue())
+    @contextlib.contextmanager
+    def _helpers_hidden(self) -> Iterator[None]:
+        """The gizmo and other helpers hidden (an export shows the layout only)."""
+        shown = self.selection.gizmo.visible
+        self.selection.gizmo.visible = False
+        self.measure.hide_all(True)
+        try:
+            yield
+        finally:
+            self.selection.gizmo.visible = shown and self.selection.key is not None
+            self.measure.hide_all(False)
 
     def _playback(self) -> None:
         """Drive the robot along the route and reach for each part at each stop."""

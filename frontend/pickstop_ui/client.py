@@ -152,6 +152,14 @@ class PickStopClient:
     def job(self, job_id: str) -> dict[str, Any]:
         return dict(self._check(self.http.get(f"{API}/jobs/{job_id}")).json())
 
+    def report(self, plan_id: str) -> bytes:
+        """A stored plan's report: one self-contained HTML page."""
+        return self._check(self.http.get(f"{API}/plans/{plan_id}/report")).content
+
+    def stops_csv(self, plan_id: str) -> bytes:
+        """A stored plan's stops as CSV, one row per stop."""
+        return self._check(self.http.get(f"{API}/plans/{plan_id}/stops.csv")).content
+
     def plan_url(self, plan_id: str) -> str:
         return f"{self.base_url}{API}/plans/{plan_id}"
 

@@ -7,6 +7,7 @@ raises :class:`EditError` when the edit would leave an invalid scene, the docume
 from __future__ import annotations
 
 import copy
+import math
 from typing import Any
 
 import shapely.affinity
@@ -28,22 +29,83 @@ def snapped(value: float, ref: float, step: float) -> float:
     return ref + round((value - ref) / step) * step
 
 
+def grid_step(doc: dict[str, Any]) -> float:
+    """The scene's base grid cell [m]: the snap that lets the regions be reused."""
+    return float(doc.get("base_grid", {}).get("resolution", defaults.GRID_RESOLUTION))
+
+
 def move(
-    doc: dict[str, Any], kind: str, oid: str, x: float, y: float, yaw: float, snap: bool = True
+    doc: dict[str, Any],
+    kind: str,
+    oid: str,
+    x: float,
+    y: float,
+    yaw: float,
+    snap: bool = True,
+    step: float | None = None,
+    yaw_step: float = 0.0,
 ) -> dict[str, Any] | None:
     """Set the pose of tray or obstacle ``oid`` (``kind``: "trays" or "obstacles") in ``doc``
-    to ``(x, y)`` [m] and ``yaw`` [rad], its height kept; a tray's position snapped to whole
-    base cells from where it stood. Returns the new pose (None if there is no such item)."""
-    res = float(doc.get("base_grid", {}).get("resolution", defaults.GRID_RESOLUTION))
+    to ``(x, y)`` [m] and ``yaw`` [rad], its height kept. With ``snap``: the position moves
+    by whole ``step`` [m] from where it stood (default: a tray by whole base cells, an
+    obstacle freely; 0: freely) and the yaw to a multiple of ``yaw_step`` [rad] (0: freely).
+    Returns the new pose (None if there is no such item)."""
     for item in doc.get(kind, []):
         if item["id"] == oid:
             pose = item.setdefault("pose", {})
-            if snap and kind == "trays":
-                x = snapped(x, float(pose.get("x", 0.0)), res)
-                y = snapped(y, float(pose.get("y", 0.0)), res)
+            if snap:
+                s = (grid_step(doc) if kind == "trays" else 0.0) if step is None else step
+                if s > 0:
+                    x = snapped(x, float(pose.get("x", 0.0)), s)
+                    y = snapped(y, float(pose.get("y", 0.0)), s)
+                if yaw_step > 0:
+                    yaw = snapped(yaw, 0.0, yaw_step)
             pose["x"], pose["y"], pose["yaw"] = float(x), float(y), float(yaw)
             return dict(pose)
     return None
+
+
+def place(
+    doc: dict[str, Any], kind: str, oid: str, x: float, y: float, yaw: float, z: float
+) -> dict[str, Any]:
+    """Put item ``oid`` exactly at ``(x, y, z)`` [m] turned by ``yaw`` [rad] (typed numbers:
+    no snap). Returns the new pose; EditError if there is no such item or a number is not
+    finite."""
+    for name, v in (("x", x), ("y", y), ("yaw", yaw), ("z", z)):
+        if not math.isfinite(v):
+            raise EditError(f"{name} must be a finite number, got {v}")
+    pose = move(doc, kind, oid, x, y, yaw, snap=False)
+    if pose is None:
+        raise EditError(f"no {kind[:-1]} {oid!r} in the scene")
+    item = next(i for i in doc[kind] if i["id"] == oid)
+    item["pose"]["z"] = float(z)
+    return dict(item["pose"])
+
+
+def pose_of(doc: dict[str, Any], kind: str, oid: str) -> dict[str, Any] | None:
+    """The pose of tray or obstacle ``oid`` (``kind``: "trays" or "obstacles"), None if none."""
+    for item in doc.get(kind, []):
+        if item["id"] == oid:
+            return dict(item.get("pose", {}))
+    return None
+
+
+def display_name(doc: dict[str, Any], oid: str) -> str:
+    """What the engineer calls tray or obstacle ``oid``: a tray's name, else its id."""
+    for t in doc.get("trays", []):
+        if t["id"] == oid:
+            return str(t.get("name") or oid)
+    return oid
+
+
+def move_label(before: dict[str, Any], after: dict[str, Any], kind: str, oid: str) -> str:
+    """The undo step of a drag of ``oid`` from document ``before`` to ``after``: "move",
+    "turn" or "move and turn" with the item's name."""
+    p0, p1 = pose_of(before, kind, oid) or {}, pose_of(after, kind, oid) or {}
+    moved = any(p0.get(k, 0.0) != p1.get(k, 0.0) for k in ("x", "y", "z"))
+    turned = p0.get("yaw", 0.0) != p1.get("yaw", 0.0)
+    verb = "move and turn" if moved and turned else "turn" if turned else "move"
+    return f"{verb} {display_name(after, oid)}"
 
 
 def tray(doc: dict[str, Any], tid: str) -> dict[str, Any]:

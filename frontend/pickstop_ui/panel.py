@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui.client import ApiProblem, StoredScene
 
@@ -75,8 +77,8 @@ def stops_list(plan: Plan) -> str:
     for s in plan.stops:
         ok = "" if s.success is None else f" · {s.success.rate:.1%}"
         lines.append(
-            f"{s.index + 1}. ({s.x:.2f}, {s.y:.2f}) → {', '.join(s.trays)} · "
-            f"r = {s.inscribed_radius:.3f} m{ok}"
+            f"{s.index + 1}. ({s.x:.2f}, {s.y:.2f}) m, yaw {math.degrees(s.yaw):.0f}° → "
+            f"{', '.join(s.trays)} · r = {s.inscribed_radius:.3f} m{ok}"
         )
     why = sorted({c.reason for c in plan.candidates if c.status == "rejected" and c.reason})
     if why:
@@ -99,8 +101,28 @@ def success_rates_failed(status: str, e: ApiProblem) -> str:
     return status.split(" · ⏳")[0] + f" · ⚠ success rates failed: {e.title}"
 
 
-def scene_revision(stored: StoredScene, saved: bool = False) -> str:
-    return f"{'Saved: s' if saved else 'S'}cene `{stored.id}`, revision {stored.revision}"
+MEASURE_HELP = (
+    "Click two points in the 3D view (on an item or the floor); a third click starts anew. "
+    "Esc or *Stop measuring* ends the tool."
+)
+
+
+def selected_line(key: tuple[str, str] | None, name: str | None) -> str:
+    """What is selected, and how to act on it."""
+    if key is None:
+        return "*Nothing selected.* Click a tray or an obstacle to move or turn it."
+    kind = "tray" if key[0] == "trays" else "obstacle"
+    if name and name != key[1]:
+        named = f"**{name}** ({kind} `{key[1]}`)"
+    else:
+        named = f"**{key[1]}** ({kind})"
+    return f"Selected: {named}. Drag the gizmo's arrows to move it, its ring to turn it."
+
+
+def scene_revision(stored: StoredScene, saved: bool = False, dirty: bool = False) -> str:
+    """The stored scene's line: its id and revision, and whether the layout on screen differs."""
+    head = f"{'Saved: s' if saved else 'S'}cene `{stored.id}`, revision {stored.revision}"
+    return head + (" · **unsaved changes**" if dirty else "")
 
 
 def save_problem(e: ApiProblem) -> str:

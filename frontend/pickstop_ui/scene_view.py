@@ -24,20 +24,7 @@ RGB = tuple[int, int, int]
 Vec3 = tuple[float, float, float]
 IDENTITY: Quat = (1.0, 0.0, 0.0, 0.0)
 
-PALETTE: list[RGB] = [
-    (230, 25, 75),
-    (60, 180, 75),
-    (0, 130, 200),
-    (245, 130, 48),
-    (145, 30, 180),
-    (70, 240, 240),
-    (240, 50, 230),
-    (210, 245, 60),
-    (0, 128, 128),
-    (170, 110, 40),
-    (128, 0, 0),
-    (0, 0, 128),
-]
+PALETTE: list[RGB] = list(defaults.TRAY_PALETTE)
 OBSTACLE: RGB = (120, 110, 100)
 PART: RGB = (200, 200, 210)
 START: RGB = (30, 30, 30)

@@ -79,7 +79,7 @@ def test_a_removed_tray_leaves_the_drawing_and_the_task(window):
     tid = app.state.doc["trays"][0]["id"]
     from pickstop_ui import edits
 
-    app._edit(edits.remove_tray, tid, cause="remove", layout=True)
+    app._edit(edits.remove_tray, tid, cause="remove")
     assert all(t["id"] != tid for t in app.state.doc["trays"])
     assert f"/trays/{tid}" not in app.server.scene._handle_from_node_name
     assert f"cb:{tid}" not in app._tray_ui

@@ -77,3 +77,41 @@ def test_remove_and_rename(doc):
         edits.remove_tray(doc, ids[-1])
     assert doc == before  # a refused edit changes nothing
     parse_scene(doc)
+
+
+def test_a_drag_is_named_by_what_changed_and_by_the_trays_name(doc):
+    before = copy.deepcopy(doc)
+    edits.rename_tray(doc, "tray_4", "brackets B-12")
+    edits.move(doc, "trays", "tray_4", 3.7, 1.5, 0.0)
+    assert edits.move_label(before, doc, "trays", "tray_4") == "move brackets B-12"
+    turned = copy.deepcopy(doc)
+    edits.move(turned, "trays", "tray_4", 3.7, 1.5, 0.5)
+    assert edits.move_label(doc, turned, "trays", "tray_4") == "turn brackets B-12"
+    edits.move(turned, "obstacles", "table_b", 3.0, 1.0, 0.1)
+    assert edits.move_label(doc, turned, "obstacles", "table_b") == "move and turn table_b"
+    assert edits.pose_of(doc, "trays", "nope") is None
+
+
+def test_the_snap_steps_set_in_the_panel_hold_for_trays_and_obstacles(doc):
+    import math
+
+    x0 = doc["trays"][0]["pose"]["x"]
+    pose = edits.move(doc, "trays", "tray_1", x0 + 0.26, 1.5, math.radians(47), step=0.1,
+                      yaw_step=math.radians(15))  # fmt: skip
+    assert pose["x"] == pytest.approx(x0 + 0.3) and pose["yaw"] == pytest.approx(math.radians(45))
+    pose = edits.move(doc, "obstacles", "table_b", 3.63, 1.6, 0.0, step=0.05)
+    assert pose["x"] == pytest.approx(3.65)
+    pose = edits.move(doc, "trays", "tray_2", 1.3512, 1.5, 0.1, step=0.0)
+    assert pose["x"] == 1.3512 and pose["yaw"] == 0.1  # 0: free
+
+
+def test_typed_numbers_are_taken_exactly_and_nonsense_is_refused(doc):
+    pose = edits.place(doc, "trays", "tray_4", 3.315, 1.435, 0.25, 0.74)
+    assert (pose["x"], pose["y"], pose["yaw"], pose["z"]) == (3.315, 1.435, 0.25, 0.74)
+    before = copy.deepcopy(doc)
+    with pytest.raises(edits.EditError, match="x must be a finite number"):
+        edits.place(doc, "trays", "tray_4", float("nan"), 1.0, 0.0, 0.7)
+    with pytest.raises(edits.EditError, match="no tray 'nope'"):
+        edits.place(doc, "trays", "nope", 1.0, 1.0, 0.0, 0.7)
+    assert doc == before
+    parse_scene(doc)

@@ -19,6 +19,7 @@ import pytest
 
 from pickstop_ui.app import SIGMA_MAX
 from tests.conftest import LIVE_KEY, free_port
+from tests.ui import browser
 
 playwright = pytest.importorskip("playwright.sync_api")
 
@@ -169,6 +170,7 @@ def _drag(pg, a, b, steps: int = 12) -> None:
 def _set_slider(pg, index: int, value: float, lo: float, hi: float) -> None:
     """Drag slider ``index`` of the panel from its thumb to ``value``."""
     root = pg.locator(".mantine-Slider-root").nth(index)
+    root.scroll_into_view_if_needed()
     box = root.bounding_box()
     thumb = root.locator("[role=slider]").bounding_box()
     start = (thumb["x"] + thumb["width"] / 2, thumb["y"] + thumb["height"] / 2)
@@ -249,12 +251,10 @@ def test_dragging_a_tray_replans_and_moves_its_region(ui_page, planner_app):
     x0 = tray["pose"]["x"]
     stop = next(s for s in planner_app.state.plan.stops if "tray_4" in s.trays)
     before = _shot(ui_page, "04-drag-before")
-    cam = next(iter(planner_app.server.get_clients().values())).camera
     base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
-    # Grab the gizmo's x arrow (0.3 m long) at 70% and pull it 0.2 m along +x (to near the
+    # Select the tray, grab its gizmo's x arrow and pull it 0.2 m along +x (to near the
     # table's end: further, the tray would overhang it).
-    a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
-    b = _project(cam, base + np.array([0.41, 0.0, 0.0]))
+    a, b = browser.grab_x_arrow(ui_page, planner_app, "tray_4", base, 0.2)
     _arm_timer(ui_page)
     _drag(ui_page, a, b)
     ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)
@@ -335,8 +335,7 @@ def test_dragging_slowly_previews_the_plan_then_draws_the_exact_one(ui_page, pla
     tray = next(t for t in planner_app.state.doc["trays"] if t["id"] == "tray_4")
     cam = next(iter(planner_app.server.get_clients().values())).camera
     base = np.array([tray["pose"]["x"], tray["pose"]["y"], tray["pose"]["z"]])
-    a = _project(cam, base + np.array([0.21, 0.0, 0.0]))
-    b = _project(cam, base + np.array([0.01, 0.0, 0.0]))  # 0.2 m back along -x
+    a, b = browser.grab_x_arrow(ui_page, planner_app, "tray_4", base, -0.2)  # back along -x
     ui_page.evaluate(
         """() => {
             window.__f = [];

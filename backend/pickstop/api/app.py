@@ -34,6 +34,7 @@ from pickstop.api.routes import (
     mixes,
     placements,
     plans,
+    reports,
     robots,
     scenes,
 )
@@ -53,8 +54,8 @@ from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
-           jobs.router, errors.router, placements.router, mixes.router, guidance.router,
-           layouts.router)  # fmt: skip
+           reports.router, jobs.router, errors.router, placements.router, mixes.router,
+           guidance.router, layouts.router)  # fmt: skip
 
 
 def create_app(
