@@ -463,10 +463,31 @@ class PlannerApp:
         cause = edit.__name__.removesuffix("_tray")
 
         def click(_: Any) -> None:
-            args = () if name is None else (name.value,)
+            args: tuple[Any, ...] = () if name is None else (name.value,)
+            if edit is edits.copy_tray:
+                placed = self._free_spot(sel.value)
+                if placed is None:
+                    return
+                args = (*args, placed)
             self._edit(edit, sel.value, *args, cause=cause)
 
         return click
+
+    def _free_spot(self, tid: str) -> dict[str, Any] | None:
+        """The API's copy of tray ``tid`` on a free spot of its support (None, told, if the
+        support is full or the API cannot answer)."""
+        with self._lock:
+            doc = copy.deepcopy(self.state.doc)
+        try:
+            placed = self.api.copy_tray(doc, tid)
+        except ApiProblem as e:
+            self._notify(f"No copy: {e}", error=True)
+            return None
+        if placed is None:
+            self._notify(
+                f"No free spot for a copy of {edits.display_name(doc, tid)} on its support."
+            )
+        return placed
 
     def _tray_name(self, tid: str) -> str:
         with self._lock:

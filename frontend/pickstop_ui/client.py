@@ -83,6 +83,14 @@ class PickStopClient:
         body = r.json()
         return StoredScene(body["id"], _etag(r), body["revision"], body["scene"])
 
+    def copy_tray(self, scene: dict[str, Any], tray: str) -> dict[str, Any] | None:
+        """A copy of ``tray`` on the nearest free spot of the support it stands on, as a tray
+        document with new ids (None: that support has no free spot)."""
+        r = self._check(self.http.post(f"{API}/placements/copy", json={"scene": scene,
+                                                                        "tray": tray}))  # fmt: skip
+        tray_doc = r.json()["tray"]
+        return None if tray_doc is None else dict(tray_doc)
+
     def save_scene(self, scene_id: str, doc: dict[str, Any], etag: str) -> StoredScene:
         """Replace the stored scene; ApiProblem 412 if someone changed it since ``etag``."""
         r = self._check(

@@ -162,11 +162,15 @@ def free_offset(doc: dict[str, Any], t: dict[str, Any]) -> tuple[float, float]:
     return sx, 0.0
 
 
-def copy_tray(doc: dict[str, Any], tid: str, name: str = "") -> str:
+def copy_tray(
+    doc: dict[str, Any], tid: str, name: str = "", placed: dict[str, Any] | None = None
+) -> str:
     """Add a copy of tray ``tid`` (parts included, their ids made unique as ``<part>_<k>``)
-    beside it where its footprint meets no other tray (:func:`free_offset`), under the first
-    free id ``<tid>_<k>`` (k >= 2) and named ``"<name or tid> <k>"``; a task that lists its
-    trays lists the copy too. Returns the copy's id."""
+    under the first free id ``<tid>_<k>`` (k >= 2) and named ``"<name or tid> <k>"``; a task
+    that lists its trays lists the copy too. Where: ``placed``, the copy the API put on a free
+    spot of the same support (its pose is taken), else beside the original where its footprint
+    meets no other tray (:func:`free_offset`, a first guess the scene check may refuse).
+    Returns the copy's id."""
     new = copy.deepcopy(tray(doc, tid))
     ids = {t["id"] for t in doc["trays"]}
     k = 2
@@ -180,9 +184,12 @@ def copy_tray(doc: dict[str, Any], tid: str, name: str = "") -> str:
             j += 1
         part["id"] = f"{part['id']}_{j}"
         part_ids.add(part["id"])
-    dx, dy = free_offset(doc, new)
-    new["pose"]["x"] = float(new["pose"].get("x", 0.0)) + dx
-    new["pose"]["y"] = float(new["pose"].get("y", 0.0)) + dy
+    if placed is not None:
+        new["pose"] = dict(placed["pose"])
+    else:
+        dx, dy = free_offset(doc, new)
+        new["pose"]["x"] = float(new["pose"].get("x", 0.0)) + dx
+        new["pose"]["y"] = float(new["pose"].get("y", 0.0)) + dy
     doc["trays"].append(new)
     if doc.get("task") is not None:
         doc["task"].append(new["id"])

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from pickstop.reach.so3 import quats_to_matrices
@@ -205,7 +205,7 @@ def test_checks_of_many_configurations_answer_as_one_at_a_time(planner, tiago, s
         for i in range(n)
     ]
     assert [got[i] for i in range(n)] == want
-    assert any(want) and not all(want)
+    assume(any(want) and not all(want))  # examples with both answers count toward the three
     floor_only = ExactArm(tiago, planner.arm).checks(th, xy, yaw, [], None, 0.35, BoxArrays.of([]))
     low = [one.colliding(th[i], xy[i, 0], xy[i, 1], yaw, [], None, 0.35) for i in range(n)]
     assert [floor_only.colliding(i) for i in range(n)] == low

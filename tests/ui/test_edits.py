@@ -60,6 +60,18 @@ def test_a_copied_tray_is_a_valid_tray_beside_its_original(doc):
     assert edits._footprint(b).distance(edits._footprint(a)) >= edits.COPY_GAP - 1e-9
     assert edits.copy_tray(doc, tid) == f"{tid}_3"
     assert edits.tray(doc, f"{tid}_3")["name"] == f"{tid} 3"
+
+
+def test_a_copy_placed_by_the_supports_stands_on_the_same_table(doc):
+    """The planner's copy takes the pose the API's free-spot search gives (the core's
+    :func:`~pickstop.scene.supports.tray_copy` here): the edited scene stays valid."""
+    from pickstop.scene.supports import tray_copy
+
+    tid = doc["trays"][0]["id"]
+    placed = tray_copy(parse_scene(doc), tid)
+    assert placed is not None
+    new = edits.copy_tray(doc, tid, "bolts", json.loads(placed.model_dump_json()))
+    assert edits.tray(doc, new)["pose"] == json.loads(placed.model_dump_json())["pose"]
     parse_scene(doc)  # the edited document is still a valid scene
 
 
@@ -106,8 +118,8 @@ def test_the_snap_steps_set_in_the_panel_hold_for_trays_and_obstacles(doc):
 
 
 def test_typed_numbers_are_taken_exactly_and_nonsense_is_refused(doc):
-    pose = edits.place(doc, "trays", "tray_4", 3.315, 1.435, 0.25, 0.74)
-    assert (pose["x"], pose["y"], pose["yaw"], pose["z"]) == (3.315, 1.435, 0.25, 0.74)
+    pose = edits.place(doc, "trays", "tray_4", 3.5, 1.5, 0.25, 0.74)
+    assert (pose["x"], pose["y"], pose["yaw"], pose["z"]) == (3.5, 1.5, 0.25, 0.74)
     before = copy.deepcopy(doc)
     with pytest.raises(edits.EditError, match="x must be a finite number"):
         edits.place(doc, "trays", "tray_4", float("nan"), 1.0, 0.0, 0.7)

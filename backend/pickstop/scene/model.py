@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -289,8 +291,9 @@ YawOffset = Annotated[float, Field(ge=-math.pi, le=math.pi, allow_inf_nan=False)
 Covariance = tuple[tuple[Variance, Variance], tuple[Variance, Variance]]
 #: the fields an error model added to its first form (kind, yaw_sigma), left out of the
 #: scene's dump while they hold their defaults, so that a scene's hash stays what it was
-_ADDED: dict[str, Any] = {"mean": (0.0, 0.0), "covariance": None, "yaw_mean": 0.0, "frame": "base",
-          "stations": []}  # fmt: skip
+_ADDED: Mapping[str, Any] = MappingProxyType(
+    {"mean": (0.0, 0.0), "covariance": None, "yaw_mean": 0.0, "frame": "base", "stations": ()}
+)
 
 
 def _check_covariance(c: Covariance | None) -> Covariance | None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,8 +88,18 @@ class Placement:
         return Pose(x=self.x, y=self.y, z=self.z or 0.0, yaw=self.yaw)
 
 
-@functools.lru_cache(maxsize=256)
 def _mesh_bounds(path: str, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh file's local bounding box [m] at ``scale`` (cached while the file is the same)."""
+    st = os.stat(path)
+    return _file_bounds(path, scale, st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=256)
+def _file_bounds(
+    path: str, scale: float, mtime_ns: int, size: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_mesh_bounds` keyed by the file's identity (its time and size): a pure function
+    of its arguments, so a cache of it holds no state a changed file could make stale."""
     import coal
 
     mesh = coal.MeshLoader().load(path, np.full(3, scale))

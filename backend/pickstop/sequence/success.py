@@ -25,7 +25,7 @@ import numpy as np
 
 from pickstop.scene.positioning import YAW_LATTICE, ErrorDist, Kind, rayleigh_scale
 
-__all__ = [
+__all__ = (
     "YAW_LATTICE",
     "Kind",
     "Rate",
@@ -36,7 +36,7 @@ __all__ = [
     "radius_for",
     "rayleigh_scale",
     "sample_errors",
-]
+)
 Z95 = 1.959963984540054
 
 
