@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import warnings
 
@@ -91,11 +92,13 @@ def live_api(region_db, tmp_path_factory):
     from pickstop.settings import hash_key
     from pickstop.stack import spawn_api
 
-    folder, _ = region_db
+    folder, db = region_db
     port = free_port()
     env = {
         **os.environ,
         "PICKSTOP_DATA_DIR": str(folder),
+        # plans naming no database use the session's, whatever a test builds beside it
+        "PICKSTOP_DEFAULT_DATABASES": json.dumps({"tiago": db.id}),
         "PICKSTOP_API_KEYS": f'["{hash_key(LIVE_KEY)}"]',
         "PICKSTOP_MAX_SAMPLES": "40000",
         "PICKSTOP_MAX_BATCH": "3",

@@ -16,8 +16,9 @@ AUTH = {"Authorization": f"Bearer {KEY}"}
 
 @pytest.fixture(scope="session")
 def api_settings(region_db):
-    folder, _ = region_db
-    return Settings(data_dir=folder, api_keys=[hash_key(KEY)], max_body_bytes=300_000)
+    folder, db = region_db
+    return Settings(data_dir=folder, api_keys=[hash_key(KEY)], max_body_bytes=300_000,
+                    default_databases={"tiago": db.id})  # fmt: skip
 
 
 @pytest.fixture(scope="session")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import httpx
 import pytest
 import schemathesis
@@ -26,6 +28,31 @@ def test_end_to_end_plan_over_http(live_api, paper_doc):
 
 
 schema = schemathesis.pytest.from_fixture("live_schema")
+
+
+def _databases(url: str) -> dict[str, str]:
+    rows = httpx.get(f"{url}/api/v1/databases", headers=AUTH, timeout=30).json()
+    return {r["id"]: r["state"] for r in rows}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _fuzzed_builds_leave_nothing(live_api):
+    """Fuzzed build requests may start and complete small databases in the session's data
+    folder: cancel their jobs and delete them after this module, so that every later test
+    finds the folder as it was (a small database built with the default parameters would
+    otherwise become the default of services that pin none)."""
+    before = set(_databases(live_api))
+    yield
+    for job in httpx.get(f"{live_api}/api/v1/jobs?limit=500", headers=AUTH, timeout=30).json():
+        if job["kind"] == "build" and job["state"] in ("queued", "running"):
+            httpx.post(f"{live_api}/api/v1/jobs/{job['id']}/cancel", headers=AUTH, timeout=60)
+    end = time.monotonic() + 60
+    while left := set(_databases(live_api)) - before:
+        assert time.monotonic() < end, f"databases left after the fuzzing: {left}"
+        for db_id in left:  # 409 while a cancelled build still winds down: asked again
+            r = httpx.delete(f"{live_api}/api/v1/databases/{db_id}", headers=AUTH, timeout=60)
+            assert r.status_code in (204, 404, 409), r.text
+        time.sleep(0.5)
 
 
 @pytest.fixture(scope="module")
