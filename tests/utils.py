@@ -169,3 +169,30 @@ def count_regions(monkeypatch) -> list[str]:
 
     monkeypatch.setattr(region_planner, "compute_tray_region", counted)
     return made
+
+
+def region_of(inside, grid, tray_id: str = "t"):
+    """A :class:`~pickstop.regions.cells.TrayRegion` on ``grid`` whose cells are those where
+    ``inside(xy (M, 2)) -> (M,) bool`` holds at the centre (no parts, no witnesses)."""
+    from pickstop.regions.cells import TrayRegion
+
+    iy, ix = np.mgrid[0 : grid.ny, 0 : grid.nx]
+    ok = np.asarray(inside(grid.centres(ix.ravel(), iy.ravel())), bool)
+    cells = np.stack([iy.ravel()[ok], ix.ravel()[ok]], axis=1)
+    K = len(cells)
+    return TrayRegion.of_cells(
+        tray_id, 0.0, grid, cells, (), np.zeros((K, 0, 1)), np.zeros((K, 0), int), {}, None, 0.0
+    )
+
+
+def discs(centres, radii):
+    """``inside(xy (M, 2)) -> (M,) bool``: the union of discs ``centres (n, 2)`` [m],
+    ``radii (n,)`` [m]."""
+    cs, rs = np.asarray(centres, float).reshape(-1, 2), np.asarray(radii, float).ravel()
+
+    def inside(xy):
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        d = np.hypot(xy[:, None, 0] - cs[None, :, 0], xy[:, None, 1] - cs[None, :, 1])
+        return (d <= rs[None]).any(axis=1)
+
+    return inside

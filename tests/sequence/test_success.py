@@ -99,6 +99,8 @@ def test_wilson_interval_and_plan_product():
     r = Rate(1000, 950)
     lo, hi = r.interval
     assert lo == pytest.approx(0.9346, abs=1e-3) and hi == pytest.approx(0.9626, abs=1e-3)
+    wide = r.wilson(4.0)  # 99.99%: the same centre, wider
+    assert wide[0] < lo and wide[1] > hi and r.wilson(1.959963984540054) == (lo, hi)
     assert Rate(100, 100).interval[1] == 1.0 and Rate(100, 0).interval[0] == pytest.approx(
         0.0, abs=1e-12
     )

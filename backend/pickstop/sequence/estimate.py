@@ -5,8 +5,9 @@ is graspable. The estimate integrates the error's density
 (:func:`~pickstop.sequence.success.density`, the distribution the Monte Carlo samples) over a
 lattice of sub-cells (each cell of the regions' grid split ``Q x Q``): a sub-cell counts as
 feasible for a tray when its cell is one of the region's verified cells, unless an exact
-outcome is known for it (``exact``: see :mod:`pickstop.sequence.refine`, which settles the
-sub-cells near the boundary, where a cell's verdict at its centre is not its whole area's).
+outcome is known for it (``exact``, from :mod:`pickstop.sequence.refine`, which settles the
+sub-cells near the boundary, where a cell's verdict at its centre is not its whole area's, by
+the exact test at one point of each).
 
 The density is integrated over each sub-cell by ``QUAD x QUAD`` midpoints and normalised over
 the window that holds all but 1e-5 of its mass (:func:`~pickstop.sequence.success.support`), so
@@ -27,6 +28,7 @@ from pickstop.sequence.success import Kind, density, support
 
 Q = 2  # sub-cells per cell edge
 QUAD = 2  # midpoints per sub-cell edge integrating the density
+MIN_MASS = 2e-4  # a cell holding less of a stop's landing mass keeps its verdict
 
 
 @dataclass(frozen=True)
@@ -49,7 +51,6 @@ def kernel(
     sigma: float,
     grid: CellGrid,
     xy: tuple[float, float],
-    q: int = Q,
     dist: ErrorDist | None = None,
     yaw: float = 0.0,
 ) -> Kernel:
@@ -57,8 +58,8 @@ def kernel(
     isotropic of ``kind`` and ``sigma``, or ``dist`` (biased or anisotropic, at a stop of
     heading ``yaw`` [rad]) when it is given and not isotropic."""
     if dist is not None and not dist.legacy:
-        return _kernel_of(dist, yaw, grid, xy, q)
-    h, R = grid.res / q, support(kind, sigma)
+        return _kernel_of(dist, yaw, grid, xy)
+    h, R = grid.res / Q, support(kind, sigma)
     x, y = xy
     col0, col1 = math.floor((x - R - grid.x0) / h), math.floor((x + R - grid.x0) / h) + 1
     row0, row1 = math.floor((y - R - grid.y0) / h), math.floor((y + R - grid.y0) / h) + 1
@@ -70,14 +71,12 @@ def kernel(
     return Kernel(row0, col0, masses / masses.sum())
 
 
-def _kernel_of(
-    dist: ErrorDist, yaw: float, grid: CellGrid, xy: tuple[float, float], q: int
-) -> Kernel:
+def _kernel_of(dist: ErrorDist, yaw: float, grid: CellGrid, xy: tuple[float, float]) -> Kernel:
     """:func:`kernel` of a biased or anisotropic model: its density over the window around
     its mean that holds all but 1e-5 of its mass (the Gaussian's largest axis times
     :func:`support`'s factor; a bounded disc's radius)."""
     mu, C = dist.in_map(yaw)
-    h = grid.res / q
+    h = grid.res / Q
     if not dist.spread:  # it lands at its mean: all the mass in that sub-cell
         col = math.floor((xy[0] + float(mu[0]) - grid.x0) / h)
         row = math.floor((xy[1] + float(mu[1]) - grid.y0) / h)
@@ -96,22 +95,36 @@ def _kernel_of(
     return Kernel(row0, col0, masses / masses.sum())
 
 
-def feasible_subcells(
-    region: TrayRegion, k: Kernel, exact: np.ndarray | None = None, q: int = Q
-) -> np.ndarray:
+def cell_masses(k: Kernel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's mass per grid cell: cell rows ``iy (n,)``, columns ``ix (m,)`` and
+    ``mass (n, m)``."""
+    cy = np.arange(k.row0, k.row0 + k.shape[0]) // Q
+    cx = np.arange(k.col0, k.col0 + k.shape[1]) // Q
+    iy, ry = np.unique(cy, return_inverse=True)
+    ix, rx = np.unique(cx, return_inverse=True)
+    mass = np.zeros((len(iy), len(ix)))
+    np.add.at(mass, (ry[:, None], rx[None, :]), k.masses)
+    return iy, ix, mass
+
+
+def feasible_subcells(region: TrayRegion, k: Kernel, exact: np.ndarray | None = None) -> np.ndarray:
     """``(rows, cols)`` bool over ``k``'s window: the sub-cells where the region's tray counts
-    as graspable. ``exact``: ``(ny q, nx q)`` int8 over the whole grid, 1 or 0 where a
-    sub-cell's centre was checked exactly, -1 where its cell's verdict stands."""
+    as graspable. ``exact``: ``(ny Q, nx Q)`` int8 over the whole grid, 1 or 0 where a
+    sub-cell was checked exactly, -1 where its cell's verdict stands; it counts in
+    the cells where ``k`` puts :data:`MIN_MASS` or more (those it would have checked), so an
+    estimate does not depend on what else was checked before it."""
     rows = np.arange(k.row0, k.row0 + k.shape[0])
     cols = np.arange(k.col0, k.col0 + k.shape[1])
     g = region.grid
-    r_in = (rows >= 0) & (rows < g.ny * q)
-    c_in = (cols >= 0) & (cols < g.nx * q)
-    rr, cc = np.clip(rows, 0, g.ny * q - 1), np.clip(cols, 0, g.nx * q - 1)
-    out = region.mask[np.ix_(rr // q, cc // q)]
+    r_in = (rows >= 0) & (rows < g.ny * Q)
+    c_in = (cols >= 0) & (cols < g.nx * Q)
+    rr, cc = np.clip(rows, 0, g.ny * Q - 1), np.clip(cols, 0, g.nx * Q - 1)
+    out = region.mask[np.ix_(rr // Q, cc // Q)]
     if exact is not None:
+        iy, ix, mass = cell_masses(k)
+        heavy = mass[np.ix_(np.searchsorted(iy, rows // Q), np.searchsorted(ix, cols // Q))]
         known = exact[np.ix_(rr, cc)]
-        out = np.where(known >= 0, known == 1, out)
+        out = np.where((known >= 0) & (heavy >= MIN_MASS), known == 1, out)
     return out & r_in[:, None] & c_in[None, :]
 
 
@@ -121,7 +134,7 @@ def estimate(k: Kernel, feasible: Iterable[np.ndarray]) -> float:
     every = np.ones(k.shape, bool)
     for f in feasible:
         every &= f
-    return float(k.masses[every].sum())
+    return min(1.0, float(k.masses[every].sum()))  # the masses' rounding may exceed 1
 
 
 def subset_estimates(

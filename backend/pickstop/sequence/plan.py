@@ -53,6 +53,7 @@ from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
 from pickstop.sequence.estimate import feasible_subcells, kernel, subset_estimates
 from pickstop.sequence.failure import FailureCosts, failure_time, stop_failures
 from pickstop.sequence.intersections import Intersection, inscribed_circle, intersections
+from pickstop.sequence.refine import Refinement
 from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
 from pickstop.sequence.success import Kind, Rate, combined, monte_carlo_at
@@ -143,6 +144,7 @@ class StopPlanner:
         self._witnesses = _Lru(4096)
         self._rates = _Lru(4096)
         self._estimates = _Lru(4096)  # (world, regions, pose, error model) -> set -> estimate
+        self._refinements = _Lru(256)  # (world, region) -> its exact boundary outcomes
         self._selections = _Lru(256)
         self._circles = _Lru(4096)  # component (its WKB's digest) -> its inscribed circle
         self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
@@ -343,21 +345,60 @@ class StopPlanner:
         kind: Kind,
         dist: ErrorDist | None = None,
         yaw: float = 0.0,
+        exact: bool = True,
     ) -> dict[frozenset[str], float]:
         """Fast success estimates (:mod:`~pickstop.sequence.estimate`) of a stop at ``xy``
         (heading ``yaw``) serving each set of the regions' trays, under the isotropic
-        ``kind`` and ``sigma`` or the stop's own model ``dist`` (cached)."""
+        ``kind`` and ``sigma`` or the stop's own model ``dist``, refined exactly near the
+        regions' boundaries (:meth:`refine`) unless ``exact`` is false (cached)."""
         trays = tuple(r.tray_id for r in regions)
-        key = (world_key, tuple(r.digest for r in regions), xy, sigma, kind, dist, yaw)
+        key = (world_key, tuple(r.digest for r in regions), xy, sigma, kind, dist, yaw, exact)
         hit = self._estimates.hit(key)
         if hit is not None:
             return dict(hit)
         sets = expected.tray_sets(trays)
         if sigma <= 0 and (dist is None or dist.legacy):  # it lands where it aims
             return dict(self._estimates.put(key, dict.fromkeys(sets, 1.0)))
-        k = kernel(kind, sigma, regions[0].grid, xy, dist=dist, yaw=yaw)
-        feasible = {r.tray_id: feasible_subcells(r, k) for r in regions}
+        k = kernel(kind, sigma, regions[0].grid, xy, dist, yaw)
+        known: dict[str, np.ndarray] = {}
+        if exact:
+            self.refine(scene, world_key, [(regions, xy)], sigma, kind, dist, yaw)
+            known = {r.tray_id: self.refinement(world_key, r).exact for r in regions}
+        feasible = {r.tray_id: feasible_subcells(r, k, known.get(r.tray_id)) for r in regions}
         return dict(self._estimates.put(key, subset_estimates(k, feasible, sets)))
+
+    def refinement(self, world_key: str, region: TrayRegion) -> Refinement:
+        """The exact boundary outcomes found so far for ``region`` (kept per world)."""
+        key = (world_key, region.digest)
+        hit = self._refinements.hit(key)
+        return hit if hit is not None else self._refinements.put(key, Refinement.of(region))
+
+    def refine(
+        self,
+        scene: Scene,
+        world_key: str,
+        stops: list[tuple[list[TrayRegion], tuple[float, float]]],
+        sigma: float,
+        kind: Kind,
+        dist: ErrorDist | None = None,
+        yaw: float = 0.0,
+    ) -> int:
+        """Check exactly, a region at a time, the boundary cells where the landings of any of
+        ``stops`` (each: its trays' regions and its position; landing by ``kind`` and
+        ``sigma``, or by ``dist`` at heading ``yaw``) need it
+        (:mod:`~pickstop.sequence.refine`); returns the tests run."""
+        if sigma <= 0 and (dist is None or dist.legacy):
+            return 0
+        todo: dict[str, Refinement] = {}
+        for regions, xy in stops:
+            k = kernel(kind, sigma, regions[0].grid, xy, dist, yaw)
+            for r in regions:
+                todo.setdefault(r.digest, self.refinement(world_key, r)).want(k)
+
+        def evaluate(region: TrayRegion, xy: np.ndarray) -> np.ndarray:
+            return feasible_near(self.regions, scene, region, xy, region.yaw, seeds_first=True)[0]
+
+        return sum(ref.run(evaluate) for ref in todo.values())
 
     def prefetch_checks(
         self, scene: Scene, lock: Any = None, stale: Callable[[], bool] = lambda: False
@@ -625,8 +666,8 @@ class _Planning:
         self.required = scene.task_trays
         self.world = world_key(scene)
         self.t: dict[str, float] = dict.fromkeys(
-            ["regions", "intersections", "routing", "selection", "verification", "monte_carlo",
-             "naive"], 0.0
+            ["regions", "intersections", "routing", "estimates", "selection", "verification",
+             "monte_carlo", "naive"], 0.0
         )  # fmt: skip
         self.rejected: dict[int, str] = {}
         self.predicted: dict[int, float] = {}
@@ -663,6 +704,14 @@ class _Planning:
         t0 = self._clock("routing", t0)
 
         threshold = self._apply_rule(cands, paths)
+        t0 = time.perf_counter()
+        if not self.preview:  # every candidate's estimate, exact near the boundaries
+            if not self.positioning.anisotropic:  # one batch; else each by its own model
+                stops = [(self._regions_of(c), cands[c].centre) for c in range(len(cands))]
+                sp.refine(scene, self.world, stops, self.sigma, self.kind)
+            for c in range(len(cands)):
+                self._estimates(c)
+            t0 = self._clock("estimates", t0)
         sel, witnesses, rates = self._select_verified(regions, cands, paths)
         t0 = time.perf_counter()
         tradeoff = None
@@ -878,15 +927,19 @@ class _Planning:
         """The required trays candidate ``c`` can serve."""
         return [t for t in self.required if t in self.cands[c].trays]
 
+    def _regions_of(self, c: int) -> list[TrayRegion]:
+        """The regions of the required trays candidate ``c`` can serve."""
+        return [self.regions[t, self.cands[c].yaw] for t in self._serveable(c)]
+
     def _estimates(self, c: int) -> dict[frozenset[str], float]:
-        """Success estimates of candidate ``c`` for every set of the trays it can serve."""
+        """Success estimates of candidate ``c`` for every set of the trays it can serve (a
+        preview's from the cells alone)."""
         hit = self.est.get(c)
         if hit is None:
-            cand = self.cands[c]
             hit = self.est[c] = self.sp.estimates(
-                self.scene, self.world, [self.regions[t, cand.yaw] for t in self._serveable(c)],
-                cand.centre, self.sigma, self.kind,
-                self.positioning.at(cand.centre, self._serveable(c)), cand.yaw,
+                self.scene, self.world, self._regions_of(c), self.cands[c].centre, self.sigma,
+                self.kind, self.positioning.at(self.cands[c].centre, self._serveable(c)),
+                self.cands[c].yaw, exact=not self.preview,
             )  # fmt: skip
         return hit
 

@@ -212,6 +212,7 @@ class Timings(BaseModel):
     regions: float
     intersections: float
     routing: float
+    estimates: float = 0.0  # fast success estimates of every candidate [s]
     selection: float
     verification: float
     monte_carlo: float

@@ -96,12 +96,16 @@ class Rate:
 
     @property
     def interval(self) -> tuple[float, float]:
+        return self.wilson(Z95)
+
+    def wilson(self, z: float) -> tuple[float, float]:
+        """The Wilson score interval at ``z`` standard deviations (:attr:`interval`: 95%)."""
         n, k = self.samples, self.successes
         if n == 0:
             return (0.0, 1.0)
-        p, z2 = k / n, Z95 * Z95
+        p, z2 = k / n, z * z
         centre = (p + z2 / (2 * n)) / (1 + z2 / n)
-        half = Z95 * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
+        half = z * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
         # It holds the observed rate; at 0 or all successes its end is exactly 0 or 1, which
         # rounding would otherwise leave a hair inside.
         return (min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half)))
