@@ -42,15 +42,16 @@ from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
 from pickstop_ui.exports import compose_png, figure_lines
 from pickstop_ui.history import History
 from pickstop_ui.measure import MeasureTool
-from pickstop_ui.overlay import Overlay
+from pickstop_ui.overlay import Overlay, parse_layout
 from pickstop_ui.picking import hit_point, item_box, pick
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 from pickstop_ui.scene_layer import SceneLayer
-from pickstop_ui.scene_view import camera_view, initial_sigma, tray_colours
+from pickstop_ui.scene_view import initial_sigma, tray_colours
 from pickstop_ui.selection import Key, Selection
+from pickstop_ui.views import PRESETS, CameraPose, Viewport, preset
 
 log = logging.getLogger("pickstop.ui")
 
@@ -58,6 +59,7 @@ log = logging.getLogger("pickstop.ui")
 #: about 0.3 m, and a layout beyond this is infeasible for any real base.
 SIGMA_MAX = 0.5
 RENDER = (1280, 720)  # the PNG's render of the 3D view, width and height [px]
+VIEW_LABELS = {"top": "Top", "front": "Front", "iso": "Iso", "fit": "Fit all"}
 
 
 class LocalServer(viser.ViserServer):
@@ -126,6 +128,7 @@ class PlannerApp:
         self.layer = PlanLayer(self.server, self._urdf)
         self._build_gui()
         self.server.on_client_connect(self._on_connect)
+        self.server.on_client_disconnect(lambda c: self.viewports.pop(c.client_id, None))
         self.replanner = Replanner(client, self, self._lock)
         self.request("open")
 
@@ -136,7 +139,34 @@ class PlannerApp:
 
     def _on_connect(self, client: viser.ClientHandle) -> None:
         client.camera.up_direction = (0.0, 0.0, 1.0)
-        client.camera.position, client.camera.look_at = camera_view(self.state.doc)
+        self.show_view(client, "iso")
+
+    # -- views -------------------------------------------------------------------------------
+    def show_view(self, client: viser.ClientHandle, name: str) -> CameraPose:
+        """Point ``client``'s camera with preset ``name`` (:data:`views.PRESETS`), framing the
+        whole scene beside the panel as the page last reported it."""
+        vp = self.viewports.get(client.client_id) or Viewport.default()
+        cam = client.camera
+        current = np.asarray(cam.look_at) - np.asarray(cam.position)
+        with self._lock:
+            pose = preset(name, self.state.doc, vp, current if name == "fit" else None)
+        with client.atomic():
+            cam.fov = pose.fov
+            cam.up_direction = pose.up
+            cam.position = pose.position
+            cam.look_at = pose.look_at
+        return pose
+
+    def _layout(self, event: Any) -> None:
+        """The page reported where the panel is: the first report reframes the first view."""
+        got = parse_layout(str(event.target.value))
+        if got is None or event.client is None:
+            return
+        first = event.client.client_id not in self.viewports
+        w, h, left = got
+        self.viewports[event.client.client_id] = Viewport(w, h, left)
+        if first:
+            self.show_view(event.client, "iso")
 
     # -- the scene ---------------------------------------------------------------------------
     def _draw_scene(self) -> None:
@@ -268,8 +298,14 @@ class PlannerApp:
         )
         self.draft = DraftResolution(self.server, self.draft_scale)
         self.overlay = Overlay(self.server)
+        self.viewports: dict[int, Viewport] = {}
+        self.overlay.layout.on_update(self._layout)
         self.status = gui.add_markdown("**Status:** loading")
         self._build_history_gui()
+        view = gui.add_button_group("View", [VIEW_LABELS[p] for p in PRESETS])
+        by_label = {v: k for k, v in VIEW_LABELS.items()}
+        view.on_click(lambda e: e.client is not None and self.show_view(
+            e.client, by_label[e.target.value]))  # fmt: skip
         self.summary = gui.add_markdown("")
         with gui.add_folder("Planning"):
             self.sigma = gui.add_slider("sigma [m]", min=0.0, max=SIGMA_MAX, step=0.005,
