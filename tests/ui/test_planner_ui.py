@@ -301,7 +301,9 @@ def test_infeasible_layout_shows_the_explanation(ui_page, planner_app):
     ui_page.wait_for_function("m => document.body.innerText.includes(m)", arg=marker,
                               timeout=60_000)  # fmt: skip
     text = ui_page.inner_text("body")
-    assert "Status: ⚠ Infeasible plan" in text and "last valid plan is shown greyed" in text
+    assert (
+        "Status: no plan — ⚠ Infeasible plan" in text and "last valid plan is shown greyed" in text
+    )
     assert "tray tray_1:" in text  # the explanation names the trays and their numbers
     time.sleep(1.5)
     img = _shot(ui_page, "06-infeasible")
