@@ -38,19 +38,22 @@ from pickstop.frames import yaw_quat
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
+from pickstop_ui.declutter import Label, screen_points, visible
 from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
 from pickstop_ui.exports import compose_png, figure_lines
 from pickstop_ui.history import History
+from pickstop_ui.hover import hover_data, names_of
 from pickstop_ui.measure import MeasureTool
-from pickstop_ui.overlay import Overlay
+from pickstop_ui.overlay import Overlay, parse_layout
 from pickstop_ui.picking import hit_point, item_box, pick
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 from pickstop_ui.scene_layer import SceneLayer
-from pickstop_ui.scene_view import camera_view, initial_sigma, tray_colours
+from pickstop_ui.scene_view import initial_sigma, tray_colours
 from pickstop_ui.selection import Key, Selection
+from pickstop_ui.views import PRESETS, CameraPose, Viewport, preset
 
 log = logging.getLogger("pickstop.ui")
 
@@ -58,6 +61,7 @@ log = logging.getLogger("pickstop.ui")
 #: about 0.3 m, and a layout beyond this is infeasible for any real base.
 SIGMA_MAX = 0.5
 RENDER = (1280, 720)  # the PNG's render of the 3D view, width and height [px]
+VIEW_LABELS = {"top": "Top", "front": "Front", "iso": "Iso", "fit": "Fit all"}
 
 
 class LocalServer(viser.ViserServer):
@@ -67,6 +71,12 @@ class LocalServer(viser.ViserServer):
     def request_share_url(self, verbose: bool = True) -> str | None:
         log.warning("a share URL was requested and refused: the planner serves locally only")
         return None
+
+
+def needed_label(tid: str, names: dict[str, str]) -> str:
+    """The task tick of tray ``tid``: its name, with its id where the name differs."""
+    name = names.get(tid, tid)
+    return f"needed: {name} ({tid})" if name != tid else f"needed: {tid}"
 
 
 @dataclass
@@ -126,6 +136,7 @@ class PlannerApp:
         self.layer = PlanLayer(self.server, self._urdf)
         self._build_gui()
         self.server.on_client_connect(self._on_connect)
+        self.server.on_client_disconnect(lambda c: self.viewports.pop(c.client_id, None))
         self.replanner = Replanner(client, self, self._lock)
         self.request("open")
 
@@ -136,7 +147,66 @@ class PlannerApp:
 
     def _on_connect(self, client: viser.ClientHandle) -> None:
         client.camera.up_direction = (0.0, 0.0, 1.0)
-        client.camera.position, client.camera.look_at = camera_view(self.state.doc)
+        self.show_view(client, "iso")
+        client.camera.on_update(lambda _: self._declutter())
+
+    # -- labels and hover ------------------------------------------------------------------------
+    def _declutter(self) -> None:
+        """Show only labels that do not overlap as the first browser's camera sees them
+        (markers first, then trays, then stops); a hidden one still tells on hover."""
+        clients = list(self.server.get_clients().values())
+        if not clients:
+            return
+        client = clients[0]
+        cam = client.camera
+        vp = self.viewports.get(client.client_id) or Viewport.default()
+        entries = [(h, Label(k, str(h.text), a, 1.0 if k.startswith("trays/") else 2.0))
+                   for k, h, a in self.scene.labels()]  # fmt: skip
+        entries += [(h, Label(k, str(h.text), tuple(map(float, h.position)), 0.0))
+                    for k, h in self.layer.labels()]  # fmt: skip
+        if not entries:
+            return
+        labels = [lab for _, lab in entries]
+        anchors = np.array([lab.anchor for lab in labels])
+        px, ahead = screen_points(cam.position, cam.wxyz, cam.fov, (vp.width, vp.height), anchors)
+        show = visible(labels, px, ahead, vp.height)
+        with self.server.atomic():
+            for h, lab in entries:
+                if h.visible != show[lab.key]:
+                    h.visible = show[lab.key]
+
+    def _tell(self) -> None:
+        """What the page tells on hover: the working document's items, and the plan drawn."""
+        with self._lock:
+            data = hover_data(self.state.plan, self.state.doc)
+        self.overlay.show(data)
+
+    # -- views -------------------------------------------------------------------------------
+    def show_view(self, client: viser.ClientHandle, name: str) -> CameraPose:
+        """Point ``client``'s camera with preset ``name`` (:data:`views.PRESETS`), framing the
+        whole scene beside the panel as the page last reported it."""
+        vp = self.viewports.get(client.client_id) or Viewport.default()
+        cam = client.camera
+        current = np.asarray(cam.look_at) - np.asarray(cam.position)
+        with self._lock:
+            pose = preset(name, self.state.doc, vp, current if name == "fit" else None)
+        with client.atomic():
+            cam.fov = pose.fov
+            cam.up_direction = pose.up
+            cam.position = pose.position
+            cam.look_at = pose.look_at
+        return pose
+
+    def _layout(self, event: Any) -> None:
+        """The page reported where the panel is: the first report reframes the first view."""
+        got = parse_layout(str(event.target.value))
+        if got is None or event.client is None:
+            return
+        first = event.client.client_id not in self.viewports
+        w, h, left = got
+        self.viewports[event.client.client_id] = Viewport(w, h, left)
+        if first:
+            self.show_view(event.client, "iso")
 
     # -- the scene ---------------------------------------------------------------------------
     def _draw_scene(self) -> None:
@@ -250,6 +320,8 @@ class PlannerApp:
             self.selection.place(pose)
             self._selection_changed()
         self._sync_tray_gui()
+        self._tell()
+        self._declutter()
 
     def _history_changed(self) -> None:
         """The undo and redo buttons and the scene's line say what they would do."""
@@ -268,8 +340,14 @@ class PlannerApp:
         )
         self.draft = DraftResolution(self.server, self.draft_scale)
         self.overlay = Overlay(self.server)
+        self.viewports: dict[int, Viewport] = {}
+        self.overlay.layout.on_update(self._layout)
         self.status = gui.add_markdown("**Status:** loading")
         self._build_history_gui()
+        view = gui.add_button_group("View", [VIEW_LABELS[p] for p in PRESETS])
+        by_label = {v: k for k, v in VIEW_LABELS.items()}
+        view.on_click(lambda e: e.client is not None and self.show_view(
+            e.client, by_label[e.target.value]))  # fmt: skip
         self.summary = gui.add_markdown("")
         with gui.add_folder("Planning"):
             self.sigma = gui.add_slider("sigma [m]", min=0.0, max=SIGMA_MAX, step=0.005,
@@ -428,9 +506,12 @@ class PlannerApp:
         if [k.removeprefix("cb:") for k in self._tray_ui if k.startswith("cb:")] != ids:
             self._build_tray_gui()
             return
-        task = set(edits.task_of(doc))
+        task, names = set(edits.task_of(doc)), names_of(doc)
         for tid in ids:
-            self._tray_ui[f"cb:{tid}"].value = tid in task
+            cb = self._tray_ui[f"cb:{tid}"]
+            cb.value = tid in task
+            if cb.label != needed_label(tid, names):
+                cb.label = needed_label(tid, names)
         sel = self._tray_ui["sel"]
         self._tray_ui["name"].value = self._tray_name(sel.value)
 
@@ -441,11 +522,12 @@ class PlannerApp:
         task, ids = set(edits.task_of(doc)), tuple(t["id"] for t in doc["trays"])
         self._tray_ui = {}
         with self.trays_folder:
+            names = names_of(doc)
             for tid in ids:
-                cb = self._tray_ui[f"cb:{tid}"] = gui.add_checkbox(f"needed: {tid}", tid in task)
-                cb.on_update(lambda e: e.client is not None and self._edit(
-                    edits.set_needed, e.target.label.removeprefix("needed: "), e.target.value,
-                    cause="task"))  # fmt: skip
+                cb = gui.add_checkbox(needed_label(tid, names), tid in task)
+                self._tray_ui[f"cb:{tid}"] = cb
+                cb.on_update(lambda e, tid=tid: e.client is not None and self._edit(
+                    edits.set_needed, tid, e.target.value, cause="task"))  # fmt: skip
             sel = gui.add_dropdown("tray", ids, initial_value=ids[0])
             name = gui.add_text("name", doc["trays"][0].get("name", ""))
             sel.on_update(lambda _: setattr(name, "value", self._tray_name(sel.value)))
@@ -539,8 +621,9 @@ class PlannerApp:
         st = self.state
         if final:
             st.mc_ms = (time.perf_counter() - st.mc_t0) * 1e3
+        names = names_of(st.doc)
         drawing = plan_drawing(plan, tray_colours(req.scene), style_of(plan),
-                               self.layer.actuated_joints(), self._locked)  # fmt: skip
+                               self.layer.actuated_joints(), self._locked, names)  # fmt: skip
         self.layer.show(drawing)
         if final:  # the engineer paused: full resolution again, after the plan's update
             self.draft.set(False)
@@ -552,7 +635,9 @@ class PlannerApp:
             plan, final, req.seq, st.last_ms, st.exact_ms, st.mc_ms
         )
         self.summary.content = panel.summary(plan, final)
-        self.stops_md.content = panel.stops_list(plan)
+        self.stops_md.content = panel.stops_list(plan, names)
+        self._tell()
+        self._declutter()
 
     def plan_failed(self, req: Request, problem: ApiProblem) -> None:
         with self._lock:
@@ -562,7 +647,9 @@ class PlannerApp:
         # The last valid plan stays on screen in one stale colour; its ghosts go.
         plan = self.state.plan
         if plan is not None:
-            self.layer.show(plan_drawing(plan, tray_colours(req.scene), style_of(plan, True)))
+            self.layer.show(plan_drawing(plan, tray_colours(req.scene), style_of(plan, True),
+                                         names=names_of(self.state.doc)))  # fmt: skip
+            self._declutter()
         else:
             self.layer.place_ghosts(None)
         self.draft.set(False)

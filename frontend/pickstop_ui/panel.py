@@ -37,7 +37,8 @@ def plan_status(
     if not final:
         return status_line("plan drawn", seq, ms, exact_ms, "success rates (Monte Carlo)")
     mc = f" · last Monte Carlo {mc_ms:.0f} ms" if mc_ms else ""
-    return status_line("ready", seq, ms, exact_ms, None) + mc
+    said = f"ready — {len(plan.stops)} stops cover {len(plan.trays)} trays"
+    return status_line(said, seq, ms, exact_ms, None) + mc
 
 
 def success_text(plan: Plan, final: bool) -> str:
@@ -71,14 +72,16 @@ def summary(plan: Plan, final: bool) -> str:
     )
 
 
-def stops_list(plan: Plan) -> str:
-    """Each stop with its trays, circle radius and success rate; then why candidates lost."""
+def stops_list(plan: Plan, names: dict[str, str] | None = None) -> str:
+    """Each stop with its trays (by ``names``, else id), circle radius and success rate; then
+    why candidates lost."""
+    names = names or {}
     lines = []
     for s in plan.stops:
         ok = "" if s.success is None else f" · {s.success.rate:.1%}"
         lines.append(
             f"{s.index + 1}. ({s.x:.2f}, {s.y:.2f}) m, yaw {math.degrees(s.yaw):.0f}° → "
-            f"{', '.join(s.trays)} · r = {s.inscribed_radius:.3f} m{ok}"
+            f"{', '.join(names.get(t, t) for t in s.trays)} · r = {s.inscribed_radius:.3f} m{ok}"
         )
     why = sorted({c.reason for c in plan.candidates if c.status == "rejected" and c.reason})
     if why:
@@ -89,7 +92,7 @@ def stops_list(plan: Plan) -> str:
 
 def failure_status(e: ApiProblem) -> str:
     what = f" (field `{e.field}`)" if e.field else ""
-    return f"**Status:** ⚠ {e.title}{what}"
+    return f"**Status:** no plan — ⚠ {e.title}{what}"
 
 
 def failure_summary(e: ApiProblem) -> str:

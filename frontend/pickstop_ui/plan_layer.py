@@ -97,9 +97,13 @@ class PlanLayer:
             )
         h = self._labels[k]
         if text is None:
-            _set(h, visible=False)
+            _set(h, text="", visible=False)
             return
         _set(h, text=text, position=np.asarray(pos, float), visible=True)
+
+    def labels(self) -> list[tuple[str, Any]]:
+        """The stop labels in use: ``(key, handle)``, the handle's position in the world."""
+        return [(f"stop{k}", h) for k, h in enumerate(self._labels) if h.text]
 
     # -- the whole plan ---------------------------------------------------------------------------
     def show(self, d: PlanDrawing) -> None:

@@ -126,8 +126,10 @@ def plan_drawing(
     style: Style,
     urdf_joints: list[str] | None = None,
     locked: dict[str, float] | None = None,
+    names: dict[str, str] | None = None,
 ) -> PlanDrawing:
-    """The drawing of ``plan`` in ``style``; ``colours``: each tray's colour.
+    """The drawing of ``plan`` in ``style``; ``colours``: each tray's colour; ``names``: each
+    tray's display name for the stop labels (else its id).
 
     urdf_joints: the URDF's actuated joint names, to turn witnesses into ghost configurations
     (``locked``: the robot's locked and pre-grasp values).
@@ -153,7 +155,8 @@ def plan_drawing(
     for k, s in enumerate(plan.stops[:MAX_LABELS]):
         ok = "" if s.success is None else f", {s.success.rate:.0%} success"
         tag = " (preview)" if not plan.verified else ""
-        labels.append((f"stop {k + 1}: {', '.join(s.trays)}{ok}{tag}", (s.x, s.y, 1.3)))
+        trays = ", ".join((names or {}).get(t, t) for t in s.trays)
+        labels.append((f"stop {k + 1}: {trays}{ok}{tag}", (s.x, s.y, 1.3)))
     ghosts = []
     for s in plan.stops:
         cfg = None

@@ -21,6 +21,7 @@ import numpy as np
 import viser
 
 from pickstop.frames import yaw_quat
+from pickstop_ui.declutter import quat_matrix
 from pickstop_ui.scene_view import Item, Marker, SceneDrawing, scene_drawing
 
 log = logging.getLogger("pickstop.ui")
@@ -47,6 +48,7 @@ class SceneLayer:
         self.server = server
         self.items: dict[tuple[str, str], ItemNodes] = {}
         self.markers: dict[str, Any] = {}
+        self.marker_labels: dict[str, tuple[Any, Any]] = {}  # name -> (marker, its label)
 
     # -- whole scene ------------------------------------------------------------------------------
     def sync(self, doc: dict[str, Any]) -> SceneDrawing:
@@ -74,6 +76,20 @@ class SceneLayer:
     def drawn_items(self) -> list[Item]:
         """The items as drawn now."""
         return [n.item for n in self.items.values()]
+
+    def labels(self) -> list[tuple[str, Any, tuple[float, float, float]]]:
+        """Every item's and marker's label: ``(key, handle, anchor)``, the anchor in the world
+        [m] (the label's position turned and moved with its item's root)."""
+        out = []
+        for (kind, oid), nodes in self.items.items():
+            if nodes.label is not None:
+                R = quat_matrix(nodes.root.wxyz)
+                p = np.asarray(nodes.root.position) + R @ np.asarray(nodes.label.position)
+                out.append((f"{kind}/{oid}", nodes.label, tuple(map(float, p))))
+        for name, (h, label) in self.marker_labels.items():
+            p = np.asarray(h.position) + np.asarray(label.position)
+            out.append((name, label, tuple(map(float, p))))
+        return out
 
     def root(self, kind: str, oid: str) -> Any | None:
         nodes = self.items.get((kind, oid))
@@ -128,6 +144,8 @@ class SceneLayer:
             h = self.markers[m.name] = sc.add_icosphere(
                 f"/{m.name}", radius=m.position[2], color=m.colour, position=m.position
             )
-            sc.add_label(f"/{m.name}/label", m.name, position=(0, 0, 0.2), anchor="bottom-center")
+            label = sc.add_label(f"/{m.name}/label", m.name, position=(0, 0, 0.2),
+                                 anchor="bottom-center")  # fmt: skip
+            self.marker_labels[m.name] = (h, label)
         elif tuple(h.position) != m.position:
             h.position = np.asarray(m.position, float)

@@ -172,12 +172,3 @@ def scene_drawing(doc: Mapping[str, Any]) -> SceneDrawing:
 def initial_sigma(doc: Mapping[str, Any]) -> float:
     """The sigma the scene asks for [m] (the format's default when it names none)."""
     return float(doc.get("sigma", defaults.SIGMA))
-
-
-def camera_view(doc: Mapping[str, Any]) -> tuple[Vec3, Vec3]:
-    """Camera position and look-at point [m] that show the whole floor; the panel covers the
-    window's right, so the view looks a little right of the floor's centre."""
-    (x0, y0), (x1, y1) = doc["floor"]["min"], doc["floor"]["max"]
-    cx, cy, span = 0.5 * (x0 + x1), 0.5 * (y0 + y1), max(x1 - x0, y1 - y0)
-    x = cx + 0.12 * span
-    return (x, cy - 0.45 * span, 0.6 * span), (x, cy + 0.1 * span, 0.0)

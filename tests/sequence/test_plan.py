@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -174,6 +175,21 @@ def test_sigma_too_large_names_trays_and_radii(stop_planner, paper_doc):
     for t in ("tray_1", "tray_2", "tray_4"):
         assert f"tray {t}:" in msg
     assert "below sigma 0.400 m" in msg and e.value.field == "sigma"
+
+
+def test_sigma_too_large_states_the_largest_sigma_that_plans(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    with pytest.raises(InfeasiblePlanError) as e:
+        stop_planner.plan(scene, PlanOptions(sigma=0.4, samples=0))
+    m = re.search(r"the largest sigma that keeps a candidate stop for every tray is ([\d.]+) m",
+                  e.value.message)  # fmt: skip
+    assert m, e.value.message
+    largest = float(m.group(1))
+    assert 0.0 < largest < 0.4
+    plan = stop_planner.plan(scene, PlanOptions(sigma=largest, samples=0))  # it plans
+    assert all(s.inscribed_radius >= largest for s in plan.stops)
+    with pytest.raises(InfeasiblePlanError):  # and a millimetre more does not
+        stop_planner.plan(scene, PlanOptions(sigma=largest + 0.0011, samples=0))
 
 
 def test_tray_out_of_reach_has_an_empty_region(stop_planner, paper_doc):

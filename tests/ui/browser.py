@@ -146,10 +146,7 @@ def stops(plan: Any) -> list[tuple[float, float, float, tuple[str, ...]]]:
 
 def reset_camera(app: Any) -> None:
     """Back to the planner's first view of the scene (a test that moved the camera)."""
-    from pickstop_ui.scene_view import camera_view
-
-    cam = camera(app)
-    cam.position, cam.look_at = camera_view(app.state.doc)
+    app.show_view(next(iter(app.server.get_clients().values())), "iso")
     time.sleep(0.5)
 
 

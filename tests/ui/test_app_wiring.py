@@ -68,7 +68,7 @@ def test_a_refused_plan_is_explained_and_the_last_plan_greyed(window):
     api.refuse = ApiProblem(422, "Infeasible plan", "no plan with sigma = 0.500 m", "sigma")
     app.sigma.value = 0.5
     _wait(lambda: "⚠" in app.status.content and "greyed out" in app.summary.content)
-    assert app.status.content == "**Status:** ⚠ Infeasible plan (field `sigma`)"
+    assert app.status.content == "**Status:** no plan — ⚠ Infeasible plan (field `sigma`)"
     assert "greyed out" in app.summary.content and app.state.error is not None
     assert app.state.plan is not None  # the last valid plan stays
 

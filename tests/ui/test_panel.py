@@ -12,7 +12,8 @@ def test_a_verified_plan_reads_quick_then_final(plans):
     assert quick.startswith("**Status:** plan drawn · plan #7 in 123 ms")
     assert "last exact plan 120 ms" in quick and "⏳ success rates (Monte Carlo)…" in quick
     final = panel.plan_status(exact, True, 7, 1500.0, 120.0, 1380.0)
-    assert "ready · plan #7" in final and final.endswith("last Monte Carlo 1380 ms")
+    said = f"ready — {len(exact.stops)} stops cover {len(exact.trays)} trays · plan #7"
+    assert said in final and final.endswith("last Monte Carlo 1380 ms")
     assert "⏳" not in final
     text = panel.summary(exact, final=False)
     assert f"- Stops: **{exact.totals.stops}** (naive {len(exact.naive.stops)})" in text
@@ -21,6 +22,8 @@ def test_a_verified_plan_reads_quick_then_final(plans):
     stops = panel.stops_list(exact)
     assert stops.startswith("**Stops**") and stops.count("→") == len(exact.stops)
     assert f"r = {exact.stops[0].inscribed_radius:.3f} m" in stops
+    named = panel.stops_list(exact, {exact.stops[0].trays[0]: "bolts M6"})
+    assert "bolts M6" in named.splitlines()[2] and exact.stops[0].trays[0] not in named
 
 
 def test_a_preview_says_so_everywhere(plans):
@@ -46,7 +49,7 @@ def test_rejected_reasons_are_listed_once_and_bounded(plans):
 
 def test_problems_name_the_field_and_keep_the_last_plan_in_view():
     e = ApiProblem(422, "Infeasible plan", "no plan with sigma = 0.500 m", "sigma")
-    assert panel.failure_status(e) == "**Status:** ⚠ Infeasible plan (field `sigma`)"
+    assert panel.failure_status(e) == "**Status:** no plan — ⚠ Infeasible plan (field `sigma`)"
     assert panel.failure_status(ApiProblem(0, "API unreachable", "x")).endswith("unreachable")
     assert "greyed out" in panel.failure_summary(e) and e.detail in panel.failure_summary(e)
     running = panel.status_line("plan drawn", 3, 50, 50, "success rates (Monte Carlo)")

@@ -205,7 +205,26 @@ def _sigma_splitting_a_stop(plan) -> float:
     return target
 
 
-def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app):
+@pytest.fixture
+def close_oblique_view(planner_app):
+    """A camera nearer the floor than the presets, looking a little right of its centre: the
+    circles fill more of the view, so a vanished one shows in the pixel counts. The first
+    view again afterwards."""
+    doc = planner_app.state.doc
+    (x0, y0), (x1, y1) = doc["floor"]["min"], doc["floor"]["max"]
+    cx, cy, span = 0.5 * (x0 + x1), 0.5 * (y0 + y1), max(x1 - x0, y1 - y0)
+    client = next(iter(planner_app.server.get_clients().values()))
+    x = cx + 0.12 * span
+    with client.atomic():
+        client.camera.fov = math.radians(75.0)
+        client.camera.position = (x, cy - 0.45 * span, 0.6 * span)
+        client.camera.look_at = (x, cy + 0.1 * span, 0.0)
+    yield
+    planner_app.show_view(client, "iso")
+    time.sleep(0.5)
+
+
+def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app, close_oblique_view):
     plan = planner_app.state.plan
     n_stops = len(plan.stops)
     target = _sigma_splitting_a_stop(plan)
@@ -283,7 +302,9 @@ def test_infeasible_layout_shows_the_explanation(ui_page, planner_app):
     ui_page.wait_for_function("m => document.body.innerText.includes(m)", arg=marker,
                               timeout=60_000)  # fmt: skip
     text = ui_page.inner_text("body")
-    assert "Status: ⚠ Infeasible plan" in text and "last valid plan is shown greyed" in text
+    assert (
+        "Status: no plan — ⚠ Infeasible plan" in text and "last valid plan is shown greyed" in text
+    )
     assert "tray tray_1:" in text  # the explanation names the trays and their numbers
     time.sleep(1.5)
     img = _shot(ui_page, "06-infeasible")

@@ -670,6 +670,7 @@ class _Planning:
              "monte_carlo", "naive"], 0.0
         )  # fmt: skip
         self.rejected: dict[int, str] = {}
+        self.unusable: set[int] = set()  # rejected whatever the rule: cut off, exact check failed
         self.predicted: dict[int, float] = {}
         self.costs = FailureCosts.of(scene.failure)
         self.est: dict[int, dict[frozenset[str], float]] = {}  # candidate -> tray set -> rate
@@ -774,6 +775,8 @@ class _Planning:
             if v.predicted is not None:
                 self.predicted[i] = v.predicted
             if not v.kept:
+                if not reachable[i]:
+                    self.unusable.add(i)
                 why = paths.undocked.get(i + 2) if reachable[i] is False else None
                 self.rejected[i] = (
                     f"the base cannot get there: {why}" if why else (v.reason or "rejected")
@@ -790,9 +793,29 @@ class _Planning:
                 f"widest (trays {', '.join(sorted(best.trays))} at ({best.centre[0]:.2f}, "
                 f"{best.centre[1]:.2f})): {self.rejected[i]}"
             )
+        relax = self._what_would_plan(cands)
         raise InfeasiblePlanError(
-            f"no plan with {self._rule().describe()}: " + "; ".join(parts), field="sigma"
+            f"no plan with {self._rule().describe()}: " + "; ".join(parts) + relax, field="sigma"
         )
+
+    def _what_would_plan(self, cands: list[Intersection]) -> str:
+        """The loosest rule that keeps a candidate for every tray, from the candidates' radii
+        (sigma rule) or predicted success (success rule), those the base cannot use left out:
+        "; the largest sigma that ..." (empty when some tray has no usable candidate)."""
+        best: list[float] = []
+        for t in self.required:
+            mine = [i for i, c in enumerate(cands) if t in c.trays and i not in self.unusable]
+            if not mine:
+                return ""
+            if self.opts.rule == "sigma":
+                best.append(max(cands[i].radius for i in mine))
+            else:
+                best.append(max(self.predicted.get(i, 0.0) for i in mine))
+        if self.opts.rule == "sigma":
+            return (f"; the largest sigma that keeps a candidate stop for every tray is "
+                    f"{math.floor(min(best) * 1000) / 1000:.3f} m")  # fmt: skip
+        return (f"; the highest target success that keeps a candidate stop for every tray is "
+                f"{math.floor(min(best) * 1000) / 10:.1f}%")  # fmt: skip
 
     # -- selection with verification ----------------------------------------------------------
     def _select_verified(
@@ -825,6 +848,7 @@ class _Planning:
                 for t in trays:
                     mine = sp.witnesses(scene, regions[t, cand.yaw], cand.centre, self.world)
                     if mine is None:
+                        self.unusable.add(c)
                         self.rejected[c] = (
                             f"the exact check at its centre failed for tray {t} (the region's "
                             "grid cells around it are feasible, the centre itself is not)"
