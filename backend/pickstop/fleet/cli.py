@@ -19,23 +19,8 @@ from pickstop.argtypes import finite_float
 from pickstop.errors import InputError
 from pickstop.fleet import mqtt
 from pickstop.fleet import order as orders
-from pickstop.fleet import route as rt
+from pickstop.fleet.route import read_plan
 from pickstop.sequence import plan_model as pm
-
-MAX_PLAN_BYTES = 64 * 1024 * 1024
-
-
-def read_plan(path: str) -> pm.Plan:
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"plan {path}: no such file", field="plan")
-    if p.stat().st_size > MAX_PLAN_BYTES:
-        raise InputError(f"plan {path}: larger than {MAX_PLAN_BYTES} bytes", field="plan")
-    try:
-        doc = json.loads(p.read_text())
-    except (ValueError, UnicodeDecodeError) as e:
-        raise InputError(f"plan {path}: not JSON ({e})", field="plan") from None
-    return rt.load_plan(doc, f"plan {path}")
 
 
 def _scene(path: str | None, plan: pm.Plan | None = None) -> Any:
@@ -62,9 +47,23 @@ def _yaw_tolerance(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
         raise InputError("--verify-yaw needs --scene (the plan's scene file)", field="scene")
     from pickstop.fleet.yaw import verified_yaw_tolerances
 
-    return verified_yaw_tolerances(
-        _checker(args.scene, scene, args, args.db or plan.database), plan
-    )
+    return verified_yaw_tolerances(_plan_checker(args, plan, scene), plan)
+
+
+def _plan_checker(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
+    """The plan scene's exact checker, made once per command."""
+    if getattr(args, "_check", None) is None:
+        args._check = _checker(args.scene, scene, args, args.db or plan.database)
+    return args._check
+
+
+def _shapes(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
+    """With ``--verify-xy``, each stop's circle and ellipse checked off the grid."""
+    if not getattr(args, "verify_xy", False):
+        return None
+    if scene is None:
+        raise InputError("--verify-xy needs --scene (the plan's scene file)", field="scene")
+    return _plan_checker(args, plan, scene).shapes(plan)
 
 
 def _vehicle_types(args: argparse.Namespace) -> Any:
@@ -87,6 +86,7 @@ def _order_options(
         start_yaw=None if scene is None else scene.start.yaw,
         goal_yaw=None if scene is None else scene.goal.yaw,
         yaw_tolerance=args.yaw_tolerance if plan is None else _yaw_tolerance(args, plan, scene),
+        shapes=None if plan is None else _shapes(args, plan, scene),
     )
 
 
@@ -125,6 +125,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             start_yaw=None if scene is None else scene.start.yaw,
             goal_yaw=None if scene is None else scene.goal.yaw,
             yaw_tolerance=_yaw_tolerance(args, plan, scene),
+            shapes=_shapes(args, plan, scene),
         )
         text = nav2.dumps(doc, fmt)
     _write(args.out, text)
@@ -285,7 +286,13 @@ def _order_args(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="each stop's yaw tolerance from exact checks at its centre (needs --scene)",
     )
-    p.add_argument("--db", help="database for --verify-yaw (default: the plan's)")
+    p.add_argument(
+        "--verify-xy",
+        action="store_true",
+        help="each stop's tolerance circle and (VDA 5050 3.0) ellipse checked off the grid by "
+        "exact tests (needs --scene)",
+    )
+    p.add_argument("--db", help="database for --verify-yaw/--verify-xy (default: the plan's)")
 
 
 def add_commands(sub: Any) -> None:

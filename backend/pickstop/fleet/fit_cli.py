@@ -90,7 +90,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 def replan(args: argparse.Namespace, root: Path, scene: Any) -> str:
     """The plan ``args.replan`` made again with the fitted ``scene``: what changed, per stop."""
-    from pickstop.fleet.cli import read_plan
+    from pickstop.fleet.route import read_plan
     from pickstop.pool import PlannerPool
     from pickstop.sequence.plan_model import PlanOptions
     from pickstop.settings import data_dir
