@@ -157,6 +157,24 @@ def test_verify_xy_exports_the_checked_ellipse_and_circle(plan_file, region_db, 
     assert main(["export", str(plan_file), "--format", "nav2", "--verify-xy"]) == 2
 
 
+def test_export_lif_writes_a_layout_with_a_station_per_stop(plan_file, tmp_path):
+    import jsonschema
+
+    from pickstop.fleet import published
+
+    out = tmp_path / "layout.lif.json"
+    scene = str(EXAMPLES / "paper_experiment.json")
+    args = ["export", str(plan_file), "--format", "lif", "--scene", scene, "--out", str(out),
+            "--order-id", "cell-a"]  # fmt: skip
+    assert main(args) == 0
+    doc = json.loads(out.read_text())
+    jsonschema.validate(doc, published.schema("lif", "2.0.0"))
+    (layout,) = doc["layouts"]
+    plan = json.loads(plan_file.read_text())
+    assert layout["layoutId"] == "cell-a" and len(layout["stations"]) == len(plan["stops"])
+    assert main(["export", str(plan_file), "--format", "lif", "--verify-xy"]) == 2
+
+
 def test_export_and_dispatch_with_a_vehicle_types_file(
     plan_file, example_plans, planner, mosquitto, tmp_path, capsys
 ):

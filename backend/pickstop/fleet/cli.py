@@ -106,7 +106,9 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
-    if args.format == "vda5050":
+    if args.format == "lif":
+        text = json.dumps(_lif(args, plan, scene), indent=1) + "\n"
+    elif args.format == "vda5050":
         vt = _vehicle_types(args).select(args.manufacturer, args.serial, None, args.vehicle_type)
         opts = _order_options(args, scene, plan)
         if vt is not None:
@@ -132,6 +134,26 @@ def cmd_export(args: argparse.Namespace) -> int:
     if args.out:
         print(json.dumps({"format": args.format, "out": args.out, "stops": len(plan.stops)}))
     return 0
+
+
+def _lif(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> dict[str, Any]:
+    """The plan as a LIF layout; its vehicle type ``manufacturer.seriesName`` (or the type's
+    name) from ``--vehicle-types``, else the manufacturer alone."""
+    from pickstop.fleet.lif import LifOptions, build_lif
+
+    man = mqtt.check_level("manufacturer", args.manufacturer)
+    vt = _vehicle_types(args).select(man, args.serial, None, args.vehicle_type)
+    type_id = man if vt is None else f"{vt.manufacturer or man}.{vt.series_name or vt.name}"
+    opts = LifOptions(
+        vehicle_type_id=type_id,
+        layout_id=args.order_id,
+        map_id=args.map_id or "map",
+        start_yaw=None if scene is None else scene.start.yaw,
+        goal_yaw=None if scene is None else scene.goal.yaw,
+        shapes=_shapes(args, plan, scene),
+        pick=None if vt is None else vt.pick,
+    )
+    return build_lif(plan, opts)
 
 
 def cmd_dispatch(args: argparse.Namespace) -> int:
@@ -299,9 +321,11 @@ def add_commands(sub: Any) -> None:
     from pickstop.fleet.fit_cli import add_commands as add_fit_commands
 
     add_fit_commands(sub)
-    ex = sub.add_parser("export", help="a plan as a VDA 5050 order or a Nav2 goal")
+    ex = sub.add_parser(
+        "export", help="a plan as a VDA 5050 order, a Nav2 goal or a LIF layout (stations)"
+    )
     ex.add_argument("plan", help="plan JSON (from pickstop plan)")
-    ex.add_argument("--format", choices=["vda5050", "nav2"], required=True)
+    ex.add_argument("--format", choices=["vda5050", "nav2", "lif"], required=True)
     ex.add_argument("--out", help="write here (default: stdout)")
     ex.add_argument("--nav2-format", choices=["json", "yaml"], help="default: by --out suffix")
     ex.add_argument("--distro", default="jazzy", choices=["humble", "jazzy", "kilted"])
