@@ -60,6 +60,11 @@ def test_export_of_a_stored_plan(fleet_client, stored_plan):
     doc = yaml.safe_load(r.text)
     assert len(doc["segments"]) == len(plan.stops) + 1
     assert nav2.goal_poses(doc)[-1][:2] == pytest.approx(plan.route[-1])
+    r = fleet_client.get(f"/api/v1/plans/{plan_id}/export?format=lif")
+    assert r.status_code == 200
+    jsonschema.validate(r.json(), schema("lif", "2.0.0"))
+    assert r.json()["layouts"][0]["layoutId"] == plan_id
+    assert len(r.json()["layouts"][0]["stations"]) == len(plan.stops)
     bad = fleet_client.get(f"/api/v1/plans/{plan_id}/export?format=pdf")
     assert bad.status_code == 422
     assert fleet_client.get("/api/v1/plans/pln_nope/export").status_code == 404

@@ -138,6 +138,47 @@ def test_verify_yaw_sets_each_stops_tolerance_from_exact_checks(
     assert main(["export", str(plan_file), "--format", "nav2", "--verify-yaw"]) == 2
 
 
+def test_verify_xy_exports_the_checked_ellipse_and_circle(plan_file, region_db, tmp_path):
+    """``--verify-xy``: a 3.0 order's stops carry the checked ellipse, a 2.1 order's and a
+    Nav2 goal's the checked circle; without ``--scene`` it is refused (exit 2)."""
+    folder, db = region_db
+    scene_file = str(EXAMPLES / "paper_experiment.json")
+    common = ["--scene", scene_file, "--verify-xy", "--db", db.id]
+    got = {}
+    for version in ("3.0", "2.1"):
+        out = tmp_path / f"order-{version}.json"
+        args = ["--data-dir", str(folder), "export", str(plan_file), "--format", "vda5050",
+                "--vda-version", version, *common, "--out", str(out)]  # fmt: skip
+        assert main(args) == 0
+        nodes = [n for n in json.loads(out.read_text())["nodes"] if n["actions"]]
+        got[version] = [n["nodePosition"]["allowedDeviationXY"] for n in nodes]
+    assert got["3.0"] and all(set(e) == {"a", "b", "theta"} for e in got["3.0"])
+    assert all(e["a"] >= e["b"] > 0 for e in got["3.0"])
+    assert all(e["a"] * e["b"] >= r * r for e, r in zip(got["3.0"], got["2.1"], strict=True))
+    plan = json.loads(plan_file.read_text())
+    # the checked circle is the plan's inscribed radius or less (a failing pose shrinks it)
+    assert all(r <= s["inscribed_radius"] for r, s in zip(got["2.1"], plan["stops"], strict=True))
+    assert main(["export", str(plan_file), "--format", "nav2", "--verify-xy"]) == 2
+
+
+def test_export_lif_writes_a_layout_with_a_station_per_stop(plan_file, tmp_path):
+    import jsonschema
+
+    from pickstop.fleet import published
+
+    out = tmp_path / "layout.lif.json"
+    scene = str(EXAMPLES / "paper_experiment.json")
+    args = ["export", str(plan_file), "--format", "lif", "--scene", scene, "--out", str(out),
+            "--order-id", "cell-a"]  # fmt: skip
+    assert main(args) == 0
+    doc = json.loads(out.read_text())
+    jsonschema.validate(doc, published.schema("lif", "2.0.0"))
+    (layout,) = doc["layouts"]
+    plan = json.loads(plan_file.read_text())
+    assert layout["layoutId"] == "cell-a" and len(layout["stations"]) == len(plan["stops"])
+    assert main(["export", str(plan_file), "--format", "lif", "--verify-xy"]) == 2
+
+
 def test_export_and_dispatch_with_a_vehicle_types_file(
     plan_file, example_plans, planner, mosquitto, tmp_path, capsys
 ):

@@ -349,7 +349,9 @@ def _count_meshes(app):
     return sent, lambda: setattr(iface, "queue_message", original)
 
 
-def test_dragging_slowly_previews_the_plan_then_draws_the_exact_one(ui_page, planner_app):
+def test_dragging_slowly_previews_the_plan_then_draws_the_exact_one(
+    ui_page, planner_app, close_oblique_view
+):
     """Region and stop follow the tray during the drag, drawn as a preview and said so; on
     release the verified plan replaces it and the preview style is gone."""
     ui_page.wait_for_function("document.body.innerText.includes('Status: ready')", timeout=60_000)

@@ -1,4 +1,5 @@
-"""Fleet routes: a stored plan as a VDA 5050 order or a Nav2 goal, and dispatch over MQTT.
+"""Fleet routes: a stored plan as a VDA 5050 order, a Nav2 goal or a LIF layout, and dispatch
+over MQTT.
 
 The broker is the service's (``PICKSTOP_MQTT_BROKER``), never the caller's: the API does not
 connect wherever a request says.
@@ -88,6 +89,23 @@ def _export(s: Any, plan_id: str, q: dict[str, Any]) -> tuple[str, str]:
 
     plan, scene_doc = _stored(s, plan_id)
     start_yaw, goal_yaw = _yaws(scene_doc)
+    if q["format"] == "lif":
+        from pickstop.fleet.lif import LifOptions, build_lif
+
+        vt = _vehicle_types(s).select(
+            q["manufacturer"], q["serial_number"], None, q["vehicle_type"]
+        )
+        man = q["manufacturer"]
+        opts = LifOptions(
+            vehicle_type_id=man if vt is None else f"{vt.manufacturer or man}."
+            f"{vt.series_name or vt.name}",
+            layout_id=plan_id,
+            map_id=q["map_id"] or "map",
+            start_yaw=start_yaw,
+            goal_yaw=goal_yaw,
+            pick=None if vt is None else vt.pick,
+        )
+        return json.dumps(build_lif(plan, opts)), "application/json"
     if q["format"] == "vda5050":
         vt = _vehicle_types(s).select(
             q["manufacturer"], q["serial_number"], None, q["vehicle_type"]
@@ -129,7 +147,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
     async def export_plan(
         request: Request,
         plan_id: str,
-        format: Literal["vda5050", "nav2"] = "vda5050",
+        format: Literal["vda5050", "nav2", "lif"] = "vda5050",
         vda_version: Literal["2.0", "2.1", "3.0"] = "2.1",
         manufacturer: Annotated[
             str, Query(min_length=1, max_length=100, pattern=r"^[^/+#]+$")
@@ -142,8 +160,9 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         distro: Literal["humble", "jazzy", "kilted"] = "jazzy",
         vehicle_type: Annotated[str | None, Query(min_length=1, max_length=100)] = None,
     ) -> Response:
-        """The plan as a VDA 5050 order (orderId = the plan id) or a Nav2 goal; the pick as
-        the vehicle type names it (``vehicle_type``, or the first matching the vehicle)."""
+        """The plan as a VDA 5050 order (orderId = the plan id), a Nav2 goal or a LIF 2.0
+        layout (layoutId = the plan id, a station per stop); the pick as the vehicle type
+        names it (``vehicle_type``, or the first matching the vehicle)."""
         q = dict(format=format, vda_version=vda_version, manufacturer=manufacturer,
                  serial_number=serial_number, map_id=map_id, nav2_format=nav2_format,
                  distro=distro, vehicle_type=vehicle_type)  # fmt: skip

@@ -52,9 +52,23 @@ def _yaw_tolerance(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
         raise InputError("--verify-yaw needs --scene (the plan's scene file)", field="scene")
     from pickstop.fleet.yaw import verified_yaw_tolerances
 
-    return verified_yaw_tolerances(
-        _checker(args.scene, scene, args, args.db or plan.database), plan
-    )
+    return verified_yaw_tolerances(_plan_checker(args, plan, scene), plan)
+
+
+def _plan_checker(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
+    """The plan scene's exact checker, made once per command."""
+    if getattr(args, "_check", None) is None:
+        args._check = _checker(args.scene, scene, args, args.db or plan.database)
+    return args._check
+
+
+def _shapes(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> Any:
+    """With ``--verify-xy``, each stop's circle and ellipse checked off the grid."""
+    if not getattr(args, "verify_xy", False):
+        return None
+    if scene is None:
+        raise InputError("--verify-xy needs --scene (the plan's scene file)", field="scene")
+    return _plan_checker(args, plan, scene).shapes(plan)
 
 
 def _vehicle_types(args: argparse.Namespace) -> Any:
@@ -77,6 +91,7 @@ def _order_options(
         start_yaw=None if scene is None else scene.start.yaw,
         goal_yaw=None if scene is None else scene.goal.yaw,
         yaw_tolerance=args.yaw_tolerance if plan is None else _yaw_tolerance(args, plan, scene),
+        shapes=None if plan is None else _shapes(args, plan, scene),
     )
 
 
@@ -96,7 +111,9 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     plan = read_plan(args.plan)
     scene = _scene(args.scene, plan)
-    if args.format == "vda5050":
+    if args.format == "lif":
+        text = json.dumps(_lif(args, plan, scene), indent=1) + "\n"
+    elif args.format == "vda5050":
         vt = _vehicle_types(args).select(args.manufacturer, args.serial, None, args.vehicle_type)
         opts = _order_options(args, scene, plan)
         if vt is not None:
@@ -115,12 +132,33 @@ def cmd_export(args: argparse.Namespace) -> int:
             start_yaw=None if scene is None else scene.start.yaw,
             goal_yaw=None if scene is None else scene.goal.yaw,
             yaw_tolerance=_yaw_tolerance(args, plan, scene),
+            shapes=_shapes(args, plan, scene),
         )
         text = nav2.dumps(doc, fmt)
     _write(args.out, text)
     if args.out:
         print(json.dumps({"format": args.format, "out": args.out, "stops": len(plan.stops)}))
     return 0
+
+
+def _lif(args: argparse.Namespace, plan: pm.Plan, scene: Any) -> dict[str, Any]:
+    """The plan as a LIF layout; its vehicle type ``manufacturer.seriesName`` (or the type's
+    name) from ``--vehicle-types``, else the manufacturer alone."""
+    from pickstop.fleet.lif import LifOptions, build_lif
+
+    man = mqtt.check_level("manufacturer", args.manufacturer)
+    vt = _vehicle_types(args).select(man, args.serial, None, args.vehicle_type)
+    type_id = man if vt is None else f"{vt.manufacturer or man}.{vt.series_name or vt.name}"
+    opts = LifOptions(
+        vehicle_type_id=type_id,
+        layout_id=args.order_id,
+        map_id=args.map_id or "map",
+        start_yaw=None if scene is None else scene.start.yaw,
+        goal_yaw=None if scene is None else scene.goal.yaw,
+        shapes=_shapes(args, plan, scene),
+        pick=None if vt is None else vt.pick,
+    )
+    return build_lif(plan, opts)
 
 
 def cmd_dispatch(args: argparse.Namespace) -> int:
@@ -281,16 +319,24 @@ def _order_args(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="each stop's yaw tolerance from exact checks at its centre (needs --scene)",
     )
-    p.add_argument("--db", help="database for --verify-yaw (default: the plan's)")
+    p.add_argument(
+        "--verify-xy",
+        action="store_true",
+        help="each stop's tolerance circle and (VDA 5050 3.0) ellipse checked off the grid by "
+        "exact tests (needs --scene)",
+    )
+    p.add_argument("--db", help="database for --verify-yaw/--verify-xy (default: the plan's)")
 
 
 def add_commands(sub: Any) -> None:
     from pickstop.fleet.fit_cli import add_commands as add_fit_commands
 
     add_fit_commands(sub)
-    ex = sub.add_parser("export", help="a plan as a VDA 5050 order or a Nav2 goal")
+    ex = sub.add_parser(
+        "export", help="a plan as a VDA 5050 order, a Nav2 goal or a LIF layout (stations)"
+    )
     ex.add_argument("plan", help="plan JSON (from pickstop plan)")
-    ex.add_argument("--format", choices=["vda5050", "nav2"], required=True)
+    ex.add_argument("--format", choices=["vda5050", "nav2", "lif"], required=True)
     ex.add_argument("--out", help="write here (default: stdout)")
     ex.add_argument("--nav2-format", choices=["json", "yaml"], help="default: by --out suffix")
     ex.add_argument("--distro", default="jazzy", choices=["humble", "jazzy", "kilted"])

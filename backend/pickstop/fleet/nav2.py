@@ -19,6 +19,7 @@ import yaml
 
 from pickstop.errors import InputError
 from pickstop.fleet import route as rt
+from pickstop.fleet.tolerance import StopShapes
 from pickstop.frames import quat_yaw, yaw_quat
 from pickstop.sequence import plan_model as pm
 
@@ -94,11 +95,15 @@ def build_nav2(
     start_yaw: float | None = None,
     goal_yaw: float | None = None,
     yaw_tolerance: float | Sequence[float] | None = None,
+    shapes: Sequence[StopShapes] | None = None,
 ) -> dict[str, Any]:
-    """The goal, per-stop segments with tolerances, the picks beside them, and the notes."""
+    """The goal, per-stop segments with tolerances, the picks beside them, and the notes;
+    ``shapes``: checked per stop (:mod:`pickstop.fleet.tolerance`), their circles as the
+    stops' ``xy_goal_tolerance``."""
     if distro not in ("humble", "jazzy", "kilted"):
         raise InputError(f"distro: {distro!r} is not humble, jazzy or kilted", field="distro")
-    wps = rt.waypoints(plan, start_yaw, goal_yaw, yaw_tolerance)[1:]  # the robot is at start
+    # the robot is at start
+    wps = rt.waypoints(plan, start_yaw, goal_yaw, yaw_tolerance, shapes)[1:]
 
     def header() -> dict[str, Any]:  # stamp zero: "use the latest transform"
         return {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": frame_id}

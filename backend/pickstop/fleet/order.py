@@ -4,7 +4,8 @@ Nodes: start, every corner of the obstacle-aware floor path, each stop, goal; st
 join them. A docking leg (driven at a stop's fixed yaw where the base cannot turn) is an edge
 with that ``orientation`` (GLOBAL; no rotation on it), between nodes carrying that ``theta``.
 Node ``sequenceId`` s are even, edge ones odd, increasing along the route. Each stop
-node carries ``allowedDeviationXY`` = its guaranteed radius, ``allowedDeviationTheta`` = the
+node carries ``allowedDeviationXY`` = its guaranteed radius (with checked shapes: the checked
+circle in 2.x, the checked ellipse ``{a, b, theta}`` in 3.0), ``allowedDeviationTheta`` = the
 yaw tolerance, and one blocking ``pick`` action per part (tray, part, grasp, and the witness arm
 configuration with its joint names), or the action a vehicle type names for it
 (:class:`~pickstop.fleet.vehicle_types.PickAction`). Everything is released (the base) unless
@@ -22,6 +23,7 @@ from typing import Any
 from pickstop.errors import InputError
 from pickstop.fleet import route as rt
 from pickstop.fleet import vda5050 as v
+from pickstop.fleet.tolerance import StopShapes
 from pickstop.fleet.vehicle_types import DEFAULT_PICK, PickAction
 from pickstop.sequence import plan_model as pm
 
@@ -41,6 +43,7 @@ class OrderOptions:
     goal_yaw: float | None = None  # [rad]
     yaw_tolerance: float | tuple[float, ...] | None = None  # [rad], one or one per stop
     pick: PickAction | None = None  # the vehicle type's pick; None: PickStop's own
+    shapes: tuple[StopShapes, ...] | None = None  # per stop, checked (fleet.tolerance)
 
 
 def version_of(text: str) -> v.VersionName:
@@ -66,7 +69,7 @@ def order_id_of(plan: pm.Plan) -> str:
     return "pickstop-" + hashlib.sha256(repr(key).encode()).hexdigest()[:16]
 
 
-def _params(pick: rt.Pick, stop: int, action: PickAction) -> list[dict[str, Any]]:
+def pick_parameters(pick: rt.Pick, stop: int, action: PickAction) -> list[dict[str, Any]]:
     ours = {
         "stopIndex": stop,
         "trayId": pick.tray_id,
@@ -95,7 +98,7 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order:
                 f"{name}: {value!r} must be non-empty without '/', '+' or '#' (a topic level)",
                 field=name,
             )
-    wps = rt.waypoints(plan, opts.start_yaw, opts.goal_yaw, opts.yaw_tolerance)
+    wps = rt.waypoints(plan, opts.start_yaw, opts.goal_yaw, opts.yaw_tolerance, opts.shapes)
     oid = opts.order_id or order_id_of(plan)
     map_id = opts.map_id or "map"
     # The base ends at the last released stop's node (or the goal when all are released).
@@ -117,7 +120,7 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order:
                     f"pick {p.part_id} from {p.tray_id}"
                 ),
                 "blockingType": act.blocking_type,
-                "actionParameters": _params(p, w.stop, act),
+                "actionParameters": pick_parameters(p, w.stop, act),
             }
             for p in w.picks
             if w.stop is not None
@@ -125,7 +128,10 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order:
         pos: dict[str, Any] = {"x": w.x, "y": w.y, "mapId": map_id}
         if w.yaw is not None:
             pos["theta"] = w.yaw
-        if v3:
+        if v3 and w.ellipse is not None:
+            a, b, th = w.ellipse
+            pos["allowedDeviationXY"] = {"a": a, "b": b, "theta": th}
+        elif v3:
             pos["allowedDeviationXY"] = {"a": w.tolerance_xy, "b": w.tolerance_xy, "theta": 0.0}
         else:
             pos["allowedDeviationXY"] = w.tolerance_xy

@@ -11,12 +11,16 @@ import threading
 from collections import OrderedDict
 
 import numpy as np
+import shapely
 
+from pickstop.errors import InputError
+from pickstop.fleet.tolerance import StopShapes, stop_shapes
 from pickstop.frames import angle_gap
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.offgrid import feasible_near
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene
+from pickstop.sequence import plan_model as pm
 
 CACHE = 4096  # results kept per checker (poses repeat across runs only by chance)
 
@@ -64,3 +68,29 @@ class PickChecker:
             while len(self._cache) > CACHE:
                 self._cache.popitem(last=False)
             return out
+
+    def many(self, tray_id: str, xy: np.ndarray, yaw: float) -> np.ndarray:
+        """The exact test of one tray at base poses ``xy: (M, 2)`` [m], ``yaw`` [rad]:
+        ``ok: (M,)`` (uncached; one batch)."""
+        with self._lock:
+            region = self.region(tray_id, yaw)
+            if region is None:
+                return np.zeros(len(xy), bool)
+            self.calls += len(xy)
+            return feasible_near(self.planner, self.scene, region, np.asarray(xy, float), yaw)[0]
+
+    def shapes(self, plan: pm.Plan) -> tuple[StopShapes, ...]:
+        """Each stop's tolerance circle and ellipse, checked off the grid by the exact test
+        (:func:`pickstop.fleet.tolerance.stop_shapes`), in stop order."""
+        out = []
+        for s in plan.stops:
+            regions = [self.region(t, s.yaw) for t in s.trays]
+            if any(r is None for r in regions) or not regions:
+                raise InputError(f"stops.{s.index}: a tray of the stop is not in the scene",
+                                 field=f"stops.{s.index}")  # fmt: skip
+            inter = shapely.intersection_all([r.polygon for r in regions if r is not None])
+            res = regions[0].grid.res  # type: ignore[union-attr]
+            out.append(
+                stop_shapes(self.many, s.trays, (s.x, s.y), s.yaw, inter, s.inscribed_radius, res)
+            )
+        return tuple(out)

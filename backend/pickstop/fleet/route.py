@@ -9,7 +9,8 @@ says the yaw it is driven at (``hold_yaw``); the vehicle halts at both ends to t
 Shared by the VDA 5050 and Nav2 exports and by the simulated vehicle. A stop's *guaranteed
 radius* is the largest circle around it inside which every part of its trays stays graspable:
 the inscribed circle of the regions' intersection the stop is the centre of (every floor cell
-in it is exactly verified for all those trays). Its yaw tolerance is what the plan's Monte Carlo
+in it is exactly verified for all those trays), or, checked off the grid, the circle and ellipse
+of :mod:`pickstop.fleet.tolerance`. Its yaw tolerance is what the plan's Monte Carlo
 sampled: two standard deviations of the scene's yaw error, and at least the yaw lattice.
 """
 
@@ -25,6 +26,7 @@ from typing import Any, Literal
 from pydantic import ValidationError
 
 from pickstop.errors import InputError
+from pickstop.fleet.tolerance import StopShapes
 from pickstop.frames import wrap_angle
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.success import YAW_LATTICE
@@ -64,6 +66,7 @@ class Waypoint:
     picks: tuple[Pick, ...] = ()
     predicted_success: float | None = None
     hold_yaw: float | None = None  # [rad] the yaw held on the way here (a docking leg)
+    ellipse: tuple[float, float, float] | None = None  # checked (a, b [m], theta [rad]), if any
 
 
 def guaranteed_radius(stop: pm.Stop) -> float:
@@ -106,12 +109,18 @@ def waypoints(
     start_yaw: float | None = None,
     goal_yaw: float | None = None,
     yaw_tol: float | Sequence[float] | None = None,
+    shapes: Sequence[StopShapes] | None = None,
 ) -> list[Waypoint]:
     """The route as waypoints: start, the corners of each leg's floor path, stops, goal.
 
     ``yaw_tol``: the stops' yaw tolerance [rad], one for all or one per stop (e.g. from
     :func:`pickstop.fleet.yaw.verified_yaw_tolerances`); default :func:`yaw_tolerance`.
+    ``shapes``: one per stop, checked off the grid
+    (:func:`pickstop.fleet.tolerance.stop_shapes`): a stop's radius is then its checked
+    circle's and it carries its checked ellipse; default :func:`guaranteed_radius`, no ellipse.
     """
+    if shapes is not None and len(shapes) != len(plan.stops):
+        raise InputError(f"shapes: {len(shapes)} for {len(plan.stops)} stops", field="shapes")
     n = sum(max(0, len(leg.polyline) - 1) for leg in plan.legs) + 1
     if n > MAX_WAYPOINTS:
         raise InputError(
@@ -172,6 +181,7 @@ def waypoints(
                 Pick(w.tray_id, w.part_id, w.grasp_index, joints, tuple(w.theta))
                 for w in s.witnesses
             )
+            sh = None if shapes is None else shapes[k]
             out.append(
                 Waypoint(
                     f"stop{k}",
@@ -179,12 +189,13 @@ def waypoints(
                     s.x,
                     s.y,
                     wrap_angle(s.yaw),
-                    guaranteed_radius(s),
+                    guaranteed_radius(s) if sh is None else sh.radius,
                     tols[k],
                     stop=k,
                     picks=picks,
                     predicted_success=None if s.success is None else s.success.rate,
                     hold_yaw=held[-1],
+                    ellipse=None if sh is None else (sh.ellipse.a, sh.ellipse.b, sh.ellipse.theta),
                 )
             )
         else:
