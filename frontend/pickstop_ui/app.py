@@ -40,6 +40,8 @@ from pickstop_ui import edits, panel
 from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
 from pickstop_ui.exports import compose_png, figure_lines
+from pickstop_ui.guidance_layer import GuidanceFetcher, GuidanceLayer, GuidanceRequest
+from pickstop_ui.guidance_view import guidance_drawing, legend
 from pickstop_ui.history import History
 from pickstop_ui.measure import MeasureTool
 from pickstop_ui.overlay import Overlay
@@ -127,10 +129,14 @@ class PlannerApp:
         self._build_gui()
         self.server.on_client_connect(self._on_connect)
         self.replanner = Replanner(client, self, self._lock)
+        self.guidance = GuidanceLayer(self.server)
+        self.guidance_ms: float | None = None  # the last tray selected to its zones drawn [ms]
+        self.guide = GuidanceFetcher(client, self._guidance_ready)
         self.request("open")
 
     # -- lifecycle ---------------------------------------------------------------------------
     def close(self) -> None:
+        self.guide.close()
         self.replanner.close()
         self.server.stop()
 
@@ -197,6 +203,33 @@ class PlannerApp:
         with self._lock:
             pose = None if key is None else edits.pose_of(self.state.doc, *key)
         self._readout(pose)
+        self._ask_guidance()
+
+    # -- placement guidance -------------------------------------------------------------------
+    def _ask_guidance(self) -> None:
+        """The selected tray's zones are asked for (off this thread); none shown otherwise."""
+        key = self.selection.key
+        if key is None or key[0] != "trays":
+            self.guide.clear()
+            self.guidance.hide()
+            self.guidance_md.content = ""
+            return
+        with self._lock:
+            self.guide.submit(self.state.doc, key[1], float(self.sigma.value))
+        self.guidance_md.content = f"*Guidance for {key[1]}: asking…*"
+
+    def _guidance_ready(self, req: GuidanceRequest, answer: Any) -> None:
+        """The fetcher's answer (on its thread): drawn if its tray is still selected."""
+        if self.selection.key != ("trays", req.tray) or not self.guide.current(req):
+            return
+        if isinstance(answer, ApiProblem):
+            self.guidance.hide()
+            self.guidance_md.content = f"⚠ Guidance: {answer.title}: {answer.detail}"
+            return
+        z = float(edits.tray(req.scene, req.tray)["pose"].get("z", 0.0))
+        self.guidance.show(guidance_drawing(answer, z))
+        self.guidance_md.content = legend(answer)
+        self.guidance_ms = (time.perf_counter() - req.t0) * 1e3
 
     def _dragged(self, key: Key, pos: tuple[float, float, float], yaw: float, final: bool) -> None:
         """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
@@ -216,6 +249,7 @@ class PlannerApp:
         self._readout(pose)
         if final:
             self.selection.place(pose)
+            self._ask_guidance()
         self.request(f"moved {oid}" if final else f"dragging {oid}", preview=not final)
 
     # -- undo and redo ---------------------------------------------------------------------------
@@ -335,6 +369,7 @@ class PlannerApp:
         gui, doc = self.server.gui, self.state.doc
         with gui.add_folder("Selected"):
             self.selected_md = gui.add_markdown(panel.selected_line(None, None))
+            self.guidance_md = gui.add_markdown("")  # the selected tray's zones' legend
             with gui.add_form(None) as form:
                 self.num = {
                     "x": gui.add_number("x [m]", 0.0, step=0.001, disabled=True),

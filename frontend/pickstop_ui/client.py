@@ -143,6 +143,23 @@ class PickStopClient:
                     raise RequestCancelled(f"POST {url} cancelled")
             return task.result()
 
+    def guidance(
+        self,
+        scene: dict[str, Any],
+        tray: str,
+        sigma: float | None = None,
+        cancel: threading.Event | None = None,
+    ) -> dict[str, Any]:
+        """Where ``tray`` of an inline scene could go: the API's GeoJSON zones (``POST
+        /guidance``); ``cancel`` as in :meth:`plan`."""
+        body: dict[str, Any] = {"scene": scene, "tray": tray}
+        if sigma is not None:
+            body["sigma"] = sigma
+        if cancel is None:
+            return dict(self._check(self.http.post(f"{API}/guidance", json=body)).json())
+        r = asyncio.run(self._cancellable_post(f"{API}/guidance", body, cancel))
+        return dict(self._check(r).json())
+
     def dispatch(self, plan_id: str, body: dict[str, Any]) -> dict[str, Any]:
         """Start a dispatch job of a stored plan (the service's MQTT broker)."""
         return dict(
