@@ -53,6 +53,7 @@ from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 from pickstop_ui.scene_layer import SceneLayer
 from pickstop_ui.scene_view import camera_view, initial_sigma, tray_colours
 from pickstop_ui.selection import Key, Selection
+from pickstop_ui.suggest import Suggester
 
 log = logging.getLogger("pickstop.ui")
 
@@ -231,6 +232,24 @@ class PlannerApp:
         self.guidance_md.content = legend(answer)
         self.guidance_ms = (time.perf_counter() - req.t0) * 1e3
 
+    # -- layout suggestions ---------------------------------------------------------------------
+    def _layout_request(self) -> tuple[dict[str, Any], list[str] | None, dict[str, Any]]:
+        """What a suggestion is asked for: the document, the selected tray (None: every tray
+        the orders need) and the plan options."""
+        key = self.selection.key
+        with self._lock:
+            doc = copy.deepcopy(self.state.doc)
+        movable = [key[1]] if key is not None and key[0] == "trays" else None
+        return doc, movable, self.options(0)
+
+    def _accept_layout(self, scene: dict[str, Any], label: str) -> None:
+        """A suggestion's moved scene becomes the working document as one undoable step."""
+        with self._lock:
+            self.state.doc = copy.deepcopy(scene)
+            self._record(label)
+        self._show_doc()
+        self.request(f"accepted {label}")
+
     def _dragged(self, key: Key, pos: tuple[float, float, float], yaw: float, final: bool) -> None:
         """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
         was; the item follows at once, a preview is planned while the drag goes on, the
@@ -321,6 +340,7 @@ class PlannerApp:
         for h in (self.sigma, self.rule, self.target, self.objective):
             h.on_update(lambda e: self.request(f"{e.target.label} changed"))
         self._build_selection_gui()
+        self.suggest = Suggester(self.server, self.api, self._layout_request, self._accept_layout)
         self.trays_folder = gui.add_folder("Trays")
         self._build_tray_gui()
         with gui.add_folder("Scene"):

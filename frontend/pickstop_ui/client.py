@@ -166,6 +166,13 @@ class PickStopClient:
             self._check(self.http.post(f"{API}/plans/{plan_id}/dispatch", json=body)).json()
         )
 
+    def submit_layout(self, body: dict[str, Any]) -> dict[str, Any]:
+        """Start a layout search (``POST /layouts``): the job, checked and queued."""
+        return dict(self._check(self.http.post(f"{API}/layouts", json=body)).json())
+
+    def cancel_job(self, job_id: str) -> dict[str, Any]:
+        return dict(self._check(self.http.post(f"{API}/jobs/{job_id}/cancel")).json())
+
     def job(self, job_id: str) -> dict[str, Any]:
         return dict(self._check(self.http.get(f"{API}/jobs/{job_id}")).json())
 
