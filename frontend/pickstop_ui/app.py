@@ -44,6 +44,7 @@ from pickstop_ui.guidance_layer import GuidanceFetcher, GuidanceLayer, GuidanceR
 from pickstop_ui.guidance_view import guidance_drawing, legend
 from pickstop_ui.history import History
 from pickstop_ui.measure import MeasureTool
+from pickstop_ui.orders import TASK, mix_summary, order_ids, with_order
 from pickstop_ui.overlay import Overlay
 from pickstop_ui.picking import hit_point, item_box, pick
 from pickstop_ui.plan_layer import PlanLayer
@@ -125,6 +126,7 @@ class PlannerApp:
         self._lock = threading.Lock()
         self._tray_ui: dict[str, Any] = {}
         self._stored_key: str | None = None  # the document and options of state.plan_id
+        self._mix_gen = 0  # the newest mix asked for (an older answer is not shown)
         self._draw_scene()
         self.layer = PlanLayer(self.server, self._urdf)
         self._build_gui()
@@ -216,7 +218,8 @@ class PlannerApp:
             self.guidance_md.content = ""
             return
         with self._lock:
-            self.guide.submit(self.state.doc, key[1], float(self.sigma.value))
+            doc = with_order(self.state.doc, self.order.value)
+        self.guide.submit(doc, key[1], float(self.sigma.value))
         self.guidance_md.content = f"*Guidance for {key[1]}: asking…*"
 
     def _guidance_ready(self, req: GuidanceRequest, answer: Any) -> None:
@@ -334,10 +337,16 @@ class PlannerApp:
             self.objective = gui.add_dropdown(
                 "objective", ("stops", "time", "expected-time"), initial_value="stops"
             )
+            ids = order_ids(st.doc)
+            self.order = gui.add_dropdown(
+                "order", (TASK, *ids), initial_value=TASK, visible=bool(ids),
+                hint="the plan drawn: the task's or an order's",
+            )  # fmt: skip
+            self.mix_md = gui.add_markdown("")
             # The robots stand on their stops' circles; hide them to see the circles whole.
             self.show_robots = gui.add_checkbox("robots at stops", True)
             self.show_robots.on_update(lambda _: self.layer.ghosts_visible(self.show_robots.value))
-        for h in (self.sigma, self.rule, self.target, self.objective):
+        for h in (self.sigma, self.rule, self.target, self.objective, self.order):
             h.on_update(lambda e: self.request(f"{e.target.label} changed"))
         self._build_selection_gui()
         self.suggest = Suggester(self.server, self.api, self._layout_request, self._accept_layout)
@@ -562,7 +571,9 @@ class PlannerApp:
     def request(self, cause: str, preview: bool = False) -> None:
         """Plan the document as it is now (the newest request wins, see :mod:`replan`)."""
         self.draft.set(True)  # before the plan's update, so its frame is a quick one
-        req = self.replanner.submit(self.state.doc, self.options(0), cause, preview)
+        with self._lock:
+            doc = with_order(self.state.doc, self.order.value)
+        req = self.replanner.submit(doc, self.options(0), cause, preview)
         with self._lock:  # two callbacks may submit at once: the newest number stays
             self.state.seq, self.state.busy = max(self.state.seq, req.seq), True
         if not preview:
@@ -587,6 +598,21 @@ class PlannerApp:
         )
         self.summary.content = panel.summary(plan, final)
         self.stops_md.content = panel.stops_list(plan)
+        if final and order_ids(req.scene):
+            self._mix_gen += 1
+            args = (self._mix_gen, req.scene, self.options(MC_SAMPLES))
+            threading.Thread(target=self._mix, args=args, daemon=True).start()
+
+    def _mix(self, gen: int, doc: dict[str, Any], options: dict[str, Any]) -> None:
+        """Every order planned on the layout drawn (on a thread): the mix's weighted figures
+        in the panel, unless a newer plan has come meanwhile."""
+        self.mix_md.content = "⏳ *mix of the orders…*"
+        try:
+            text = mix_summary(self.api.mix(doc, options))
+        except ApiProblem as e:
+            text = f"⚠ Mix: {e.title}: {e.detail}"
+        if gen == self._mix_gen:
+            self.mix_md.content = text
 
     def plan_failed(self, req: Request, problem: ApiProblem) -> None:
         with self._lock:
@@ -630,10 +656,11 @@ class PlannerApp:
         if st.plan is None:
             return None
         opts = self.options(MC_SAMPLES)
-        key = json.dumps([st.doc, opts], sort_keys=True)
+        doc = with_order(st.doc, self.order.value)
+        key = json.dumps([doc, opts], sort_keys=True)
         if st.plan_id is not None and key == self._stored_key:
             return st.plan_id
-        res = self.api.plan(st.doc, opts, store=True)
+        res = self.api.plan(doc, opts, store=True)
         st.plan_id, self._stored_key = res.id, key
         self.link.content = f"Plan in the REST API: [{res.id}]({self.api.plan_url(res.id or '')})"
         return res.id

@@ -143,6 +143,12 @@ class PickStopClient:
                     raise RequestCancelled(f"POST {url} cancelled")
             return task.result()
 
+    def mix(self, scene: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
+        """Every order of an inline scene planned on its layout (not stored): the mix document
+        (``pickstop.mix``: weighted totals and each order's figures)."""
+        body = {"scene": scene, "options": options, "orders": "scene", "store": False}
+        return dict(self._check(self.http.post(f"{API}/plans", json=body)).json()["mix"])
+
     def guidance(
         self,
         scene: dict[str, Any],
