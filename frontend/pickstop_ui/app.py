@@ -41,9 +41,12 @@ from pickstop_ui.client import ApiProblem, PickStopClient, StoredScene
 from pickstop_ui.declutter import Label, screen_points, visible
 from pickstop_ui.draft import DRAFT_SCALE, DraftResolution
 from pickstop_ui.exports import compose_png, figure_lines
+from pickstop_ui.guidance_layer import GuidanceFetcher, GuidanceLayer, GuidanceRequest
+from pickstop_ui.guidance_view import guidance_drawing, legend
 from pickstop_ui.history import History
 from pickstop_ui.hover import hover_data, names_of
 from pickstop_ui.measure import MeasureTool
+from pickstop_ui.orders import TASK, mix_summary, order_ids, with_order
 from pickstop_ui.overlay import Overlay, parse_layout
 from pickstop_ui.picking import hit_point, item_box, pick
 from pickstop_ui.plan_layer import PlanLayer
@@ -53,6 +56,7 @@ from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 from pickstop_ui.scene_layer import SceneLayer
 from pickstop_ui.scene_view import initial_sigma, tray_colours
 from pickstop_ui.selection import Key, Selection
+from pickstop_ui.suggest import Suggester
 from pickstop_ui.views import PRESETS, CameraPose, Viewport, preset
 
 log = logging.getLogger("pickstop.ui")
@@ -132,16 +136,21 @@ class PlannerApp:
         self._lock = threading.Lock()
         self._tray_ui: dict[str, Any] = {}
         self._stored_key: str | None = None  # the document and options of state.plan_id
+        self._mix_gen = 0  # the newest mix asked for (an older answer is not shown)
         self._draw_scene()
         self.layer = PlanLayer(self.server, self._urdf)
         self._build_gui()
         self.server.on_client_connect(self._on_connect)
         self.server.on_client_disconnect(lambda c: self.viewports.pop(c.client_id, None))
         self.replanner = Replanner(client, self, self._lock)
+        self.guidance = GuidanceLayer(self.server)
+        self.guidance_ms: float | None = None  # the last tray selected to its zones drawn [ms]
+        self.guide = GuidanceFetcher(client, self._guidance_ready)
         self.request("open")
 
     # -- lifecycle ---------------------------------------------------------------------------
     def close(self) -> None:
+        self.guide.close()
         self.replanner.close()
         self.server.stop()
 
@@ -267,6 +276,52 @@ class PlannerApp:
         with self._lock:
             pose = None if key is None else edits.pose_of(self.state.doc, *key)
         self._readout(pose)
+        self._ask_guidance()
+
+    # -- placement guidance -------------------------------------------------------------------
+    def _ask_guidance(self) -> None:
+        """The selected tray's zones are asked for (off this thread); none shown otherwise."""
+        key = self.selection.key
+        if key is None or key[0] != "trays":
+            self.guide.clear()
+            self.guidance.hide()
+            self.guidance_md.content = ""
+            return
+        with self._lock:
+            doc = with_order(self.state.doc, self.order.value)
+        self.guide.submit(doc, key[1], float(self.sigma.value))
+        self.guidance_md.content = f"*Guidance for {key[1]}: asking…*"
+
+    def _guidance_ready(self, req: GuidanceRequest, answer: Any) -> None:
+        """The fetcher's answer (on its thread): drawn if its tray is still selected."""
+        if self.selection.key != ("trays", req.tray) or not self.guide.current(req):
+            return
+        if isinstance(answer, ApiProblem):
+            self.guidance.hide()
+            self.guidance_md.content = f"⚠ Guidance: {answer.title}: {answer.detail}"
+            return
+        z = float(edits.tray(req.scene, req.tray)["pose"].get("z", 0.0))
+        self.guidance.show(guidance_drawing(answer, z))
+        self.guidance_md.content = legend(answer)
+        self.guidance_ms = (time.perf_counter() - req.t0) * 1e3
+
+    # -- layout suggestions ---------------------------------------------------------------------
+    def _layout_request(self) -> tuple[dict[str, Any], list[str] | None, dict[str, Any]]:
+        """What a suggestion is asked for: the document, the selected tray (None: every tray
+        the orders need) and the plan options."""
+        key = self.selection.key
+        with self._lock:
+            doc = copy.deepcopy(self.state.doc)
+        movable = [key[1]] if key is not None and key[0] == "trays" else None
+        return doc, movable, self.options(0)
+
+    def _accept_layout(self, scene: dict[str, Any], label: str) -> None:
+        """A suggestion's moved scene becomes the working document as one undoable step."""
+        with self._lock:
+            self.state.doc = copy.deepcopy(scene)
+            self._record(label)
+        self._show_doc()
+        self.request(f"accepted {label}")
 
     def _dragged(self, key: Key, pos: tuple[float, float, float], yaw: float, final: bool) -> None:
         """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
@@ -286,6 +341,7 @@ class PlannerApp:
         self._readout(pose)
         if final:
             self.selection.place(pose)
+            self._ask_guidance()
         self.request(f"moved {oid}" if final else f"dragging {oid}", preview=not final)
 
     # -- undo and redo ---------------------------------------------------------------------------
@@ -359,12 +415,19 @@ class PlannerApp:
             self.objective = gui.add_dropdown(
                 "objective", ("stops", "time", "expected-time"), initial_value="stops"
             )
+            ids = order_ids(st.doc)
+            self.order = gui.add_dropdown(
+                "order", (TASK, *ids), initial_value=TASK, visible=bool(ids),
+                hint="the plan drawn: the task's or an order's",
+            )  # fmt: skip
+            self.mix_md = gui.add_markdown("")
             # The robots stand on their stops' circles; hide them to see the circles whole.
             self.show_robots = gui.add_checkbox("robots at stops", True)
             self.show_robots.on_update(lambda _: self.layer.ghosts_visible(self.show_robots.value))
-        for h in (self.sigma, self.rule, self.target, self.objective):
+        for h in (self.sigma, self.rule, self.target, self.objective, self.order):
             h.on_update(lambda e: self.request(f"{e.target.label} changed"))
         self._build_selection_gui()
+        self.suggest = Suggester(self.server, self.api, self._layout_request, self._accept_layout)
         self.trays_folder = gui.add_folder("Trays")
         self._build_tray_gui()
         with gui.add_folder("Scene"):
@@ -413,6 +476,7 @@ class PlannerApp:
         gui, doc = self.server.gui, self.state.doc
         with gui.add_folder("Selected"):
             self.selected_md = gui.add_markdown(panel.selected_line(None, None))
+            self.guidance_md = gui.add_markdown("")  # the selected tray's zones' legend
             with gui.add_form(None) as form:
                 self.num = {
                     "x": gui.add_number("x [m]", 0.0, step=0.001, disabled=True),
@@ -610,7 +674,9 @@ class PlannerApp:
     def request(self, cause: str, preview: bool = False) -> None:
         """Plan the document as it is now (the newest request wins, see :mod:`replan`)."""
         self.draft.set(True)  # before the plan's update, so its frame is a quick one
-        req = self.replanner.submit(self.state.doc, self.options(0), cause, preview)
+        with self._lock:
+            doc = with_order(self.state.doc, self.order.value)
+        req = self.replanner.submit(doc, self.options(0), cause, preview)
         with self._lock:  # two callbacks may submit at once: the newest number stays
             self.state.seq, self.state.busy = max(self.state.seq, req.seq), True
         if not preview:
@@ -638,6 +704,21 @@ class PlannerApp:
         self.stops_md.content = panel.stops_list(plan, names)
         self._tell()
         self._declutter()
+        if final and order_ids(req.scene):
+            self._mix_gen += 1
+            args = (self._mix_gen, req.scene, self.options(MC_SAMPLES))
+            threading.Thread(target=self._mix, args=args, daemon=True).start()
+
+    def _mix(self, gen: int, doc: dict[str, Any], options: dict[str, Any]) -> None:
+        """Every order planned on the layout drawn (on a thread): the mix's weighted figures
+        in the panel, unless a newer plan has come meanwhile."""
+        self.mix_md.content = "⏳ *mix of the orders…*"
+        try:
+            text = mix_summary(self.api.mix(doc, options))
+        except ApiProblem as e:
+            text = f"⚠ Mix: {e.title}: {e.detail}"
+        if gen == self._mix_gen:
+            self.mix_md.content = text
 
     def plan_failed(self, req: Request, problem: ApiProblem) -> None:
         with self._lock:
@@ -683,10 +764,11 @@ class PlannerApp:
         if st.plan is None:
             return None
         opts = self.options(MC_SAMPLES)
-        key = json.dumps([st.doc, opts], sort_keys=True)
+        doc = with_order(st.doc, self.order.value)
+        key = json.dumps([doc, opts], sort_keys=True)
         if st.plan_id is not None and key == self._stored_key:
             return st.plan_id
-        res = self.api.plan(st.doc, opts, store=True)
+        res = self.api.plan(doc, opts, store=True)
         st.plan_id, self._stored_key = res.id, key
         self.link.content = f"Plan in the REST API: [{res.id}]({self.api.plan_url(res.id or '')})"
         return res.id

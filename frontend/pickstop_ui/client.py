@@ -151,11 +151,41 @@ class PickStopClient:
                     raise RequestCancelled(f"POST {url} cancelled")
             return task.result()
 
+    def mix(self, scene: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
+        """Every order of an inline scene planned on its layout (not stored): the mix document
+        (``pickstop.mix``: weighted totals and each order's figures)."""
+        body = {"scene": scene, "options": options, "orders": "scene", "store": False}
+        return dict(self._check(self.http.post(f"{API}/plans", json=body)).json()["mix"])
+
+    def guidance(
+        self,
+        scene: dict[str, Any],
+        tray: str,
+        sigma: float | None = None,
+        cancel: threading.Event | None = None,
+    ) -> dict[str, Any]:
+        """Where ``tray`` of an inline scene could go: the API's GeoJSON zones (``POST
+        /guidance``); ``cancel`` as in :meth:`plan`."""
+        body: dict[str, Any] = {"scene": scene, "tray": tray}
+        if sigma is not None:
+            body["sigma"] = sigma
+        if cancel is None:
+            return dict(self._check(self.http.post(f"{API}/guidance", json=body)).json())
+        r = asyncio.run(self._cancellable_post(f"{API}/guidance", body, cancel))
+        return dict(self._check(r).json())
+
     def dispatch(self, plan_id: str, body: dict[str, Any]) -> dict[str, Any]:
         """Start a dispatch job of a stored plan (the service's MQTT broker)."""
         return dict(
             self._check(self.http.post(f"{API}/plans/{plan_id}/dispatch", json=body)).json()
         )
+
+    def submit_layout(self, body: dict[str, Any]) -> dict[str, Any]:
+        """Start a layout search (``POST /layouts``): the job, checked and queued."""
+        return dict(self._check(self.http.post(f"{API}/layouts", json=body)).json())
+
+    def cancel_job(self, job_id: str) -> dict[str, Any]:
+        return dict(self._check(self.http.post(f"{API}/jobs/{job_id}/cancel")).json())
 
     def job(self, job_id: str) -> dict[str, Any]:
         return dict(self._check(self.http.get(f"{API}/jobs/{job_id}")).json())

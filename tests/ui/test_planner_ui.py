@@ -295,6 +295,9 @@ def test_dragging_a_tray_replans_and_moves_its_region(ui_page, planner_app):
 
 
 def test_infeasible_layout_shows_the_explanation(ui_page, planner_app):
+    planner_app.deselect()  # the dragged tray's guidance zones would colour the floor
+    _wait_for(lambda: planner_app.selection.key is None)
+    time.sleep(1.0)
     _set_slider(ui_page, 0, SIGMA_MAX, 0.0, SIGMA_MAX)
     sigma = _settled_sigma(planner_app)
     assert sigma == pytest.approx(SIGMA_MAX)
@@ -377,7 +380,10 @@ def test_dragging_slowly_previews_the_plan_then_draws_the_exact_one(
         ui_page.mouse.move(a[0] + (b[0] - a[0]) * k / steps, a[1] + (b[1] - a[1]) * k / steps)
         time.sleep(0.08)
         if k in (15, 35):
-            time.sleep(0.6)  # let the last preview be drawn, then look
+            # let a preview of the tray where it is now be drawn (a loaded machine may
+            # still be drawing the last exact plan), then look
+            _wait_for(lambda: not planner_app.state.plan.verified)
+            time.sleep(0.6)
             shots[k] = _shot(ui_page, f"08-drag-preview-{k}")
             plan = planner_app.state.plan
             assert not plan.verified
