@@ -172,7 +172,7 @@ def test_exact_check_of_the_sphere_pairs_alone_is_the_whole_exact_check(planner,
     assert any(hits) and not all(hits)
 
 
-@settings(max_examples=3, deadline=None)
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
 @given(seed=st.integers(0, 2**32 - 1), clearance=st.sampled_from([None, 0.01, 0.35]))
 def test_checks_of_many_configurations_answer_as_one_at_a_time(planner, tiago, seed, clearance):
     """:meth:`ExactArm.checks`, rows asked in any order across its chunks, answers each as

@@ -44,12 +44,15 @@ def _from_scratch(planner, scene, tray_id, grow=True):
 
 
 @settings(
-    max_examples=10, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=10,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.filter_too_much],
 )
 @given(
     tray=st.sampled_from(["tray_1", "tray_2", "tray_3"]),
-    di=st.integers(-20, 20),
-    dj=st.integers(-8, 8),
+    # moves that keep the tray on table A, clear of its neighbours, most of the time (88%)
+    di=st.integers(-5, 5),
+    dj=st.integers(-2, 8),
     fraction=st.sampled_from([0.0, 0.0, 0.0, 0.4]),
 )
 def test_moved_tray_regions_match_from_scratch(planner, paper_doc, tray, di, dj, fraction):
