@@ -1,5 +1,7 @@
 """Plans of the paper-like scene for the planner's pure views (exact, and a preview of it
-with tray_1 moved 0.1 m), computed once per session."""
+with tray_1 moved 0.1 m), computed once per session; and for the browser tests, a planner of
+the paper-like scene with a headless Chromium page on it, one per module (a module planning
+another scene overrides ``app``)."""
 
 from __future__ import annotations
 
@@ -24,3 +26,19 @@ def plans(planner):
     moved = copy.deepcopy(doc)
     moved["trays"][0]["pose"]["x"] -= 0.1
     return exact, sp.preview(parse_scene(moved), PlanOptions(samples=0))
+
+
+@pytest.fixture(scope="module")
+def app(live_api):
+    from tests.ui import browser as b
+
+    with b.planner(live_api) as app:
+        yield app
+
+
+@pytest.fixture(scope="module")
+def pg(app):
+    from tests.ui import browser as b
+
+    with b.page(app) as pg:
+        yield pg

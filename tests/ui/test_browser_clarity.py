@@ -17,18 +17,6 @@ from tests.ui import browser as b
 pytestmark = b.needs_chromium
 
 
-@pytest.fixture(scope="module")
-def app(live_api):
-    with b.planner(live_api) as app:
-        yield app
-
-
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
-
-
 def _scene_text(pg, name: str) -> str | None:
     """The text of label node ``name`` as the browser's scene tree holds it."""
     return pg.evaluate(

@@ -6,7 +6,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import pytest
 
 from tests.ui import browser as b
 
@@ -14,18 +13,6 @@ pytestmark = b.needs_chromium
 
 VISIBLE = """n => { const o = window.__viserMutable.nodeRefFromName[n];
                     return o ? o.visible : null; }"""
-
-
-@pytest.fixture(scope="module")
-def app(live_api):
-    with b.planner(live_api) as app:
-        yield app
-
-
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
 
 
 def _drawn(pg, app):

@@ -14,18 +14,6 @@ from tests.ui import browser as b
 pytestmark = b.needs_chromium
 
 
-@pytest.fixture(scope="module")
-def app(live_api):
-    with b.planner(live_api) as app:
-        yield app
-
-
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
-
-
 def _field(pg, label: str):
     return pg.get_by_label(label, exact=True)
 

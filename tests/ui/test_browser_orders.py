@@ -25,12 +25,6 @@ def app(live_api, tmp_path_factory):
         yield app
 
 
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
-
-
 def _trays(plan):
     return {t for s in plan.stops for t in s.trays}
 

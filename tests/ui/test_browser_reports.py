@@ -17,18 +17,6 @@ from tests.ui import browser as b
 pytestmark = b.needs_chromium
 
 
-@pytest.fixture(scope="module")
-def app(live_api):
-    with b.planner(live_api) as app:
-        yield app
-
-
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
-
-
 def _download(pg, button: str) -> tuple[bytes, str, float]:
     t0 = time.perf_counter()
     with pg.expect_download(timeout=120_000) as dl:

@@ -15,18 +15,6 @@ from tests.ui import browser as b
 pytestmark = b.needs_chromium
 
 
-@pytest.fixture(scope="module")
-def app(live_api):
-    with b.planner(live_api) as app:
-        yield app
-
-
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
-
-
 def _poses(app):
     return copy.deepcopy([(o["id"], o["pose"]) for k in ("trays", "obstacles")
                           for o in app.state.doc[k]])  # fmt: skip

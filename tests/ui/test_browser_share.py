@@ -5,23 +5,9 @@ from __future__ import annotations
 
 import time
 
-import pytest
-
 from tests.ui import browser as b
 
 pytestmark = b.needs_chromium
-
-
-@pytest.fixture(scope="module")
-def app(live_api):
-    with b.planner(live_api) as app:
-        yield app
-
-
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
 
 
 def test_the_share_control_is_absent_and_a_share_request_opens_no_tunnel(pg, app):

@@ -13,18 +13,6 @@ from tests.ui import browser as b
 pytestmark = b.needs_chromium
 
 
-@pytest.fixture(scope="module")
-def app(live_api):
-    with b.planner(live_api) as app:
-        yield app
-
-
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
-
-
 def test_a_suggestion_is_shown_accepted_as_one_step_and_undone(pg, app):
     b.settled(app)
     before = copy.deepcopy(app.state.doc)

@@ -4,23 +4,10 @@ was to the bit, and the plan with it; a removed tray comes back."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from tests.ui import browser as b
 
 pytestmark = b.needs_chromium
-
-
-@pytest.fixture(scope="module")
-def app(live_api):
-    with b.planner(live_api) as app:
-        yield app
-
-
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
 
 
 def _drag_tray(pg, app, tid: str, dx: float) -> None:

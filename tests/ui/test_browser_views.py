@@ -20,12 +20,6 @@ def app(live_api, request):
         yield app
 
 
-@pytest.fixture(scope="module")
-def pg(app):
-    with b.page(app) as pg:
-        yield pg
-
-
 def _panel_left(pg) -> float:
     box = pg.locator('[data-testid="floating-panel"]').first.bounding_box()
     return float(box["x"])

@@ -17,7 +17,7 @@ any error model given by a density plugs in. The yaw error, if any, is left to t
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,40 +57,43 @@ def kernel(
     """The landing distribution around ``xy`` [m] on ``grid``'s sub-cells (``sigma > 0``):
     isotropic of ``kind`` and ``sigma``, or ``dist`` (biased or anisotropic, at a stop of
     heading ``yaw`` [rad]) when it is given and not isotropic."""
-    if dist is not None and not dist.legacy:
-        return _kernel_of(dist, yaw, grid, xy)
-    h, R = grid.res / Q, support(kind, sigma)
-    x, y = xy
-    col0, col1 = math.floor((x - R - grid.x0) / h), math.floor((x + R - grid.x0) / h) + 1
-    row0, row1 = math.floor((y - R - grid.y0) / h), math.floor((y + R - grid.y0) / h) + 1
-    mid = (np.arange(QUAD) + 0.5) * (h / QUAD)
-    xs = (grid.x0 + np.arange(col0, col1)[:, None] * h + mid).ravel() - x
-    ys = (grid.y0 + np.arange(row0, row1)[:, None] * h + mid).ravel() - y
-    d = density(kind, sigma, np.stack(np.meshgrid(xs, ys), axis=-1))
-    masses = d.reshape(row1 - row0, QUAD, col1 - col0, QUAD).sum(axis=(1, 3))
-    return Kernel(row0, col0, masses / masses.sum())
-
-
-def _kernel_of(dist: ErrorDist, yaw: float, grid: CellGrid, xy: tuple[float, float]) -> Kernel:
-    """:func:`kernel` of a biased or anisotropic model: its density over the window around
-    its mean that holds all but 1e-5 of its mass (the Gaussian's largest axis times
-    :func:`support`'s factor; a bounded disc's radius)."""
+    if dist is None or dist.legacy:
+        return _window(grid, xy, (0.0, 0.0), support(kind, sigma),
+                       lambda dxy: density(kind, sigma, dxy))  # fmt: skip
     mu, C = dist.in_map(yaw)
-    h = grid.res / Q
     if not dist.spread:  # it lands at its mean: all the mass in that sub-cell
+        h = grid.res / Q
         col = math.floor((xy[0] + float(mu[0]) - grid.x0) / h)
         row = math.floor((xy[1] + float(mu[1]) - grid.y0) / h)
         return Kernel(row, col, np.ones((1, 1)))
+    # the window around its mean holding all but 1e-5 of its mass: the Gaussian's largest
+    # axis times support()'s factor, or a bounded disc's radius
     scale = math.sqrt(float(np.linalg.eigvalsh(C)[-1]))
     R = dist.sigma if dist.kind == "bounded" else scale * math.sqrt(-2.0 * math.log(1e-5))
-    x, y = xy[0] + float(mu[0]), xy[1] + float(mu[1])
+
+    def dens(dxy: np.ndarray) -> np.ndarray:
+        return dist.density(dxy.reshape(-1, 2), yaw).reshape(dxy.shape[:-1])
+
+    return _window(grid, xy, (float(mu[0]), float(mu[1])), R, dens)
+
+
+def _window(
+    grid: CellGrid,
+    xy: tuple[float, float],
+    mean: tuple[float, float],
+    R: float,
+    dens: Callable[[np.ndarray], np.ndarray],
+) -> Kernel:
+    """The masses of the sub-cells within ``R`` [m] of ``xy + mean``: the density ``dens``
+    of offsets from ``xy`` (``(..., 2)`` -> ``(...)``) by ``QUAD x QUAD`` midpoints, normalised."""
+    h = grid.res / Q
+    x, y = xy[0] + mean[0], xy[1] + mean[1]
     col0, col1 = math.floor((x - R - grid.x0) / h), math.floor((x + R - grid.x0) / h) + 1
     row0, row1 = math.floor((y - R - grid.y0) / h), math.floor((y + R - grid.y0) / h) + 1
     mid = (np.arange(QUAD) + 0.5) * (h / QUAD)
     xs = (grid.x0 + np.arange(col0, col1)[:, None] * h + mid).ravel() - xy[0]
     ys = (grid.y0 + np.arange(row0, row1)[:, None] * h + mid).ravel() - xy[1]
-    d = dist.density(np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2), yaw)
-    d = d.reshape(len(ys), len(xs))
+    d = dens(np.stack(np.meshgrid(xs, ys), axis=-1))
     masses = d.reshape(row1 - row0, QUAD, col1 - col0, QUAD).sum(axis=(1, 3))
     return Kernel(row0, col0, masses / masses.sum())
 
