@@ -114,7 +114,14 @@ def frame(
     fov: float = FOV, margin: float = MARGIN,
 ) -> CameraPose:  # fmt: skip
     """The camera looking along ``direction`` (3,) that fits ``bounds`` into the free part of
-    ``vp`` with ``margin`` [px] to spare, centred there."""
+    ``vp`` with ``margin`` [px] to spare, centred there.
+
+    With the orientation fixed, "this corner projects inside the margins" is linear in the
+    camera's position ``p``: for a pixel bound ``X`` on x, ``F (c - p).r >= (X - W/2) (c - p).f``
+    (likewise on y). So the closest camera that fits is a small linear program (maximise
+    ``p.f``), exact for any window: the box then touches the margins along one side; the
+    other side's slack is split evenly (the midpoint of the feasible shift at that depth).
+    """
     f = np.asarray(direction, float) / np.linalg.norm(direction)
     up = np.array([0.0, 0.0, 1.0])
     r = np.cross(f, up)
@@ -122,31 +129,47 @@ def frame(
     u = np.cross(r, f)
     lo, hi = bounds
     pts = _corners(lo, hi)
-    target = (lo + hi) / 2
-    span = float(np.linalg.norm(hi - lo))
-    dist = span / math.tan(fov / 2)
-    avail_w = max(vp.free_right - 2 * margin, 10.0)
-    avail_h = max(vp.height - 2 * margin, 10.0)
     F = (vp.height / 2) / math.tan(fov / 2)
+    x_lo, x_hi = margin, max(vp.free_right - margin, margin + 10.0)
+    y_lo, y_hi = margin, max(vp.height - margin, margin + 10.0)
+    # Coordinates of the camera in its own frame: q = (p.r, p.u, p.f); rows A q <= b.
+    rows, rhs = [], []
+    for c in pts:
+        cr, cu, cf = c @ r, c @ u, c @ f
+        for ax, bound, sign in ((0, x_lo, -1), (0, x_hi, 1), (1, y_lo, 1), (1, y_hi, -1)):
+            # x: W/2 + F (cr - qr)/(cf - qf); y: H/2 - F (cu - qu)/(cf - qf).
+            k = (bound - vp.width / 2) if ax == 0 else (vp.height / 2 - bound)
+            g = np.zeros(3)  # F (c_ax - q_ax) - k (cf - qf), signed so that g.q <= h
+            g[ax], g[2] = -F, k
+            h = -(F * (cr if ax == 0 else cu) - k * cf)
+            rows.append(sign * g)
+            rhs.append(sign * h)
+        rows.append(np.array([0.0, 0.0, 1.0]))  # in front of every corner, by a little
+        rhs.append(cf - 1e-3)
+    A, b = np.array(rows), np.array(rhs)
+    q = _lp(np.array([0.0, 0.0, -1.0]), A, b)
+    depth_row = np.array([[0.0, 0.0, -1.0]])
+    A2 = np.vstack([A, depth_row])
+    b2 = np.append(b, -q[2] + 1e-9 * max(1.0, abs(q[2])))
+    mid = q.copy()
+    for ax in (0, 1):  # centre the slack side: the midpoint of its shift at that depth
+        e = np.zeros(3)
+        e[ax] = 1.0
+        mid[ax] = 0.5 * (_lp(e, A2, b2)[ax] + _lp(-e, A2, b2)[ax])
+    pos = mid[0] * r + mid[1] * u + mid[2] * f
+    target = (lo + hi) / 2
+    look = pos + f * max(float((target - pos) @ f), 1e-3)
+    return CameraPose(tuple(map(float, pos)), tuple(map(float, look)), (0.0, 0.0, 1.0), fov)
 
-    def extent(target: np.ndarray, dist: float) -> tuple[float, float, float]:
-        """The scale the box needs, and its centre's offset from the free part's [px]."""
-        pose = CameraPose(tuple(target - dist * f), tuple(target), tuple(up), fov)
-        px = project(pose, vp, pts)
-        (x0, y0), (x1, y1) = px.min(axis=0), px.max(axis=0)
-        scale = max((x1 - x0) / avail_w, (y1 - y0) / avail_h)
-        return scale, (x0 + x1) / 2 - vp.free_right / 2, (y0 + y1) / 2 - vp.height / 2
 
-    # Alternate: distance from the box's size, then the sideways shift at that distance.
-    for _ in range(100):
-        scale, _, _ = extent(target, dist)
-        dist *= scale
-        _, dx, dy = extent(target, dist)
-        target = target + (dx * r - dy * u) * dist / F
-        if abs(scale - 1.0) < 1e-5 and abs(dx) < 0.01 and abs(dy) < 0.01:
-            break
-    return CameraPose(tuple(map(float, target - dist * f)), tuple(map(float, target)),
-                      (0.0, 0.0, 1.0), fov)  # fmt: skip
+def _lp(cost: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``argmin cost.q`` subject to ``A q <= b``, ``q`` free (3,)."""
+    from scipy.optimize import linprog
+
+    res = linprog(cost, A_ub=A, b_ub=b, bounds=[(None, None)] * 3, method="highs")
+    if res.status != 0:  # cannot happen for a finite box: backing off always fits
+        raise RuntimeError(f"view framing failed: {res.message}")
+    return np.asarray(res.x, float)
 
 
 def view_direction(azimuth: float, elevation: float) -> np.ndarray:
