@@ -369,6 +369,7 @@ def _plan_options(args: argparse.Namespace) -> Any:
         "rule": args.rule,
         "target": args.target,
         "objective": args.objective,
+        "placement": getattr(args, "placement", None),
         "samples": args.samples,
         "seed": args.seed,
         "time_limit": args.time_limit,
@@ -890,6 +891,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["stops", "time", "expected-time"],
         help="default: stops, then route; time: least predicted time; expected-time: least "
         "expected time, failed arrivals included (the scene's failure model)",
+    )
+    pl.add_argument(
+        "--placement",
+        choices=["centre", "success"],
+        help="default centre: each stop at its intersection's inscribed circle's centre; "
+        "success: where its success estimate is highest (the centre's figures reported too)",
     )
     pl.add_argument(
         "--samples", type=int, help="Monte Carlo samples per stop (default 1000; 0: none)"

@@ -415,6 +415,11 @@ class PlannerApp:
             self.objective = gui.add_dropdown(
                 "objective", ("stops", "time", "expected-time"), initial_value="stops"
             )
+            self.placement = gui.add_dropdown(
+                "stop at", ("centre", "success"), initial_value="centre",
+                hint="centre: each stop at its circle's centre (the paper); success: where "
+                "its success estimate is highest inside its intersection",
+            )  # fmt: skip
             ids = order_ids(st.doc)
             self.order = gui.add_dropdown(
                 "order", (TASK, *ids), initial_value=TASK, visible=bool(ids),
@@ -424,7 +429,8 @@ class PlannerApp:
             # The robots stand on their stops' circles; hide them to see the circles whole.
             self.show_robots = gui.add_checkbox("robots at stops", True)
             self.show_robots.on_update(lambda _: self.layer.ghosts_visible(self.show_robots.value))
-        for h in (self.sigma, self.rule, self.target, self.objective, self.order):
+        for h in (self.sigma, self.rule, self.target, self.objective, self.placement,
+                  self.order):  # fmt: skip
             h.on_update(lambda e: self.request(f"{e.target.label} changed"))
         self._build_selection_gui()
         self.suggest = Suggester(self.server, self.api, self._layout_request, self._accept_layout)
@@ -668,6 +674,7 @@ class PlannerApp:
             "rule": self.rule.value,
             "target": float(self.target.value),
             "objective": self.objective.value,
+            "placement": self.placement.value,
             "samples": samples,
         }
 

@@ -48,7 +48,15 @@ def stop_text(plan: Plan, k: int, names: dict[str, str]) -> str:
     if s.success is not None:
         lo, hi = s.success.interval
         lines.append(f"Success {pct(s.success.rate)} (95% interval {pct(lo)} to {pct(hi)})")
-    elif not plan.verified:
+    if s.circle_centre is not None:
+        cx, cy = s.circle_centre
+        rates = [f"estimate {pct(e)}" for e in (s.circle_estimated_success,) if e is not None]
+        if s.circle_success is not None:
+            rates.append(f"Monte Carlo {pct(s.circle_success.rate)}")
+        at = ", ".join(rates) or "not estimated"
+        lines.append(f"Placed for success, {s.clearance or 0:.3f} m clear; at the circle's "
+                     f"centre ({cx:.2f}, {cy:.2f}): {at}")  # fmt: skip
+    if s.success is None and not plan.verified:
         lines.append("Preview: not verified")
     return "\n".join(lines)
 

@@ -27,6 +27,7 @@ from pickstop.fleet.arrivals import Arrival
 from pickstop.fleet.broker import LocalMosquitto
 from pickstop.fleet.dispatch import Dispatcher
 from pickstop.fleet.mqtt import Broker
+from pickstop.fleet.route import guaranteed_radius
 from pickstop.fleet.sim_node import VehicleNode
 from pickstop.fleet.vehicle import Check, Motion, SimVehicle, error_model, isotropic
 from pickstop.scene.positioning import Positioning
@@ -150,7 +151,7 @@ def report(plan: pm.Plan, outcomes: list[RunOutcome]) -> dict[str, Any]:
             {
                 "stop": k,
                 "trays": s.trays,
-                "guaranteed_radius": s.inscribed_radius,
+                "guaranteed_radius": guaranteed_radius(s),
                 "executed": rate.rate,
                 "executed_interval": list(rate.interval),
                 "predicted": None if pred is None else pred.rate,

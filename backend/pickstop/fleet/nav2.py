@@ -163,7 +163,7 @@ def build_nav2(
         "goal": goal,
         "segments": segments,
         "picks": picks,
-        "notes": [*NOTES, _tolerance_note([s.inscribed_radius for s in plan.stops])],
+        "notes": [*NOTES, _tolerance_note([rt.guaranteed_radius(s) for s in plan.stops])],
     }
 
 

@@ -14,6 +14,7 @@ import numpy as np
 import shapely
 
 from pickstop.errors import InputError
+from pickstop.fleet.route import guaranteed_radius
 from pickstop.fleet.tolerance import StopShapes, stop_shapes
 from pickstop.frames import angle_gap
 from pickstop.regions.cells import TrayRegion
@@ -91,6 +92,6 @@ class PickChecker:
             inter = shapely.intersection_all([r.polygon for r in regions if r is not None])
             res = regions[0].grid.res  # type: ignore[union-attr]
             out.append(
-                stop_shapes(self.many, s.trays, (s.x, s.y), s.yaw, inter, s.inscribed_radius, res)
+                stop_shapes(self.many, s.trays, (s.x, s.y), s.yaw, inter, guaranteed_radius(s), res)
             )
         return tuple(out)

@@ -70,8 +70,10 @@ class Waypoint:
 
 
 def guaranteed_radius(stop: pm.Stop) -> float:
-    """Radius [m] around the stop inside which every part of its trays stays graspable."""
-    return float(stop.inscribed_radius)
+    """Radius [m] around the stop inside which every part of its trays stays graspable: the
+    largest circle centred at the stop inside its intersection (the inscribed circle when the
+    stop is at its centre)."""
+    return float(stop.inscribed_radius if stop.clearance is None else stop.clearance)
 
 
 def yaw_tolerance(plan: pm.Plan) -> float:

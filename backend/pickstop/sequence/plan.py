@@ -26,7 +26,7 @@ from collections import OrderedDict
 from collections.abc import Callable
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -53,6 +53,7 @@ from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
 from pickstop.sequence.estimate import feasible_subcells, kernel, subset_estimates
 from pickstop.sequence.failure import FailureCosts, failure_time, stop_failures
 from pickstop.sequence.intersections import Intersection, inscribed_circle, intersections
+from pickstop.sequence.placement import best_point, clearance
 from pickstop.sequence.refine import Refinement
 from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
@@ -147,6 +148,7 @@ class StopPlanner:
         self._refinements = _Lru(256)  # (world, region) -> its exact boundary outcomes
         self._selections = _Lru(256)
         self._circles = _Lru(4096)  # component (its WKB's digest) -> its inscribed circle
+        self._placements = _Lru(4096)  # (world, regions, candidate, error model) -> point
         self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
         self._planned = _Lru(1024)  # (layout, options) planned ahead by prefetch_selections
 
@@ -366,6 +368,36 @@ class StopPlanner:
             known = {r.tray_id: self.refinement(world_key, r).exact for r in regions}
         feasible = {r.tray_id: feasible_subcells(r, k, known.get(r.tray_id)) for r in regions}
         return dict(self._estimates.put(key, subset_estimates(k, feasible, sets)))
+
+    def placement(
+        self,
+        scene: Scene,
+        world_key: str,
+        regions: list[TrayRegion],
+        cand: Intersection,
+        sigma: float,
+        kind: Kind,
+        dist: ErrorDist | None = None,
+    ) -> tuple[float, float] | None:
+        """Where in ``cand`` a stop serving the regions' trays succeeds most
+        (:mod:`~pickstop.sequence.placement`), when its estimate there beats the circle's
+        centre's; None: the centre is as good (cached). The search scores the regions'
+        verified cells alone and the decision compares the two estimates, both refined
+        exactly near the boundaries: neither depends on what was estimated before."""
+        key = (world_key, tuple(r.digest for r in regions), cand.centre, cand.yaw,
+               hashlib.sha1(shapely.to_wkb(cand.polygon)).digest(), sigma, kind, dist)  # fmt: skip
+        if key in self._placements:
+            return self._placements.hit(key)  # type: ignore[no-any-return]
+        grid, yaw = regions[0].grid, cand.yaw
+        found = best_point(regions, cand.polygon, cand.centre,
+                           lambda xy: kernel(kind, sigma, grid, xy, dist, yaw))  # fmt: skip
+        out = None
+        if found is not None and math.dist(found[0], cand.centre) > 1e-9:
+            every = frozenset(r.tray_id for r in regions)
+            est = {xy: self.estimates(scene, world_key, regions, xy, sigma, kind, dist, yaw)[every]
+                   for xy in (cand.centre, found[0])}  # fmt: skip
+            out = found[0] if est[found[0]] > est[cand.centre] + 1e-9 else None
+        return self._placements.put(key, out)  # type: ignore[no-any-return]
 
     def refinement(self, world_key: str, region: TrayRegion) -> Refinement:
         """The exact boundary outcomes found so far for ``region`` (kept per world)."""
@@ -633,6 +665,13 @@ def _time(tb: TimeBreakdown, stops: list[pm.StopFailures | None] | None = None) 
     )
 
 
+def _success(rate: Rate | None) -> pm.Success | None:
+    if rate is None:
+        return None
+    return pm.Success(samples=rate.samples, successes=rate.successes, rate=rate.rate,
+                      interval=rate.interval)  # fmt: skip
+
+
 def _failures(
     p: float | None, source: Literal["monte_carlo", "estimate"], costs: FailureCosts
 ) -> pm.StopFailures | None:
@@ -677,6 +716,9 @@ class _Planning:
         self.cands: list[Intersection] = []
         self.rows: dict[tuple[Any, ...], dict[int, Selection]] = {}  # see _expected
         self.regions: dict[tuple[str, float], TrayRegion] = {}
+        self.circle: dict[int, Intersection] = {}  # placed candidate -> as the circle has it
+        self.circle_rates: dict[int, Rate] = {}  # placed and chosen -> Monte Carlo at the circle
+        self.floor: _Floor | None = None
 
     def _clock(self, name: str, t0: float) -> float:
         now = time.perf_counter()
@@ -689,12 +731,15 @@ class _Planning:
         regions = self._preview_regions() if self.preview else sp.regions.regions(scene)
         t0 = self._clock("regions", t0)
         self._empty_regions(regions)
-        cands = sp.candidates(regions)
-        self.cands, self.regions = cands, regions
+        self.regions = regions
+        cands = self.cands = sp.candidates(regions)
         t0 = self._clock("intersections", t0)
+        if self._placing():
+            cands = self.cands = self._place(cands)
+            t0 = self._clock("estimates", t0)
 
-        floor = sp.floor(scene, self.world)
-        paths = sp.paths(floor, route_points(scene, cands), route_yaws(scene, cands))
+        floor = self.floor = sp.floor(scene, self.world)
+        paths = self._paths(cands)
         self._check_endpoints(floor, paths)
         if not np.isfinite(paths.dist[0, 1]):
             raise InfeasiblePlanError(
@@ -713,7 +758,7 @@ class _Planning:
             for c in range(len(cands)):
                 self._estimates(c)
             t0 = self._clock("estimates", t0)
-        sel, witnesses, rates = self._select_verified(regions, cands, paths)
+        sel, witnesses, rates, paths = self._select_verified(regions, cands, paths)
         t0 = time.perf_counter()
         tradeoff = None
         if self.opts.objective == "expected-time" and not self.preview:
@@ -729,6 +774,50 @@ class _Planning:
         pairs = [(t, y) for t in self.required for y in scene.base_yaw.yaws]
         known = rp.known_regions(scene, pairs)
         return {p: known[p] if p in known else rp.tray_region(scene, *p) for p in pairs}
+
+    # -- stops placed for success ------------------------------------------------------------
+    def _placing(self) -> bool:
+        landing = self.sigma > 0 or self.positioning.anisotropic
+        return self.opts.placement == "success" and not self.preview and landing
+
+    def _place(self, cands: list[Intersection]) -> list[Intersection]:
+        """Each candidate moved to where it succeeds most for the required trays it serves
+        (:meth:`StopPlanner.placement`); the moved ones keep their circle in ``circle``."""
+        out = list(cands)
+        for c, cand in enumerate(cands):
+            trays = [t for t in self.required if t in cand.trays]
+            if not trays:
+                continue
+            regs = [self.regions[t, cand.yaw] for t in trays]
+            dist = self.positioning.at(cand.centre, trays)
+            xy = self.sp.placement(self.scene, self.world, regs, cand, self.sigma, self.kind, dist)
+            if xy is not None:
+                self.circle[c] = cand
+                out[c] = replace(cand, centre=xy)
+        return out
+
+    def _unplace(self, c: int) -> Paths:
+        """Candidate ``c`` back at its circle's centre (its placed point failed the exact
+        check); returns the paths through the candidates as they now are."""
+        self.cands[c] = self.circle.pop(c)
+        self.est.pop(c, None)
+        self.rows.clear()
+        return self._paths(self.cands)
+
+    def _paths(self, cands: list[Intersection]) -> Paths:
+        scene = self.scene
+        return self.sp.paths(self.floor, route_points(scene, cands), route_yaws(scene, cands))
+
+    def _circle_estimate(self, c: int, trays: frozenset[str]) -> float | None:
+        """The estimate at candidate ``c``'s circle centre for ``trays``, when ``c`` is placed
+        elsewhere."""
+        if c not in self.circle or self.preview:
+            return None
+        cand = self.circle[c]
+        regs = [self.regions[t, cand.yaw] for t in self._serveable(c)]
+        dist = self.positioning.at(cand.centre, self._serveable(c))
+        return self.sp.estimates(self.scene, self.world, regs, cand.centre, self.sigma,
+                                 self.kind, dist, cand.yaw)[trays]  # fmt: skip
 
     # -- checks and explanations --------------------------------------------------------------
     def _empty_regions(self, regions: dict[tuple[str, float], TrayRegion]) -> None:
@@ -823,7 +912,10 @@ class _Planning:
         regions: dict[tuple[str, float], TrayRegion],
         cands: list[Intersection],
         paths: Paths,
-    ) -> tuple[Selection, dict[int, list[pm.Witness]], dict[int, Rate]]:
+    ) -> tuple[Selection, dict[int, list[pm.Witness]], dict[int, Rate], Paths]:
+        """The selection whose stops pass the exact check (and, with the success rule, the
+        Monte Carlo), their witnesses and rates, and the paths (new if a placed stop went
+        back to its circle's centre)."""
         opts, sp, scene = self.opts, self.sp, self.scene
         for _ in range(MAX_VERIFY_ROUNDS):
             t0 = time.perf_counter()
@@ -834,7 +926,7 @@ class _Planning:
             sel = self._solve([cands[i].trays for i in kept], kept, paths)
             t0 = self._clock("selection", t0)
             if self.preview:  # nothing verified: the selection as it stands
-                return sel, {c: [] for c in sel.order}, {}
+                return sel, {c: [] for c in sel.order}, {}, paths
             serves: dict[int, list[str]] = {}
             for t, c in sel.serves.items():
                 serves.setdefault(c, []).append(t)
@@ -847,6 +939,10 @@ class _Planning:
                 ws = []
                 for t in trays:
                     mine = sp.witnesses(scene, regions[t, cand.yaw], cand.centre, self.world)
+                    if mine is None and c in self.circle:  # try the circle's centre instead
+                        paths = self._unplace(c)
+                        failed = True
+                        break
                     if mine is None:
                         self.unusable.add(c)
                         self.rejected[c] = (
@@ -868,6 +964,11 @@ class _Planning:
                         cands[c].centre, self.sigma, opts.samples, opts.seed,
                     )  # fmt: skip
                     rates[c] = rate
+                    if c in self.circle:  # placed for success: the circle's rate beside it
+                        self.circle_rates[c] = sp.success(
+                            scene, self.world, [regions[t, cands[c].yaw] for t in trays],
+                            self.circle[c].centre, self.sigma, opts.samples, opts.seed,
+                        )  # fmt: skip
                     if opts.rule == "success" and rate.rate < opts.target:
                         lo, hi = rate.interval
                         self.rejected[c] = (
@@ -877,7 +978,7 @@ class _Planning:
                         failed = True
                 self._clock("monte_carlo", t0)
             if not failed:
-                return sel, witnesses, rates
+                return sel, witnesses, rates, paths
         raise InfeasiblePlanError(
             f"no verified plan after {MAX_VERIFY_ROUNDS} rounds of selection: "
             + "; ".join(f"candidate {i}: {why}" for i, why in sorted(self.rejected.items())[-5:])
@@ -1093,6 +1194,12 @@ class _Planning:
                     witnesses=witnesses[c],
                     error_model=self.positioning.station_of(cand.centre, picked),
                     estimated_success=est,
+                    clearance=clearance(cand.polygon, cand.centre)
+                    if c in self.circle
+                    else cand.radius,
+                    circle_centre=self.circle[c].centre if c in self.circle else None,
+                    circle_estimated_success=self._circle_estimate(c, served[c]),
+                    circle_success=_success(self.circle_rates.get(c)),
                     success=None
                     if rate is None
                     else pm.Success(
@@ -1149,6 +1256,7 @@ class _Planning:
                 target=opts.target,
                 threshold_radius=threshold,
                 objective=opts.objective,
+                placement=opts.placement,
                 error_model=self.kind,
                 yaw_sigma=scene.error_model.yaw_sigma,
                 samples=opts.samples,
@@ -1195,8 +1303,8 @@ class _Planning:
                     index=i,
                     trays=sorted(c.trays),
                     yaw=c.yaw,
-                    x=c.centre[0],
-                    y=c.centre[1],
+                    x=self.circle.get(i, c).centre[0],
+                    y=self.circle.get(i, c).centre[1],
                     inscribed_radius=c.radius,
                     area=c.polygon.area,
                     status="chosen"

@@ -49,6 +49,13 @@ class PlanOptions(BaseModel):
     time_limit: Annotated[float, Field(gt=0, le=600)] = Field(
         default=10.0, description="time limit of each stop selection solve [s]"
     )
+    placement: Literal["centre", "success"] = Field(
+        default="centre",
+        description="'centre': each stop at its intersection's inscribed circle's centre (the "
+        "paper); 'success': at the point of the intersection where the fast success estimate "
+        "under the stop's error model is highest, when that beats the centre (the stop then "
+        "reports the centre and its rates too)",
+    )
 
 
 class Witness(BaseModel):
@@ -103,6 +110,23 @@ class Stop(BaseModel):
     )
     estimated_success: float | None = None  # fast estimate (error density over the cells)
     failures: StopFailures | None = None
+    clearance: float | None = Field(
+        default=None,
+        description="radius [m] of the largest circle centred at the stop inside its "
+        "intersection: its guaranteed radius (the inscribed radius when the stop is at the "
+        "circle's centre)",
+    )
+    circle_centre: Point2 | None = Field(
+        default=None,
+        description="placed for success: the inscribed circle's centre [m], where the paper's "
+        "rule would stop; null: the stop is there",
+    )
+    circle_estimated_success: float | None = Field(
+        default=None, description="placed for success: the fast estimate at the circle's centre"
+    )
+    circle_success: Success | None = Field(
+        default=None, description="placed for success: the Monte Carlo at the circle's centre"
+    )
 
 
 class Leg(BaseModel):
@@ -195,6 +219,7 @@ class Parameters(BaseModel):
     target: float
     threshold_radius: float  # inscribed radius a candidate needs to be kept outright [m]
     objective: Literal["stops", "time", "expected-time"]
+    placement: Literal["centre", "success"] = "centre"
     error_model: Literal["bounded", "gaussian"]
     yaw_sigma: float
     samples: int
