@@ -12,8 +12,8 @@ exactly: its window and its midpoints sit at the same offsets from each), the su
 point is the correlation of the kernel with the lattice of sub-cells where every tray counts
 as graspable (the regions' verified cells, with the exact outcomes known near their
 boundaries). The best point found is only a proposal: the planner estimates it as any stop
-(refined exactly near the boundaries) and keeps it only if that beats the circle's centre,
-then verifies it with the exact check like every stop.
+(refined exactly near the boundaries) and keeps it only if that beats the circle's centre
+by :data:`MIN_GAIN`, then verifies it with the exact check like every stop.
 """
 
 from __future__ import annotations
@@ -28,6 +28,9 @@ from shapely.geometry import Polygon
 from pickstop.regions.cells import TrayRegion
 from pickstop.sequence.estimate import Kernel, Q
 
+#: Least gain in estimated success [fraction] worth moving a stop off its circle's centre:
+#: below it the move is within the estimate's own error and only costs clearance.
+MIN_GAIN = 0.002
 MAX_POINTS = 250_000  # sub-cell centres scored per candidate, at most (bounds the correlation)
 
 

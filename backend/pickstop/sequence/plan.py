@@ -53,7 +53,7 @@ from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
 from pickstop.sequence.estimate import feasible_subcells, kernel, subset_estimates
 from pickstop.sequence.failure import FailureCosts, failure_time, stop_failures
 from pickstop.sequence.intersections import Intersection, inscribed_circle, intersections
-from pickstop.sequence.placement import best_point, clearance
+from pickstop.sequence.placement import MIN_GAIN, best_point, clearance
 from pickstop.sequence.refine import Refinement
 from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
 from pickstop.sequence.rules import Rule, cut_off, judge
@@ -381,9 +381,10 @@ class StopPlanner:
     ) -> tuple[float, float] | None:
         """Where in ``cand`` a stop serving the regions' trays succeeds most
         (:mod:`~pickstop.sequence.placement`), when its estimate there beats the circle's
-        centre's; None: the centre is as good (cached). The search scores the regions'
-        verified cells alone and the decision compares the two estimates, both refined
-        exactly near the boundaries: neither depends on what was estimated before."""
+        centre's by :data:`~pickstop.sequence.placement.MIN_GAIN`; None: the centre is as
+        good (cached). The search scores the regions' verified cells alone and the decision
+        compares the two estimates, both refined exactly near the boundaries: neither depends
+        on what was estimated before."""
         key = (world_key, tuple(r.digest for r in regions), cand.centre, cand.yaw,
                hashlib.sha1(shapely.to_wkb(cand.polygon)).digest(), sigma, kind, dist)  # fmt: skip
         if key in self._placements:
@@ -396,7 +397,7 @@ class StopPlanner:
             every = frozenset(r.tray_id for r in regions)
             est = {xy: self.estimates(scene, world_key, regions, xy, sigma, kind, dist, yaw)[every]
                    for xy in (cand.centre, found[0])}  # fmt: skip
-            out = found[0] if est[found[0]] > est[cand.centre] + 1e-9 else None
+            out = found[0] if est[found[0]] >= est[cand.centre] + MIN_GAIN else None
         return self._placements.put(key, out)  # type: ignore[no-any-return]
 
     def refinement(self, world_key: str, region: TrayRegion) -> Refinement:
