@@ -7,9 +7,9 @@ forgets the oldest bodies past :data:`MAX_BODIES`.
 from __future__ import annotations
 
 import json
-from contextlib import suppress
 
 from pickstop.api.schemas import PlanRecord
+from pickstop.caching import Cache
 from pickstop.store.records import ServiceStore
 
 MAX_BODIES = 512  # plan bodies kept in memory
@@ -31,11 +31,11 @@ class PlanBodies:
 
     def __init__(self, store: ServiceStore) -> None:
         self.store = store
-        self._bodies: dict[str, bytes] = {}
+        self._bodies: Cache[str, bytes] = Cache("plan_bodies", max_items=MAX_BODIES)
 
     def cached(self, plan_id: str) -> bytes | None:
         """A stored plan's body if it is in memory already (no database access)."""
-        return self._bodies.get(plan_id)
+        return self._bodies.peek(plan_id)
 
     def body(self, plan_id: str, with_scene: bool = False) -> bytes | None:
         """A stored plan record as JSON bytes (``with_scene``: plus the exact scene it was
@@ -51,10 +51,7 @@ class PlanBodies:
             f'"scene_revision":{json.dumps(row["scene_revision"])},"created":"{row["created"]}",'
             f'"options":{row["options"]},"plan":{row["doc"]}}}'
         ).encode()
-        if len(self._bodies) >= MAX_BODIES:
-            with suppress(StopIteration, KeyError, RuntimeError):  # another thread's turn
-                self._bodies.pop(next(iter(self._bodies)))
-        self._bodies[plan_id] = body
+        self._bodies.put(plan_id, body)
         if with_scene:
             return body[:-1] + b',"scene":' + row["scene_doc"].encode() + b"}"
         return body

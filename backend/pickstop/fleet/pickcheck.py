@@ -8,11 +8,11 @@ the one its stop centres and Monte Carlo samples pass, at the real pose instead 
 from __future__ import annotations
 
 import threading
-from collections import OrderedDict
 
 import numpy as np
 import shapely
 
+from pickstop.caching import Cache
 from pickstop.errors import InputError
 from pickstop.fleet.route import guaranteed_radius
 from pickstop.fleet.tolerance import StopShapes, stop_shapes
@@ -34,7 +34,9 @@ class PickChecker:
         self._lock = threading.Lock()
         with self._lock:
             self.regions: dict[tuple[str, float], TrayRegion] = planner.regions(scene)
-        self._cache: OrderedDict[tuple[str, float, float, float], tuple[bool, str]] = OrderedDict()
+        self._cache: Cache[tuple[str, float, float, float], tuple[bool, str]] = Cache(
+            "pick_checker", max_items=CACHE
+        )
         self.calls = 0
 
     def region(self, tray_id: str, yaw: float) -> TrayRegion | None:
@@ -65,10 +67,7 @@ class PickChecker:
                     else (False, f"no collision-free grasp of every part of tray {tray_id} "
                                  "from this base pose (exact check)")
                 )  # fmt: skip
-            self._cache[key] = out
-            while len(self._cache) > CACHE:
-                self._cache.popitem(last=False)
-            return out
+            return self._cache.put(key, out)
 
     def many(self, tray_id: str, xy: np.ndarray, yaw: float) -> np.ndarray:
         """The exact test of one tray at base poses ``xy: (M, 2)`` [m], ``yaw`` [rad]:

@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickstop import frames
+from pickstop.caching import Cache
 from pickstop.frames import rot2
 from pickstop.regions.arm_kernel import contacts_many, link_contacts, screen_links
 from pickstop.regions.envelope import Envelope
@@ -275,7 +276,9 @@ class ExactArm:
             self._axis_index = self._chain.axis_index.astype(np.int64)
         self._Rj = np.zeros((robot.dof, 3, 3))
         self._pj = np.zeros((robot.dof, 3))
-        self._bounds_memo: dict[tuple[Solid, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._bounds_memo: Cache[tuple[Solid, ...], tuple[np.ndarray, ...]] = Cache(
+            "arm.solid_bounds", max_items=BOUNDS_MEMO
+        )
         pl = self.floor.placements  # contiguous, for the compiled placements of :meth:`checks`
         self._R_local = np.ascontiguousarray(pl.R_local)
         self._p_local = np.ascontiguousarray(pl.p_local)
@@ -400,19 +403,17 @@ class ExactArm:
     def _bounds(self, solids: list[Solid]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """World bounding boxes ``lo, hi: (S, 3)`` [m] and owners ``(S,)`` of ``solids``, kept
         for the last few lists (the same solids are checked against many configurations)."""
-        key = tuple(solids)  # identity: a Solid compares by itself
-        hit = self._bounds_memo.get(key)
-        if hit is None:
+
+        def make() -> tuple[np.ndarray, ...]:
             bounds = [s.aabb() for s in solids]
-            hit = (
+            return (
                 np.array([b[0] for b in bounds]),
                 np.array([b[1] for b in bounds]),
                 np.array([s.owner for s in solids]),
             )
-            if len(self._bounds_memo) >= BOUNDS_MEMO:
-                self._bounds_memo.pop(next(iter(self._bounds_memo)))
-            self._bounds_memo[key] = hit
-        return hit
+
+        lo, hi, owners = self._bounds_memo.get_or_make(tuple(solids), make)  # by identity
+        return lo, hi, owners
 
 
 CHECK_CHUNK = 2048  # configurations an ArmChecks prepares at once (bounds its arrays)

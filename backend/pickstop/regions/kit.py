@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pickstop.caching import Cache
 from pickstop.reach.batch_ik import BatchSolver
 from pickstop.reach.database import ReachDatabase
 from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm
@@ -83,17 +84,26 @@ class RegionKit:
     exact_arm: ExactArm = field(init=False)
     hand: HandShape = field(init=False)
     reach_xy: float = field(init=False)  # [m] the database's horizontal reach
-    grasp_cache: dict[str, GraspSet] = field(default_factory=dict)
+    grasp_cache: Cache[str, GraspSet] = field(
+        default_factory=lambda: Cache("kit.grasps", max_items=MEMO_SIZE)
+    )
     reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
     # Set while background work computes: true once it is to give way (see checkpoint).
     interrupt: Callable[[], bool] | None = field(default=None, init=False, repr=False)
-    _hand_spaces: dict[str, tuple[np.ndarray, np.ndarray]] = field(
-        default_factory=dict, init=False, repr=False
-    )
-    _bounds: dict[str, Bounds] = field(default_factory=dict, init=False, repr=False)
+    _hand_spaces: Cache[str, tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=lambda: Cache("kit.hand_spaces", max_items=MEMO_SIZE),
+        init=False, repr=False,
+    )  # fmt: skip
+    _bounds: Cache[str, Bounds] = field(
+        default_factory=lambda: Cache("kit.object_bounds", max_items=MEMO_SIZE),
+        init=False, repr=False,
+    )  # fmt: skip
     # each part's grasps judged against its own tray alone, wherever the tray stands
-    _own_verdicts: dict[str, OwnVerdicts] = field(default_factory=dict, init=False, repr=False)
+    _own_verdicts: Cache[str, OwnVerdicts] = field(
+        default_factory=lambda: Cache("kit.own_verdicts", max_items=OWN_VERDICTS),
+        init=False, repr=False,
+    )  # fmt: skip
     # what a plan asks about its scene many times, made once for the last scene asked about
     _scene_memo: _SceneMemo | None = field(default=None, init=False, repr=False)
 
@@ -147,20 +157,18 @@ class RegionKit:
             space = self.hand_space(scene, tray, part)
             near = _reaching_in(others, space, at)
             full = hashlib.sha256("|".join([key, *sorted(near)]).encode()).hexdigest()
-            if full not in self.grasp_cache:
-                if len(self.grasp_cache) >= MEMO_SIZE:
-                    self.grasp_cache.clear()
-                own = self._own_verdicts.get(own_key)
-                if own is None:
-                    if len(self._own_verdicts) >= OWN_VERDICTS:
-                        self._own_verdicts.clear()
-                    own = self._own_verdicts[own_key] = own_verdicts(scene, tray, part, self.hand)
+            found = self.grasp_cache.get(full)
+            if found is None:
+                own = self._own_verdicts.get_or_make(
+                    own_key, lambda part=part: own_verdicts(scene, tray, part, self.hand)
+                )
                 if foreign is None:
                     foreign = other_solids(scene, tray, self.object_solids(scene))
-                self.grasp_cache[full] = _moved_by(
-                    grasps_for_part(scene, tray, part, self.hand, own, foreign), -at
+                found = self.grasp_cache.put(
+                    full,
+                    _moved_by(grasps_for_part(scene, tray, part, self.hand, own, foreign), -at),
                 )
-            out.append(_moved_by(self.grasp_cache[full], at))
+            out.append(_moved_by(found, at))
         return out
 
     def _memo(self, scene: Scene) -> _SceneMemo:
@@ -185,21 +193,20 @@ class RegionKit:
     def learn_grasps(self, entries: dict[str, GraspSet]) -> None:
         """Keep grasps another process computed (:mod:`pickstop.regions.workers`), by the
         keys :meth:`grasps` finds them by."""
-        if len(self.grasp_cache) + len(entries) > MEMO_SIZE:
-            self.grasp_cache.clear()
-        self.grasp_cache.update(entries)
+        for key, grasps in entries.items():
+            self.grasp_cache.put(key, grasps)
 
     def hand_space(self, scene: Scene, tray: Tray, part: Part) -> tuple[np.ndarray, np.ndarray]:
         """:func:`pickstop.scene.grasps.hand_space`, computed once per tray (wherever it
         stands on the floor), part and hand."""
         key = f"hand|{_placed(tray)}|{part.id}|{scene.gripper.model_dump_json()}"
         at = _floor_position(tray)
-        if key not in self._hand_spaces:
-            if len(self._hand_spaces) >= MEMO_SIZE:
-                self._hand_spaces.clear()
+
+        def make() -> tuple[np.ndarray, np.ndarray]:
             lo, hi = hand_space(scene, tray, part, self.hand)
-            self._hand_spaces[key] = (lo - at, hi - at)
-        lo, hi = self._hand_spaces[key]
+            return lo - at, hi - at
+
+        lo, hi = self._hand_spaces.get_or_make(key, make)
         return lo + at, hi + at
 
     def objects_near(self, scene: Scene, tray: Tray, radius: float) -> list[str]:
@@ -225,20 +232,20 @@ class RegionKit:
         return [(d, b) for tid, d, b in memo.bounds if tid != exclude]
 
     def _objects_bounds(self, scene: Scene) -> list[tuple[str | None, str, Bounds]]:
-        if len(self._bounds) > MEMO_SIZE:
-            self._bounds.clear()
         out: list[tuple[str | None, str, Bounds]] = []
         for o in scene.obstacles:
             d = o.model_dump_json()
-            if d not in self._bounds:
-                self._bounds[d] = [_bounds(shape_solid(o.geometry, pose_matrix(o.pose), o.id))]
-            out.append((None, d, self._bounds[d]))
+            b = self._bounds.get_or_make(
+                d, lambda o=o: [_bounds(shape_solid(o.geometry, pose_matrix(o.pose), o.id))]
+            )
+            out.append((None, d, b))
         for t in scene.trays:
             d = t.model_dump_json()
-            if d not in self._bounds:
-                solids = tray_body_solids(t) + [part_solid(t, p) for p in t.parts]
-                self._bounds[d] = [_bounds(s) for s in solids]
-            out.append((t.id, d, self._bounds[d]))
+            b = self._bounds.get_or_make(
+                d, lambda t=t: [_bounds(s) for s in tray_body_solids(t) + [part_solid(t, p)
+                                                                        for p in t.parts]]
+            )  # fmt: skip
+            out.append((t.id, d, b))
         return out
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from pickstop.caching import Cache
 from pickstop.regions.carry import LastRegions
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
@@ -41,9 +42,10 @@ class RegionPlanner(RegionKit):
     # processes computing regions: this one and workers - 1 helpers forked from it (they share
     # the database; each tray is computed where it was before, its memos there)
     workers: int = 1
-    _layouts: dict[str, dict[tuple[str, float], TrayRegion]] = field(
-        default_factory=dict, init=False, repr=False
-    )  # the regions of the last layouts
+    _layouts: Cache[str, dict[tuple[str, float], TrayRegion]] = field(
+        default_factory=lambda: Cache("region_planner.layouts", max_items=LAYOUTS),
+        init=False, repr=False,
+    )  # the regions of the last layouts  # fmt: skip
     _last: LastRegions = field(init=False, repr=False)
     _workers: RegionWorkers | None = field(default=None, init=False, repr=False)
 
@@ -107,9 +109,7 @@ class RegionPlanner(RegionKit):
             self._store(scene, region, snaps[t])
             out[t, y] = region
         out = {p: out[p] for p in pairs}
-        self._layouts[layout] = out
-        while len(self._layouts) > LAYOUTS:
-            self._layouts.pop(next(iter(self._layouts)))
+        self._layouts.put(layout, out)
         return dict(out)
 
     def _cached(

@@ -43,6 +43,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from pickstop.caching import Cache
 from pickstop.reach.batch_ik import BatchSolver, _errors, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
 from pickstop.regions.arm_kernel import boxes_hit
@@ -504,9 +505,15 @@ class RefineMemo:
     # the witness (joint values, grasp) of each (part, cell key) last grown into the region
     grown: dict[tuple[str, int], tuple[np.ndarray, int]] = field(default_factory=dict)
     _next: int = 0
-    _change_memo: dict[tuple[int, int], ChangeSet] = field(default_factory=dict)
-    _newcomer_memo: dict[tuple[int, int], tuple[Solid, ...]] = field(default_factory=dict)
-    _newcomer_box_memo: dict[tuple[int, int], ChangeSet] = field(default_factory=dict)
+    _change_memo: Cache[tuple[int, int], ChangeSet] = field(
+        default_factory=lambda: Cache("refine_memo.changes", max_items=4 * MAX_SURROUNDINGS)
+    )
+    _newcomer_memo: Cache[tuple[int, int], tuple[Solid, ...]] = field(
+        default_factory=lambda: Cache("refine_memo.newcomers", max_items=4 * MAX_SURROUNDINGS)
+    )
+    _newcomer_box_memo: Cache[tuple[int, int], ChangeSet] = field(
+        default_factory=lambda: Cache("refine_memo.newcomer_boxes", max_items=4 * MAX_SURROUNDINGS)
+    )
 
     def approx_bytes(self) -> int:
         """About how much memory the memo holds [bytes] (:data:`BYTES_PER` entry)."""
@@ -635,14 +642,9 @@ class RefineMemo:
 
     def _changes(self, old: int, now: int) -> ChangeSet:
         key = (old, now)
-        hit = self._change_memo.get(key)
-        if hit is None:
-            if len(self._change_memo) > 4 * MAX_SURROUNDINGS:
-                self._change_memo.clear()
-            hit = self._change_memo[key] = ChangeSet.of(
-                changes(self.surroundings[old], self.surroundings[now])
-            )
-        return hit
+        return self._change_memo.get_or_make(
+            key, lambda: ChangeSet.of(changes(self.surroundings[old], self.surroundings[now]))
+        )
 
     def newcomers(self, old: int, now: int) -> tuple[Solid, ...]:
         """What of the surroundings ``now`` lies where nothing of ``old`` did, seen from the
@@ -652,27 +654,21 @@ class RefineMemo:
         moved is new only outside the box it was (at most six slabs: a table the tray slides
         along); any other solid is new whole."""
         key = (old, now)
-        hit = self._newcomer_memo.get(key)
-        if hit is None:
-            if len(self._newcomer_memo) > 4 * MAX_SURROUNDINGS:
-                self._newcomer_memo.clear()
-            hit = self._newcomer_memo[key] = _newcomers(
-                self.surroundings[old], self.surroundings[now]
-            )
-        return hit
+        return self._newcomer_memo.get_or_make(
+            key, lambda: _newcomers(self.surroundings[old], self.surroundings[now])
+        )
 
     def newcomer_boxes(self, old: int, now: int) -> ChangeSet:
         """The bounds of :meth:`newcomers` ``(old, now)``, each a box that fills a place."""
         key = (old, now)
-        hit = self._newcomer_box_memo.get(key)
-        if hit is None:
-            if len(self._newcomer_box_memo) > 4 * MAX_SURROUNDINGS:
-                self._newcomer_box_memo.clear()
+
+        def make() -> ChangeSet:
             bounds = [s.aabb() for s in self.newcomers(old, now)]
-            hit = self._newcomer_box_memo[key] = ChangeSet.boxes(
+            return ChangeSet.boxes(
                 np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
             )
-        return hit
+
+        return self._newcomer_box_memo.get_or_make(key, make)
 
     def recall(
         self,

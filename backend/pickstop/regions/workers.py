@@ -25,12 +25,12 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
-from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any
 
+from pickstop.caching import Cache
 from pickstop.errors import dump_error, load_error
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import Interrupted, RegionKit
@@ -63,7 +63,8 @@ class RegionWorkers:
             raise ValueError(f"processes must be at least 1, got {processes}")
         self.kit = kit
         self.processes = processes
-        self.homes: OrderedDict[str, int] = OrderedDict()  # home key -> process (0: this one)
+        # home key -> process (0: this one)
+        self.homes: Cache[str, int] = Cache("region_workers.homes", max_items=MAX_HOMES)
         self._ctx = multiprocessing.get_context("fork")
         self._stop = self._ctx.RawValue("b", 0)  # shared: 1 while helpers are to give way
         self._helpers: list[_Helper | None] = [None] * (processes - 1)
@@ -113,10 +114,7 @@ class RegionWorkers:
         return [out[p] for p in pairs]
 
     def _home(self, key: str, w: int) -> None:
-        self.homes[key] = w
-        self.homes.move_to_end(key)
-        while len(self.homes) > MAX_HOMES:
-            self.homes.popitem(last=False)
+        self.homes.put(key, w)
 
     def _share(self, scene: Scene, pairs: list[Pair]) -> list[int]:
         """Which process computes each pair: its home, else the one with the least to do

@@ -10,14 +10,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import threading
-from collections import OrderedDict
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from pickstop.caching import Cache
 from pickstop.errors import RobotConfigError
 
 PRESET_DIR = Path(__file__).parent / "presets"
@@ -256,9 +255,9 @@ class ConfigFiles:
     is the same). The last ``size`` texts are kept."""
 
     def __init__(self, size: int = 32) -> None:
-        self.size = size
-        self._parsed: OrderedDict[tuple[str, str], tuple[RobotConfig, Path]] = OrderedDict()
-        self._lock = threading.Lock()
+        self._parsed: Cache[tuple[str, str], tuple[RobotConfig, Path]] = Cache(
+            "robot_configs", max_items=size
+        )
 
     def load(self, path: str | Path) -> tuple[RobotConfig, Path]:
         """:func:`load_config`, remembered."""
@@ -267,17 +266,7 @@ class ConfigFiles:
             raise RobotConfigError(f"{path}: robot config file not found")
         text = path.read_text(encoding="utf-8")
         key = (str(path.resolve()), hashlib.sha256(text.encode()).hexdigest())
-        with self._lock:
-            hit = self._parsed.get(key)
-            if hit is not None:
-                self._parsed.move_to_end(key)
-                return hit
-        out = config_from_text(path, text)
-        with self._lock:
-            self._parsed[key] = out
-            while len(self._parsed) > self.size:
-                self._parsed.popitem(last=False)
-        return out
+        return self._parsed.get_or_make(key, lambda: config_from_text(path, text))
 
     def resolve(self, robot: str) -> tuple[RobotConfig, Path]:
         """:func:`resolve_robot`, remembered."""

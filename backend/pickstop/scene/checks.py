@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import hashlib
-import threading
-from collections import Counter, OrderedDict
+from collections import Counter
 
 import shapely
 from shapely.geometry import Point
 from shapely.geometry.base import BaseGeometry
 
+from pickstop.caching import Cache
 from pickstop.scene.model import Scene, Tray
 from pickstop.scene.orders import order_problems
 from pickstop.scene.outline import (  # noqa: F401  (re-exported: the checks' geometry)
@@ -49,25 +49,15 @@ class CheckedScenes:
     :data:`CHECKED_FIELDS`): a service checks the same layout for every sigma step."""
 
     def __init__(self, size: int = 64) -> None:
-        self.size = size
-        self._checked: OrderedDict[str, tuple[tuple[str, str], ...]] = OrderedDict()
-        self._lock = threading.Lock()
+        self._checked: Cache[str, tuple[tuple[str, str], ...]] = Cache(
+            "checked_scenes", max_items=size
+        )
 
     def __call__(self, scene: Scene) -> list[tuple[str, str]]:
         key = hashlib.sha256(
             scene.model_dump_json(include=set(CHECKED_FIELDS)).encode()
         ).hexdigest()
-        with self._lock:
-            hit = self._checked.get(key)
-            if hit is not None:
-                self._checked.move_to_end(key)
-                return list(hit)
-        problems = check_scene(scene)
-        with self._lock:
-            self._checked[key] = tuple(problems)
-            while len(self._checked) > self.size:
-                self._checked.popitem(last=False)
-        return problems
+        return list(self._checked.get_or_make(key, lambda: tuple(check_scene(scene))))
 
 
 def check_scene(scene: Scene) -> list[tuple[str, str]]:

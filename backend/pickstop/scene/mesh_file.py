@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import math
 import re
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from pickstop.caching import Cache
 from pickstop.errors import InputError
 
 BYTES_PER_TRIANGLE = 400  # an ASCII STL facet takes about 250 bytes, an OBJ face far fewer
@@ -56,23 +55,14 @@ class MeshFiles:
     modification time: a changed file is checked again)."""
 
     def __init__(self, size: int = 256) -> None:
-        self.size = size
-        self._known: OrderedDict[tuple[str, int, int], MeshFacts] = OrderedDict()
-        self._lock = threading.Lock()
+        self._known: Cache[tuple[str, int, int], MeshFacts] = Cache("mesh_files", max_items=size)
 
     def check(self, path: Path, max_triangles: int, scale: float = 1.0) -> MeshFacts:
         stat = path.stat()
         key = (str(path), stat.st_size, stat.st_mtime_ns)
-        with self._lock:
-            facts = self._known.get(key)
-            if facts is not None:
-                self._known.move_to_end(key)
-        if facts is None:
-            facts = inspect_mesh(path, stat.st_size, max_triangles)
-            with self._lock:
-                self._known[key] = facts
-                while len(self._known) > self.size:
-                    self._known.popitem(last=False)
+        facts = self._known.get_or_make(
+            key, lambda: inspect_mesh(path, stat.st_size, max_triangles)
+        )
         check_extent(facts, scale)
         return facts
 

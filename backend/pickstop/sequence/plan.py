@@ -22,7 +22,6 @@ import hashlib
 import itertools
 import math
 import time
-from collections import OrderedDict
 from collections.abc import Callable
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
@@ -33,6 +32,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
+from pickstop.caching import Cache
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.footprint import (
     BodyPieces,
@@ -79,25 +79,6 @@ def _digest(obj: Any) -> str:
     return hashlib.sha256(repr(obj).encode()).hexdigest()[:20]
 
 
-class _Lru(OrderedDict[Any, Any]):
-    def __init__(self, size: int) -> None:
-        super().__init__()
-        self.size = size
-
-    def put(self, key: Any, value: Any) -> Any:
-        self[key] = value
-        self.move_to_end(key)
-        while len(self) > self.size:
-            self.popitem(last=False)
-        return value
-
-    def hit(self, key: Any) -> Any:
-        if key in self:
-            self.move_to_end(key)
-            return self[key]
-        return None
-
-
 DOCK_REACH = 3.0  # longest docking leg searched, in bounding radii of the base body
 
 
@@ -135,22 +116,28 @@ class StopPlanner:
 
     def __init__(self, regions: RegionPlanner, cache_size: int = 64) -> None:
         self.regions = regions
-        self._candidates = _Lru(cache_size)
-        self._floors = _Lru(cache_size)
-        self._world_floors = _Lru(cache_size)  # world key -> floor: the same world, no rebuild
-        self._fmaps = _Lru(cache_size)
-        self._paths = _Lru(cache_size)
-        self._checks = _Lru(4096)
-        self._check_keys = _Lru(4096)  # (world key, region digest, pose) -> check key
-        self._witnesses = _Lru(4096)
-        self._rates = _Lru(4096)
-        self._estimates = _Lru(4096)  # (world, regions, pose, error model) -> set -> estimate
-        self._refinements = _Lru(256)  # (world, region) -> its exact boundary outcomes
-        self._selections = _Lru(256)
-        self._circles = _Lru(4096)  # component (its WKB's digest) -> its inscribed circle
-        self._placements = _Lru(4096)  # (world, regions, candidate, error model) -> point
+        n = cache_size
+
+        def memo(name: str, size: int) -> Cache[Any, Any]:
+            return Cache(f"stop_planner.{name}", max_items=size)
+
+        # Each keyed by what its value depends on, by value (see the class docstring).
+        self._candidates = memo("candidates", n)  # regions -> intersection components
+        self._floors = memo("floors", n)
+        self._world_floors = memo("world_floors", n)  # world key -> floor: no rebuild
+        self._fmaps = memo("fmaps", n)
+        self._paths = memo("paths", n)
+        self._checks = memo("checks", 4096)
+        self._check_keys = memo("check_keys", 4096)  # (world, region, pose) -> check key
+        self._witnesses = memo("witnesses", 4096)
+        self._rates = memo("rates", 4096)
+        self._estimates = memo("estimates", 4096)  # (world, regions, pose, model) -> rates
+        self._refinements = memo("refinements", 256)  # (world, region) -> exact outcomes
+        self._selections = memo("selections", 256)
+        self._circles = memo("circles", 4096)  # component (WKB digest) -> inscribed circle
+        self._placements = memo("placements", 4096)  # (world, regions, candidate) -> point
         self._solving: dict[Any, Future[Selection]] = {}  # selections being solved unlocked
-        self._planned = _Lru(1024)  # (layout, options) planned ahead by prefetch_selections
+        self._planned = memo("planned", 1024)  # (layout, options) planned ahead
 
     # -- pieces ------------------------------------------------------------------------------
     def candidates(self, regions: dict[tuple[str, float], TrayRegion]) -> list[Intersection]:
@@ -161,7 +148,7 @@ class StopPlanner:
                 for (t, y), r in regions.items()
             )
         )
-        hit = self._candidates.hit(key)
+        hit = self._candidates.get(key)
         if hit is not None:
             return list(hit)
         out: list[Intersection] = []
@@ -182,7 +169,7 @@ class StopPlanner:
         coordinates: a layout that moves one tray leaves the intersections of the others as
         they were."""
         key = hashlib.sha1(shapely.to_wkb(poly)).digest()
-        hit = self._circles.hit(key)
+        hit = self._circles.get(key)
         return hit if hit is not None else self._circles.put(key, inscribed_circle(poly))
 
     def floor(self, scene: Scene, world: str | None = None) -> _Floor:
@@ -191,7 +178,7 @@ class StopPlanner:
         world: the scene's :func:`world_key`, if known; the floor is a function of it (the
         floor, the solids and the robot), so a scene of the same world takes it as it was."""
         world = world_key(scene) if world is None else world
-        hit = self._world_floors.hit(world)
+        hit = self._world_floors.get(world)
         if hit is not None:
             return hit
         return self._world_floors.put(world, self._floor(scene))
@@ -223,10 +210,10 @@ class StopPlanner:
         # Docking legs sweep the body's pieces at their own heights: an outline inside another
         # may still meet a piece the outer solid's heights miss, so they see every solid.
         full = (key, solids_key(every))
-        hit = self._floors.hit(full)
+        hit = self._floors.get(full)
         if hit is not None:
             return hit
-        fmap = self._fmaps.hit(key)
+        fmap = self._fmaps.get(key)
         if fmap is None:
             fmap = self._fmaps.put(
                 key,
@@ -244,7 +231,7 @@ class StopPlanner:
         """Shortest paths between ``points: (Q, 2)`` [m] held at ``yaws: (Q,)`` [rad] where
         the base's bounding circle does not fit (cached)."""
         key = (floor.key, points.tobytes(), yaws.tobytes())
-        hit = self._paths.hit(key)
+        hit = self._paths.get(key)
         if hit is not None:
             return hit
         return self._paths.put(key, shortest_paths(floor.fmap, points, yaws, floor.docking()))
@@ -257,7 +244,7 @@ class StopPlanner:
         ``world``: the scene's :func:`world_key`, if known (the key is then looked up: the
         same world, region and pose have the same key)."""
         known = None if world is None else (world, region.digest, xy)
-        if known is not None and (hit := self._check_keys.hit(known)) is not None:
+        if known is not None and (hit := self._check_keys.get(known)) is not None:
             return str(hit)
         key = check_key(self.regions, scene, region, xy, region.yaw)
         return key if known is None else str(self._check_keys.put(known, key))
@@ -268,7 +255,7 @@ class StopPlanner:
         """The exact region test for one tray at one base pose (cached by
         :meth:`check_key`, ``key`` if known)."""
         key = self.check_key(scene, region, xy) if key is None else key
-        hit = self._checks.hit(key)
+        hit = self._checks.get(key)
         if hit is None:
             ok, th, g = feasible_near(
                 self.regions, scene, region, np.array([xy]), region.yaw, seeds_first=True
@@ -284,7 +271,7 @@ class StopPlanner:
         (cached with the check; ``world`` as for :meth:`check_key`)."""
         key = self.check_key(scene, region, xy, world)
         if key in self._witnesses:
-            return self._witnesses.hit(key)
+            return self._witnesses.get(key)
         ok, th, g = self.check(scene, region, xy, key)
         ws = None
         if ok:
@@ -320,7 +307,7 @@ class StopPlanner:
         yaw = regions[0].yaw
         dist = of_scene(scene, sigma).at(xy, trays)
         key = (world_key, trays, xy, yaw, dist, samples, seed)
-        hit = self._rates.hit(key)
+        hit = self._rates.get(key)
         if hit is not None:
             return hit
 
@@ -355,7 +342,7 @@ class StopPlanner:
         regions' boundaries (:meth:`refine`) unless ``exact`` is false (cached)."""
         trays = tuple(r.tray_id for r in regions)
         key = (world_key, tuple(r.digest for r in regions), xy, sigma, kind, dist, yaw, exact)
-        hit = self._estimates.hit(key)
+        hit = self._estimates.get(key)
         if hit is not None:
             return dict(hit)
         sets = expected.tray_sets(trays)
@@ -388,7 +375,7 @@ class StopPlanner:
         key = (world_key, tuple(r.digest for r in regions), cand.centre, cand.yaw,
                hashlib.sha1(shapely.to_wkb(cand.polygon)).digest(), sigma, kind, dist)  # fmt: skip
         if key in self._placements:
-            return self._placements.hit(key)  # type: ignore[no-any-return]
+            return self._placements.get(key)  # type: ignore[no-any-return]
         grid, yaw = regions[0].grid, cand.yaw
         found = best_point(regions, cand.polygon, cand.centre,
                            lambda xy: kernel(kind, sigma, grid, xy, dist, yaw))  # fmt: skip
@@ -403,7 +390,7 @@ class StopPlanner:
     def refinement(self, world_key: str, region: TrayRegion) -> Refinement:
         """The exact boundary outcomes found so far for ``region`` (kept per world)."""
         key = (world_key, region.digest)
-        hit = self._refinements.hit(key)
+        hit = self._refinements.get(key)
         return hit if hit is not None else self._refinements.put(key, Refinement.of(region))
 
     def refine(
@@ -453,7 +440,7 @@ class StopPlanner:
                     return done
                 with guard:
                     key = self.check_key(scene, regions[t, c.yaw], c.centre, world)
-                    if self._checks.hit(key) is None:
+                    if key not in self._checks:
                         self.check(scene, regions[t, c.yaw], c.centre, key)
                         done += 1
         return done
@@ -484,7 +471,7 @@ class StopPlanner:
             n_stops,
             groups,
         )
-        hit = self._selections.hit(key)
+        hit = self._selections.get(key)
         if hit is not None:
             return hit
         running = self._solving.get(key)
@@ -553,7 +540,7 @@ class StopPlanner:
             if stale():
                 break
             key = (layout, opts.model_dump_json())
-            if (opts.sigma is not None and opts.sigma >= ceiling) or self._planned.hit(key):
+            if (opts.sigma is not None and opts.sigma >= ceiling) or self._planned.get(key):
                 continue
             with lock:
                 try:
