@@ -16,7 +16,7 @@ from pickstop.api.app import create_app
 from pickstop.fleet import nav2
 from pickstop.fleet.execution import vehicle_for
 from pickstop.fleet.pickcheck import PickChecker
-from pickstop.fleet.route import load_plan
+from pickstop.fleet.route import guaranteed_radius, load_plan
 from pickstop.fleet.sim_node import VehicleNode
 from pickstop.settings import Settings, hash_key
 from tests.fleet.conftest import EXAMPLES, scene_of
@@ -323,7 +323,7 @@ def test_verified_export_carries_what_the_command_proves_once_per_plan(
 
     radius = _stop_positions(fleet_client.get(url, params={"tolerances": "radius"}).json())
     assert [p["allowedDeviationTheta"] for p in radius] != [p["allowedDeviationTheta"] for p in v2]
-    assert [p["allowedDeviationXY"] for p in radius] == [s.inscribed_radius for s in plan.stops]
+    assert [p["allowedDeviationXY"] for p in radius] == [guaranteed_radius(s) for s in plan.stops]
     assert fleet_client.get(url, params={"tolerances": "exact"}).status_code == 422
 
 
