@@ -16,7 +16,7 @@ from pickstop.api.app import create_app
 from pickstop.fleet import nav2
 from pickstop.fleet.execution import vehicle_for
 from pickstop.fleet.pickcheck import PickChecker
-from pickstop.fleet.route import load_plan
+from pickstop.fleet.route import guaranteed_radius, load_plan
 from pickstop.fleet.sim_node import VehicleNode
 from pickstop.settings import Settings, hash_key
 from tests.fleet.conftest import EXAMPLES, scene_of
@@ -267,3 +267,90 @@ def test_a_dispatch_jobs_arrivals_fit_and_write_a_stored_scene(fleet_client, mos
     r = fleet_client.post("/api/v1/errors/fit", headers=AUTH,
                           json={"arrivals": [{"order_id": "x"}]})  # fmt: skip
     assert r.status_code == 422 and r.json()["field"].startswith("node_id")
+
+
+def _stop_positions(order: dict) -> list[dict]:
+    return [n["nodePosition"] for n in order["nodes"] if n["actions"]]
+
+
+def _cli_order(plan, region_db, tmp_path, version: str) -> dict:
+    """The order ``pickstop export --verify-xy --verify-yaw`` writes for ``plan``."""
+    from pickstop.cli import main
+
+    folder, db = region_db
+    path, out = tmp_path / "plan.json", tmp_path / f"order-{version}.json"
+    path.write_text(plan.model_dump_json())
+    args = ["--data-dir", str(folder), "export", str(path), "--format", "vda5050",
+            "--vda-version", version, "--scene", str(EXAMPLES / "paper_experiment.json"),
+            "--verify-xy", "--verify-yaw", "--db", db.id, "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    return json.loads(out.read_text())
+
+
+def test_verified_export_carries_what_the_command_proves_once_per_plan(
+    fleet_client, stored_plan, region_db, tmp_path, monkeypatch
+):
+    """``tolerances=verified``: a 3.0 order's stops carry the ellipse and yaw window the
+    command proves for the same plan, a 2.1 order the proven circle and the same window, a LIF
+    layout the ellipse; proven on the first export only (the planning's ``prove`` is called
+    once), kept for the others."""
+    plan_id, plan = stored_plan
+    service = fleet_client.app.state.service
+    calls = []
+    prove = service.planning.prove
+    monkeypatch.setattr(service.planning, "prove", lambda *a: calls.append(a) or prove(*a))
+    url = f"/api/v1/plans/{plan_id}/export"
+    r = fleet_client.get(url, params={"vda_version": "3.0", "tolerances": "verified"})
+    assert r.status_code == 200, r.text
+    assert len(calls) == 1
+    jsonschema.validate(r.json(), schema("order", "3.0.0"))
+    cli = _stop_positions(_cli_order(plan, region_db, tmp_path, "3.0"))
+    api = _stop_positions(r.json())
+    assert len(api) == len(plan.stops) > 0
+    assert [p["allowedDeviationXY"] for p in api] == [p["allowedDeviationXY"] for p in cli]
+    assert [p["allowedDeviationTheta"] for p in api] == [p["allowedDeviationTheta"] for p in cli]
+    assert all(p["allowedDeviationXY"]["a"] > p["allowedDeviationXY"]["b"] for p in api)
+
+    kept = service.proofs.kept(plan_id)
+    v2 = _stop_positions(fleet_client.get(url).json())  # 2.1, verified by default
+    assert [p["allowedDeviationXY"] for p in v2] == [s.radius for s in kept.shapes]
+    assert [p["allowedDeviationTheta"] for p in v2] == [p["allowedDeviationTheta"] for p in cli]
+    layout = fleet_client.get(url, params={"format": "lif"}).json()["layouts"][0]
+    dev = [e["vehicleTypeEdgeProperties"][0].get("allowedDeviationXY") for e in layout["edges"]]
+    assert [d for d in dev if d] == [p["allowedDeviationXY"] for p in cli]
+    assert fleet_client.get(url, params={"format": "nav2"}).status_code == 200
+    assert len(calls) == 1  # every later export read the kept proof
+
+    radius = _stop_positions(fleet_client.get(url, params={"tolerances": "radius"}).json())
+    assert [p["allowedDeviationTheta"] for p in radius] != [p["allowedDeviationTheta"] for p in v2]
+    assert [p["allowedDeviationXY"] for p in radius] == [guaranteed_radius(s) for s in plan.stops]
+    assert fleet_client.get(url, params={"tolerances": "exact"}).status_code == 422
+
+
+def test_dispatch_sends_the_proven_tolerances(fleet_client, stored_plan, mosquitto, planner):
+    """A dispatch asks for verified tolerances by default: the order the vehicle receives
+    carries each stop's proven circle and yaw window."""
+    plan_id, plan = stored_plan
+    veh = vehicle_for(plan, PickChecker(planner, scene_of("paper_experiment")), seed=0)
+    veh.serial_number, veh.forced_error = "agv-9", (0.0, 0.0, 0.0)
+    received = []
+    accept = veh.accept
+    veh.accept = lambda doc: received.append(doc) or accept(doc)  # type: ignore[method-assign]
+    node = VehicleNode(veh, mosquitto.broker, rate_hz=20, time_scale=0).start()
+    try:
+        r = fleet_client.post(f"/api/v1/plans/{plan_id}/dispatch", headers=AUTH,
+                              json={"serial_number": "agv-9"})  # fmt: skip
+        assert r.status_code == 202, r.text
+        job = r.json()
+        assert job["params"]["tolerances"] == "verified"
+        t_end = time.monotonic() + 60
+        while time.monotonic() < t_end and job["state"] in ("queued", "running"):
+            time.sleep(0.1)
+            job = fleet_client.get(f"/api/v1/jobs/{job['id']}").json()
+        assert job["state"] == "done", job
+    finally:
+        node.stop()
+    kept = fleet_client.app.state.service.proofs.kept(plan_id)
+    stops = _stop_positions(received[0])
+    assert [p["allowedDeviationXY"] for p in stops] == [s.radius for s in kept.shapes]
+    assert [p["allowedDeviationTheta"] for p in stops] == list(kept.yaw)

@@ -2,12 +2,14 @@
 over MQTT.
 
 The broker is the service's (``PICKSTOP_MQTT_BROKER``), never the caller's: the API does not
-connect wherever a request says.
+connect wherever a request says. Tolerances are the plan's proven ones by default
+(``tolerances=verified``: each stop's checked circle, ellipse and yaw window, proven once per
+plan, :mod:`pickstop.api.plan_proofs`), or its inscribed radius and the scene's yaw error
+(``radius``).
 """
 
 from __future__ import annotations
 
-import asyncio
 import json
 import secrets
 from dataclasses import replace
@@ -20,10 +22,17 @@ from starlette.concurrency import run_in_threadpool
 from pickstop.api.body import validate
 from pickstop.api.deps import JsonBody
 from pickstop.api.openapi import json_request
-from pickstop.api.problems import Problem
+from pickstop.api.problems import Problem, from_error
+from pickstop.api.work import compute
 from pickstop.errors import PickStopError
 
 Level = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[^/+#]+$")]
+Tolerances = Literal["verified", "radius"]
+TOLERANCES = (
+    "verified: each stop's circle (2.x), ellipse (3.0) and yaw window proven by the exact "
+    "check with the robot's full geometry, proven on the plan's first use (seconds) and kept; "
+    "radius: the plan's inscribed radius and the scene's yaw error, unproven off the grid"
+)
 
 
 class DispatchRequest(BaseModel):
@@ -46,6 +55,7 @@ class DispatchRequest(BaseModel):
         description="read the vehicle's factsheet and refuse an order it cannot run before "
         "sending it (false: a vehicle older than VDA 5050 2.0)",
     )
+    tolerances: Tolerances = Field(default="verified", description=TOLERANCES)
 
 
 def _vehicle_types(s: Any) -> Any:
@@ -74,6 +84,17 @@ def _stored(s: Any, plan_id: str) -> tuple[Any, dict[str, Any]]:
     return rt.load_plan(json.loads(row["doc"])), json.loads(row["scene_doc"])
 
 
+def _tolerances(
+    s: Any, plan_id: str, plan: Any, scene_doc: dict[str, Any], which: str
+) -> tuple[Any, Any]:
+    """(shapes, yaw tolerances) per stop as proven (``verified``), or (None, None): the plan's
+    radius and the scene's yaw error."""
+    if which != "verified":
+        return None, None
+    proof = s.proofs.proof(plan_id, plan, scene_doc)
+    return proof.shapes, proof.yaw
+
+
 def _yaws(scene_doc: dict[str, Any]) -> tuple[float | None, float | None]:
     def yaw(key: str) -> float | None:
         v = scene_doc.get(key) or {}
@@ -89,6 +110,7 @@ def _export(s: Any, plan_id: str, q: dict[str, Any]) -> tuple[str, str]:
 
     plan, scene_doc = _stored(s, plan_id)
     start_yaw, goal_yaw = _yaws(scene_doc)
+    shapes, yaw_tol = _tolerances(s, plan_id, plan, scene_doc, q["tolerances"])
     if q["format"] == "lif":
         from pickstop.fleet.lif import LifOptions, build_lif
 
@@ -96,16 +118,17 @@ def _export(s: Any, plan_id: str, q: dict[str, Any]) -> tuple[str, str]:
             q["manufacturer"], q["serial_number"], None, q["vehicle_type"]
         )
         man = q["manufacturer"]
-        opts = LifOptions(
-            vehicle_type_id=man if vt is None else f"{vt.manufacturer or man}."
-            f"{vt.series_name or vt.name}",
+        type_id = man if vt is None else f"{vt.manufacturer or man}.{vt.series_name or vt.name}"
+        lif = LifOptions(
+            vehicle_type_id=type_id,
             layout_id=plan_id,
             map_id=q["map_id"] or "map",
             start_yaw=start_yaw,
             goal_yaw=goal_yaw,
+            shapes=shapes,
             pick=None if vt is None else vt.pick,
         )
-        return json.dumps(build_lif(plan, opts)), "application/json"
+        return json.dumps(build_lif(plan, lif)), "application/json"
     if q["format"] == "vda5050":
         vt = _vehicle_types(s).select(
             q["manufacturer"], q["serial_number"], None, q["vehicle_type"]
@@ -118,10 +141,14 @@ def _export(s: Any, plan_id: str, q: dict[str, Any]) -> tuple[str, str]:
             order_id=plan_id,
             start_yaw=start_yaw,
             goal_yaw=goal_yaw,
+            yaw_tolerance=yaw_tol,
+            shapes=shapes,
             pick=None if vt is None else vt.pick,
         )
         return json.dumps(v.dump(orders.build_order(plan, opts))), "application/json"
-    doc = nav2.build_nav2(plan, q["map_id"] or "map", q["distro"], start_yaw, goal_yaw)
+    doc = nav2.build_nav2(
+        plan, q["map_id"] or "map", q["distro"], start_yaw, goal_yaw, yaw_tol, shapes
+    )
     if q["nav2_format"] == "yaml":
         return nav2.dumps(doc, "yaml"), "application/yaml"
     return nav2.dumps(doc, "json"), "application/json"
@@ -132,9 +159,6 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
 
     def svc(request: Request) -> Any:
         return request.app.state.service
-
-    def _problem(e: PickStopError) -> Problem:
-        return Problem(422, "Invalid input", e.message, kind="validation", field=e.field)
 
     @r.get(
         "/plans/{plan_id}/export",
@@ -159,20 +183,23 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         nav2_format: Literal["json", "yaml"] = "json",
         distro: Literal["humble", "jazzy", "kilted"] = "jazzy",
         vehicle_type: Annotated[str | None, Query(min_length=1, max_length=100)] = None,
+        tolerances: Annotated[Tolerances, Query(description=TOLERANCES)] = "verified",
     ) -> Response:
         """The plan as a VDA 5050 order (orderId = the plan id), a Nav2 goal or a LIF 2.0
         layout (layoutId = the plan id, a station per stop); the pick as the vehicle type
-        names it (``vehicle_type``, or the first matching the vehicle)."""
+        names it (``vehicle_type``, or the first matching the vehicle); the stops'
+        tolerances proven (``tolerances=verified``) or the plan's radius."""
         q = dict(format=format, vda_version=vda_version, manufacturer=manufacturer,
                  serial_number=serial_number, map_id=map_id, nav2_format=nav2_format,
-                 distro=distro, vehicle_type=vehicle_type)  # fmt: skip
+                 distro=distro, vehicle_type=vehicle_type, tolerances=tolerances)  # fmt: skip
         s = svc(request)
         try:
-            body, media = await asyncio.get_running_loop().run_in_executor(
-                s.threads, _export, s, plan_id, q
+            deadline = s.settings.request_deadline
+            body, media = await compute(
+                s.threads, _export, s, plan_id, q, deadline=deadline, request=request
             )
         except PickStopError as e:
-            raise _problem(e) from None
+            raise from_error(e) from None
         return Response(body, media_type=media)
 
     @r.post(
@@ -209,6 +236,7 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
         def prepare() -> DispatchJob:
             plan, scene_doc = _stored(s, plan_id)
             start_yaw, goal_yaw = _yaws(scene_doc)
+            shapes, yaw_tol = _tolerances(s, plan_id, plan, scene_doc, body.tolerances)
             opts = orders.OrderOptions(
                 version=body.vda_version,
                 manufacturer=body.manufacturer,
@@ -217,6 +245,8 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
                 order_id=order_id,
                 start_yaw=start_yaw,
                 goal_yaw=goal_yaw,
+                yaw_tolerance=yaw_tol,
+                shapes=shapes,
             )
             orders.build_order(plan, opts)  # bad options fail the request, not the job
             types = _vehicle_types(s)
@@ -237,9 +267,10 @@ def add_fleet_routes(r: APIRouter, W: list[Any], R: list[Any]) -> None:
 
         try:
             broker = mqtt.parse_broker(configured)
-            job_spec = await asyncio.get_running_loop().run_in_executor(s.threads, prepare)
+            job_spec = await compute(s.threads, prepare, deadline=s.settings.request_deadline,
+                                     request=request)  # fmt: skip
         except PickStopError as e:
-            raise _problem(e) from None
+            raise from_error(e) from None
         params = {"plan_id": plan_id, **body.model_dump(), "order_id": order_id}
         job = await run_in_threadpool(s.store.add_job, "dispatch", params)
         start_dispatch_job(

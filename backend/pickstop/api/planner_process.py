@@ -45,7 +45,7 @@ log = logging.getLogger("pickstop.api")
 POLL = 0.05  # seconds between checks for a Cancelled while waiting on the child
 ACK_WAIT = 30.0  # seconds a stopped computation may take to unwind before the child restarts
 KINDS = ("plan", "preview", "plan_json", "preview_json", "regions", "plan_mix", "guidance",
-         "layout")  # fmt: skip
+         "layout", "prove")  # fmt: skip
 #: Calls that report progress: the child passes them a ``progress(fraction, message)`` that
 #: sends it to the parent, where the caller's own ``progress`` gets it.
 PROGRESS = ("layout",)
@@ -254,6 +254,9 @@ class PlannerProcess:
         target: float = 0.95,
     ) -> Any:  # fmt: skip
         return self.call("regions", scene, sigma, db_id, rule, target)
+
+    def prove(self, scene: Any, plan: Any) -> Any:
+        return self.call("prove", scene, plan)
 
     def preload(self) -> None:
         """Start the child (it loads the default planners) now rather than at the first call."""

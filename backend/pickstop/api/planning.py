@@ -16,7 +16,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import shapely
@@ -29,6 +29,9 @@ from pickstop.sequence.mix import MixPlans, plan_mix
 from pickstop.sequence.plan import route_points, route_yaws
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
+
+if TYPE_CHECKING:
+    from pickstop.fleet.proof import PlanProof
 
 log = logging.getLogger("pickstop.api")
 
@@ -184,6 +187,17 @@ class Planning:
             finally:
                 evaluator.close()
         return doc.model_dump(mode="json")
+
+    def prove(self, scene: Scene, plan: Plan) -> PlanProof:
+        """The plan's tolerances proven by the exact check over its own database
+        (:func:`pickstop.fleet.proof.prove_plan`), its planners held meanwhile."""
+        from pickstop.fleet.pickcheck import exact_checker
+        from pickstop.fleet.proof import prove_plan
+
+        robot = self.robots.model(scene.robot.ref)
+        slot = self.pool.slot(robot, plan.database)
+        with self._locked(slot):
+            return prove_plan(exact_checker(self.pool, scene, plan.database, robot), plan)
 
     def plan_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
         """:meth:`plan` as the JSON the API answers with, serialised once where it is made

@@ -7,6 +7,7 @@
   once per robot and database and shared by requests, each with its lock;
 - ``planning`` (:mod:`pickstop.api.planning`): plans, previews and regions on them;
 - ``bodies`` (:mod:`pickstop.api.plan_bodies`): stored plans as the bytes the API answers;
+- ``proofs`` (:mod:`pickstop.api.plan_proofs`): stored plans' proven tolerances, made once;
 - ``jobs`` (:mod:`pickstop.api.jobs`): builds, batch plans and mixes
   (:mod:`pickstop.api.mixes`), one at a time, recorded in SQLite so that their state survives
   a restart.
@@ -29,6 +30,7 @@ from pickstop.api.jobs import JobRunner, batch_job, build_job
 from pickstop.api.layouts import layout_job, layout_params
 from pickstop.api.mixes import mix_job, request_orders
 from pickstop.api.plan_bodies import PlanBodies
+from pickstop.api.plan_proofs import PlanProofs
 from pickstop.api.planner_process import PlannerProcess
 from pickstop.api.planning import Planning
 from pickstop.api.registry import RobotRegistry
@@ -68,6 +70,7 @@ class Service:
             else Planning(self.planners, self.robots, self.threads)
         )
         self.bodies = PlanBodies(self.store)
+        self.proofs = PlanProofs(self.store, self.robots, self.scenes, self.planning)
         kinds = {
             "build": build_job(self.robots, self.data_dir, self.after_build),
             "batch": batch_job(self.scenes.parse, self.planning.plan),

@@ -199,13 +199,12 @@ def cmd_dispatch(args: argparse.Namespace) -> int:
 
 
 def _checker(scene_path: str, scene: Any, args: argparse.Namespace, db: str | None) -> Any:
-    from pickstop.fleet.pickcheck import PickChecker
+    from pickstop.fleet.pickcheck import exact_checker
     from pickstop.pool import PlannerPool
     from pickstop.settings import data_dir
 
     pool = PlannerPool(data_dir(args.data_dir))
-    planner = pool.region_planner(scene, Path(scene_path).resolve().parent, db)
-    return PickChecker(planner, scene)
+    return exact_checker(pool, scene, db, scene_root=Path(scene_path).resolve().parent)
 
 
 def _positioning(args: argparse.Namespace, scene: Any, sigma: float) -> Any:

@@ -8,6 +8,8 @@ the one its stop centres and Monte Carlo samples pass, at the real pose instead 
 from __future__ import annotations
 
 import threading
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
@@ -22,6 +24,10 @@ from pickstop.regions.offgrid import feasible_near
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene
 from pickstop.sequence import plan_model as pm
+
+if TYPE_CHECKING:
+    from pickstop.pool import PlannerPool
+    from pickstop.robot.model import RobotModel
 
 CACHE = 4096  # results kept per checker (poses repeat across runs only by chance)
 
@@ -94,3 +100,18 @@ class PickChecker:
                 stop_shapes(self.many, s.trays, (s.x, s.y), s.yaw, inter, guaranteed_radius(s), res)
             )
         return tuple(out)
+
+
+def exact_checker(
+    pool: PlannerPool,
+    scene: Scene,
+    db_id: str | None,
+    robot: RobotModel | None = None,
+    scene_root: Path | None = None,
+) -> PickChecker:
+    """The exact checker of ``scene`` over the pool's planners of its robot and the
+    database ``db_id`` (None: the robot's default): ``robot`` as loaded already, else the one
+    the scene names (a config path from ``scene_root``). Its planners' caches are not
+    thread-safe: where others use the same pool, hold the slot's lock while it runs."""
+    slot = pool.scene_slot(scene, scene_root, db_id) if robot is None else pool.slot(robot, db_id)
+    return PickChecker(slot.regions, scene)

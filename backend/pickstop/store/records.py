@@ -36,7 +36,8 @@ class Conflict(Exception):
 
 
 class ServiceStore:
-    """The service's records in ``catalog.sqlite``: scenes, plans, jobs and robots."""
+    """The service's records in ``catalog.sqlite``: scenes, plans (and their proven
+    tolerances), jobs and robots."""
 
     def __init__(self, data_dir: Path) -> None:
         self.data_dir = Path(data_dir)
@@ -148,6 +149,18 @@ class ServiceStore:
             f"FROM plans {where} ORDER BY created, id LIMIT ? OFFSET ?",
             [*params, limit, offset],
         )
+
+    def plan_proof(self, plan_id: str, prover: str) -> dict[str, Any] | None:
+        """A stored plan's proven tolerances (JSON) if they were proven by ``prover``."""
+        row = self.catalog.one(
+            "SELECT doc FROM plan_proofs WHERE plan_id = ? AND prover = ?", [plan_id, prover]
+        )
+        return None if row is None else json.loads(row["doc"])
+
+    def add_plan_proof(self, plan_id: str, prover: str, doc: dict[str, Any]) -> None:
+        """Keep a stored plan's proven tolerances (over any kept by another prover)."""
+        row = {"plan_id": plan_id, "prover": prover, "doc": json.dumps(doc), "created": now()}
+        self.catalog.insert("plan_proofs", row, replace=True)
 
     # -- mixes -------------------------------------------------------------------------------
     def add_mix(
