@@ -17,9 +17,10 @@ from pickstop.robot.assets import RobotAssets, robot_assets
 
 def assets_of(robots: RobotRegistry, name: str) -> RobotAssets:
     """The drawing assets of a preset or registered robot (made once per robot; its travel
-    posture is checked with its self-collision pairs, from the cache when a plan or a check
-    made them)."""
-    from pickstop.robot.artifacts import self_collision
+    posture is checked exactly with its self-collision pairs, read from the cache where a
+    check, a build or a plan made them)."""
+    from pickstop.robot.cache import robots_folder
+    from pickstop.robot.selfcollision import disabled_pairs
     from pickstop.robot.travel import travel_of
     from pickstop.settings import cache_dir
 
@@ -27,7 +28,7 @@ def assets_of(robots: RobotRegistry, name: str) -> RobotAssets:
     key = (name, config.model_dump_json())
     if key not in robots.assets:
         robot = robots.planners.robot(config, root)
-        disabled, _ = self_collision(robot, cache_dir(robots.data_dir))
+        disabled = disabled_pairs(robot, cache_dir=robots_folder(cache_dir(robots.data_dir)))
         robots.assets[key] = robot_assets(robot, travel_of(robot, disabled))
     assets: RobotAssets = robots.assets[key]
     return assets
