@@ -49,7 +49,7 @@ from pickstop_ui.measure import MeasureTool
 from pickstop_ui.orders import TASK, mix_summary, order_ids, with_order
 from pickstop_ui.overlay import Overlay, parse_layout
 from pickstop_ui.picking import hit_point, item_box, pick
-from pickstop_ui.plan_layer import PlanLayer
+from pickstop_ui.plan_layer import ROBOT_COLOUR, PlanLayer, pose, robot_urdf
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
@@ -137,6 +137,7 @@ class PlannerApp:
         self._tray_ui: dict[str, Any] = {}
         self._stored_key: str | None = None  # the document and options of state.plan_id
         self._mix_gen = 0  # the newest mix asked for (an older answer is not shown)
+        self._playing = threading.Lock()  # held while the route plays
         self._draw_scene()
         self.layer = PlanLayer(self.server, self._urdf)
         self._build_gui()
@@ -232,12 +233,24 @@ class PlannerApp:
         sc.on_click()(self._clicked)
         w, h = d.floor_size
         sc.add_grid("/floor", width=w, height=h, cell_size=0.5, position=d.floor_centre)
-        if self._urdf is not None:
-            from viser.extras import ViserUrdf
+        if self.robot is not None:
+            self._draw_robot(*d.robot_pose)
 
-            x, y, yaw = d.robot_pose
-            sc.add_frame("/robot", show_axes=False, position=(x, y, 0.0), wxyz=yaw_quat(yaw))
-            self._robot = ViserUrdf(self.server, self._urdf, root_node_name="/robot")
+    def _draw_robot(self, x: float, y: float, yaw: float) -> None:
+        """The robot at ``(x, y, yaw)`` [m, rad] as it is: the collision meshes the ghosts
+        show, opaque, the arm in its travel posture."""
+        assert self.robot is not None
+        self._robot_frame = self.server.scene.add_frame(
+            "/robot", show_axes=False, position=(x, y, 0.0), wxyz=yaw_quat(yaw)
+        )
+        self._robot = robot_urdf(self.server, self._urdf, "/robot", ROBOT_COLOUR)
+        self._robot_pose(self.robot.arm_joints, self.robot.travel_theta(self.robot.arm_joints))
+
+    def _robot_pose(self, joints: list[str], theta: list[float]) -> None:
+        """The drawn robot's arm at ``theta`` (for ``joints``) [rad or m], the rest locked."""
+        names = list(self._robot.get_actuated_joint_names())
+        self._robot_cfg = joint_cfg(names, joints, theta, None, self._locked)
+        pose(self._robot, self._robot_cfg)
 
     def _clicked(self, event: Any) -> None:
         """A click in the 3D view selects the item under it, or clears the selection."""
@@ -426,8 +439,11 @@ class PlannerApp:
                 hint="the plan drawn: the task's or an order's",
             )  # fmt: skip
             self.mix_md = gui.add_markdown("")
-            # The robots stand on their stops' circles; hide them to see the circles whole.
-            self.show_robots = gui.add_checkbox("robots at stops", True)
+            # The ghosts stand on their stops' circles: off until asked for.
+            self.show_robots = gui.add_checkbox(
+                "ghost robots at stops", self.layer.show_ghosts,
+                hint="the robot at each stop in its witness posture (it covers the circles)",
+            )  # fmt: skip
             self.show_robots.on_update(lambda _: self.layer.ghosts_visible(self.show_robots.value))
         for h in (self.sigma, self.rule, self.target, self.objective, self.placement,
                   self.order):  # fmt: skip
@@ -445,9 +461,12 @@ class PlannerApp:
             self.revert_btn.on_click(lambda _: self._travel("revert"))
             self.saved = gui.add_markdown(panel.scene_revision(st.stored))
         with gui.add_folder("Plan"):
-            gui.add_button("Play route").on_click(
-                lambda _: threading.Thread(target=self._playback, daemon=True).start()
-            )
+            self.play_btn = gui.add_button(
+                "Play route", hint="drive the route, the arm in its travel posture; reach for "
+                "each part at its stop and fold back",
+            )  # fmt: skip
+            self.play_btn.on_click(lambda _: self._play())
+            self.robot_md = gui.add_markdown(panel.travel_line(self.robot))
             gui.add_button("Download report").on_click(self._download_report)
             gui.add_button("Download stops CSV").on_click(self._download_stops)
             gui.add_button("Download plan JSON").on_click(self._export)
@@ -830,18 +849,37 @@ class PlannerApp:
             self.selection.gizmo.visible = shown and self.selection.key is not None
             self.measure.hide_all(False)
 
-    def _playback(self) -> None:
-        """Drive the robot along the route and reach for each part at each stop."""
-        plan, robot = self.state.plan, getattr(self, "_robot", None)
-        if plan is None or robot is None:
+    def _play(self) -> None:
+        """Play the route on a thread (a second click while it plays does nothing)."""
+        if not self._playing.acquire(blocking=False):
             return
-        frame = self.server.scene.add_frame("/robot", show_axes=False)
-        names = list(robot.get_actuated_joint_names())
-        for step in playback(plan):
+        self.play_btn.disabled = True
+
+        def play() -> None:
+            try:
+                self._playback()
+            finally:
+                self.play_btn.disabled = False
+                self._playing.release()
+
+        threading.Thread(target=play, daemon=True).start()
+
+    def _playback(self, rest: float = 1.0) -> None:
+        """Drive the robot along the route in its travel posture, reaching for each part at
+        each stop (:func:`playback`); after ``rest`` [s] at the goal, back to the start."""
+        plan, robot = self.state.plan, self.robot
+        if plan is None or robot is None or getattr(self, "_robot", None) is None:
+            return
+        frame = self._robot_frame
+        for step in playback(plan, robot.travel_theta(plan.joints)):
             frame.position, frame.wxyz = (step.x, step.y, 0.0), yaw_quat(step.yaw)
             if step.theta is not None:
-                robot.update_cfg(joint_cfg(names, plan.joints, step.theta, None, self._locked))
+                self._robot_pose(plan.joints, step.theta)
             time.sleep(step.hold)
+        time.sleep(rest)
+        with self._lock:
+            x, y, yaw = (float(self.state.doc["start"].get(k, 0.0)) for k in ("x", "y", "yaw"))
+        frame.position, frame.wxyz = (x, y, 0.0), yaw_quat(yaw)
 
 
 def run(

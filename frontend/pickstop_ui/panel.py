@@ -6,6 +6,7 @@ import math
 
 from pickstop.sequence.plan_model import Plan
 from pickstop_ui.client import ApiProblem, StoredScene
+from pickstop_ui.robot_model import RobotDrawing
 
 MAX_REASONS = 4  # distinct rejection reasons listed under the stops
 
@@ -135,3 +136,16 @@ def save_problem(e: ApiProblem) -> str:
             "Nothing was overwritten; reload to see their version."
         )
     return f"⚠ **Not saved:** {e.title}: {e.detail}"
+
+
+def travel_line(robot: RobotDrawing | None) -> str:
+    """A warning when the robot's travel posture is not collision-free (empty otherwise)."""
+    if robot is None or not robot.travel_collisions:
+        return ""
+    pairs = ", ".join(f"{a} – {b}" for a, b in robot.travel_collisions[:4])
+    more = len(robot.travel_collisions) - 4
+    pairs += f" and {more} more" if more > 0 else ""
+    return (
+        f"⚠ **{robot.name}'s travel posture is not collision-free** ({pairs}): set `travel` "
+        "in its robot config (`pickstop robot check` shows it)."
+    )

@@ -8,6 +8,7 @@ ghost is first needed; later plans only move them and set their joints.
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import numpy as np
@@ -17,6 +18,28 @@ from pickstop.frames import yaw_quat
 from pickstop_ui.plan_view import MAX_LABELS, PlanDrawing
 
 _NOWHERE = np.zeros((1, 2, 3), np.float32) - 10.0  # a placeholder segment below the floor
+#: The ghosts and the robot share one URDF whose joint values each pose sets, then reads.
+_FK = threading.Lock()
+#: The ghosts' colour (RGBA): the collision meshes, translucent.
+GHOST_COLOUR = (0.55, 0.6, 0.95, 0.5)
+#: The robot at the start: the same meshes, opaque and darker.
+ROBOT_COLOUR = (0.35, 0.4, 0.75)
+
+
+def robot_urdf(server: viser.ViserServer, urdf: Any, root: str, colour: tuple[float, ...]) -> Any:
+    """The robot's collision meshes under ``root`` in ``colour`` (RGB, or RGBA translucent):
+    far fewer triangles than the visual ones, so a browser without a GPU keeps up."""
+    from viser.extras import ViserUrdf
+
+    return ViserUrdf(server, urdf, root_node_name=root, load_meshes=False,
+                     load_collision_meshes=True, collision_mesh_color_override=colour)  # fmt: skip
+
+
+def pose(robot: Any, cfg: np.ndarray) -> None:
+    """Set ``robot``'s (a ViserUrdf's) actuated joints to ``cfg`` (forward kinematics of
+    every link; one pose at a time, the URDF being shared)."""
+    with _FK:
+        robot.update_cfg(cfg)
 
 
 def _set(h: Any, **props: Any) -> None:
@@ -39,7 +62,7 @@ class PlanLayer:
     def __init__(self, server: viser.ViserServer, urdf: Any = None) -> None:
         self.server = server
         self.urdf = urdf
-        self.show_ghosts = True
+        self.show_ghosts = False  # they cover the circles: shown when asked for
         self._regions: dict[str, Any] = {}
         self._lines: dict[str, Any] = {}
         self._centres: Any = None
@@ -140,7 +163,7 @@ class PlanLayer:
             _set(frame, visible=self.show_ghosts)
             old = self._cfgs[k]
             if g.cfg is not None and (old is None or not np.array_equal(old, g.cfg)):
-                urdf.update_cfg(g.cfg)  # forward kinematics of every link: only on a change
+                pose(urdf, g.cfg)  # forward kinematics of every link: only on a change
                 self._cfgs[k] = np.array(g.cfg)
         self._n_ghosts = len(ghosts)
 
@@ -162,20 +185,10 @@ class PlanLayer:
         return self._joints
 
     def _add_ghost(self) -> None:
-        from viser.extras import ViserUrdf
-
         k = len(self.ghosts)
         frame = self.server.scene.add_frame(f"/ghosts/{k}", show_axes=False)
-        # Ghosts show the collision meshes: far fewer triangles than the visual ones, so a
-        # browser without a GPU keeps up while sigma or a tray moves.
-        ghost = ViserUrdf(
-            self.server,
-            self.urdf,
-            root_node_name=f"/ghosts/{k}",
-            load_meshes=False,
-            load_collision_meshes=True,
-            collision_mesh_color_override=(0.55, 0.6, 0.95, 0.5),
-        )
+        frame.visible = self.show_ghosts
+        ghost = robot_urdf(self.server, self.urdf, f"/ghosts/{k}", GHOST_COLOUR)
         self.ghosts.append((frame, ghost))
         self._cfgs.append(None)
 

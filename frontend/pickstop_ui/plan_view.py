@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from shapely.geometry import Polygon
 
-from pickstop.sequence.plan_model import Plan
+from pickstop.sequence.plan_model import Plan, Stop
 from pickstop_ui.geometry import (
     circle_segments,
     patch_mesh,
@@ -200,31 +201,67 @@ def joint_cfg(
 
 @dataclass(frozen=True)
 class PlaybackStep:
-    """One moment of the route's playback: the base pose [m, rad], the arm's joints (None:
-    as it was) and how long to hold it [s]."""
+    """One moment of the route's playback: the base pose [m, rad], the arm's joints in the
+    plan's joint order [rad or m] (None: as it was), how long to hold it [s] and what the
+    robot does: ``drive``, ``reach`` (travel posture to a witness), ``pick`` (at the witness),
+    ``fold`` (back to the travel posture) or ``travel`` (in the travel posture, standing)."""
 
     x: float
     y: float
     yaw: float
     theta: list[float] | None
     hold: float
+    what: Literal["drive", "reach", "pick", "fold", "travel"]
+
+
+def _between(a: np.ndarray, b: np.ndarray, n: int) -> list[list[float]]:
+    """The ``n`` joint-space points from just past ``a`` to ``b`` (``b`` included)."""
+    return [list(map(float, a + (b - a) * k / n)) for k in range(1, n + 1)]
+
+
+def _picks(
+    stop: Stop, travel: np.ndarray, dt: float, reach_time: float, moves: int
+) -> Iterator[PlaybackStep]:
+    """At ``stop``: for each witness, the arm from ``travel`` to it in ``moves`` steps, held
+    there ``reach_time`` [s], then back to ``travel`` in ``moves`` steps."""
+    at = (stop.x, stop.y, stop.yaw)
+    for w in stop.witnesses:
+        theta = np.asarray(w.theta, float)
+        for t in _between(travel, theta, moves)[:-1]:
+            yield PlaybackStep(*at, t, dt, "reach")
+        yield PlaybackStep(*at, list(map(float, theta)), reach_time, "pick")
+        for t in _between(theta, travel, moves):
+            yield PlaybackStep(*at, t, dt, "fold")
 
 
 def playback(
-    plan: Plan, speed: float = 1.5, dt: float = 1 / 30, reach_time: float = 0.6
+    plan: Plan,
+    travel: list[float],
+    speed: float = 1.5,
+    dt: float = 1 / 30,
+    reach_time: float = 0.6,
+    moves: int = 8,
 ) -> Iterator[PlaybackStep]:
-    """The robot driving each leg at ``speed`` [m/s] in steps of ``dt`` [s], then at each
-    stop reaching each witness for ``reach_time`` [s] and folding the arm back (zeros)."""
+    """The robot in its ``travel`` posture (the plan's joint order [rad or m]) driving each leg
+    at ``speed`` [m/s] in steps of ``dt`` [s]; at each stop, for each witness, reaching it in
+    ``moves`` joint-space steps, holding it ``reach_time`` [s] and folding back to travel in
+    ``moves`` steps; in the travel posture at the goal at the end."""
+    home = np.asarray(travel, float)
+    assert home.shape == (len(plan.joints),), (home.shape, plan.joints)
+    folded = list(map(float, home))
     for k, leg in enumerate(plan.legs):
         line = np.asarray(leg.polyline, float)
         length = float(np.sum(np.hypot(*np.diff(line, axis=0).T))) if len(line) > 1 else 0.0
         s = 0.0
         while s <= length:
             p, heading = polyline_at(line, s)
-            yield PlaybackStep(float(p[0]), float(p[1]), heading, None, dt)
+            # The travel posture set as each leg starts; the arm keeps it while driving.
+            theta = folded if s == 0.0 else None
+            yield PlaybackStep(float(p[0]), float(p[1]), heading, theta, dt, "drive")
             s += speed * dt
         if k < len(plan.stops):
-            stop = plan.stops[k]
-            for w in stop.witnesses:
-                yield PlaybackStep(stop.x, stop.y, stop.yaw, list(w.theta), reach_time)
-            yield PlaybackStep(stop.x, stop.y, stop.yaw, [0.0] * len(plan.joints), 0.0)
+            yield from _picks(plan.stops[k], home, dt, reach_time, moves)
+    if plan.legs and len(plan.legs[-1].polyline):
+        end = np.asarray(plan.legs[-1].polyline, float)
+        _, heading = polyline_at(end, float("inf"))
+        yield PlaybackStep(float(end[-1][0]), float(end[-1][1]), heading, folded, 0.0, "travel")

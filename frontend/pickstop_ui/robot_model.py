@@ -1,4 +1,5 @@
-"""The scene's robot, fetched from the API: its URDF and meshes, and the joint values to draw it.
+"""The scene's robot, fetched from the API: its URDF and meshes, the joint values to draw it
+and its travel posture.
 
 The API serves a robot's URDF with mesh references ``files/<id>`` and each file by its id; they
 are kept in a cache folder (per API and robot), so a planner draws any registered robot, not
@@ -31,6 +32,12 @@ class RobotDrawing:
     urdf: Any  # yourdfpy.URDF
     arm_joints: list[str]
     joint_values: dict[str, float]  # every joint that is not sampled: locked or pre-grasp
+    travel: dict[str, float]  # the arm's travel posture, every arm joint [rad or m]
+    travel_collisions: list[tuple[str, str]]  # link pairs in contact there (empty: free)
+
+    def travel_theta(self, joints: list[str]) -> list[float]:
+        """The travel posture in the order of ``joints`` (a plan's arm joints)."""
+        return [float(self.travel[j]) for j in joints]
 
 
 def scene_robot_name(doc: dict[str, Any]) -> str:
@@ -73,4 +80,6 @@ def fetch_robot(client: PickStopClient, name: str, cache: Path | None = None) ->
         urdf=urdf,
         arm_joints=list(model["arm_joints"]),
         joint_values={k: float(v) for k, v in model["joint_values"].items()},
+        travel={k: float(v) for k, v in model["travel"].items()},
+        travel_collisions=[(str(a), str(b)) for a, b in model["travel_collisions"]],
     )

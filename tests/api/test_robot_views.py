@@ -12,6 +12,9 @@ def test_robot_model_serves_its_urdf_and_meshes(client):
     assert model["arm_joints"][0] == "torso_lift_joint"
     assert model["joint_values"]["head_2_joint"] == -0.6  # locked, for drawing
     assert "hand_thumb_joint" in model["hand_joints"]
+    # The arm's travel posture, every arm joint, collision-free by the exact check.
+    assert list(model["travel"]) == model["arm_joints"]
+    assert model["travel"]["arm_4_joint"] == 1.94 and model["travel_collisions"] == []
     refs = set(re.findall(r'filename="files/([^"]+)"', model["urdf"]))
     assert refs == set(model["files"]) and len(refs) > 10
     assert "/" not in "".join(refs) and "site-packages" not in model["urdf"]

@@ -109,3 +109,22 @@ def test_a_plan_refused_for_the_hands_reach_names_the_offset_and_the_check(
     (command,) = set(re.findall(r"`(pickstop robot check [^`]+)`", err))
     assert main([*shlex.split(command)[1:], "--quiet"]) == 0  # runs as printed
     assert "hand.tool_offset: {position: [0.016, 0, 0]}" in capsys.readouterr().out
+
+
+def test_check_shows_the_travel_posture_and_warns_when_it_collides():
+    from pickstop.robot.check import check_config, format_report
+    from pickstop.robot.config import resolve_robot
+
+    config, root = resolve_robot("tiago")
+    report = check_config(config, root, "tiago", cache_dir())
+    assert report["travel"]["source"] == "config" and report["travel"]["collisions"] == []
+    assert report["travel"]["joints"]["arm_4_joint"] == 1.94
+    assert "travel posture (config): torso_lift_joint 0.15" in format_report(report)
+    assert "collision-free (exact check)" in format_report(report)
+    assert not [w for w in report["warnings"] if "travel" in w]
+    # The elbow folded back through the torso: told, with the links in contact.
+    bent = {"arm_2_joint": -1.5, "arm_4_joint": 2.3}
+    bad = check_config(config.model_copy(update={"travel": bent}), root, "tiago", cache_dir())
+    (warning,) = [w for w in bad["warnings"] if "travel" in w]
+    assert "the config's `travel`) is not collision-free: arm_4_link - torso" in warning
+    assert "COLLIDING" in format_report(bad)

@@ -149,3 +149,29 @@ def test_config_files_parse_a_text_once_and_a_changed_text_again(tmp_path):
     assert again is not first and again.name == "tiago_copy"
     with pytest.raises(RobotConfigError):
         configs.load(tmp_path / "nope.yaml")
+
+
+def test_travel_names_an_arm_joint(tmp_path):
+    text = TIAGO_CONFIG.format(urdf=TIAGO_URDF) + "travel: {head_1_joint: 0.0}\n"
+    with pytest.raises(RobotConfigError) as e:
+        load_config(write_config(tmp_path, text))
+    assert e.value.field == "travel"
+    assert "travel: Value error, not arm joints: head_1_joint" in e.value.message
+    assert "arm_1_joint" in e.value.message  # the joints it may name
+
+
+def test_travel_value_outside_limits(tmp_path):
+    text = TIAGO_CONFIG.format(urdf=TIAGO_URDF) + "travel: {arm_4_joint: 3.0}\n"
+    with pytest.raises(RobotConfigError) as e:
+        config, root = load_config(write_config(tmp_path, text))
+        load_robot(config, root)
+    assert e.value.field == "travel.arm_4_joint"
+    assert "travel posture: joint 'arm_4_joint' value 3.0 is outside its limits" in e.value.message
+    assert "rad" in e.value.message
+
+
+def test_travel_does_not_change_the_robot_hash(tmp_path):
+    a = load(str(write_config(tmp_path, TIAGO_CONFIG.format(urdf=TIAGO_URDF), "a.yaml")))
+    text = TIAGO_CONFIG.format(urdf=TIAGO_URDF) + "travel: {torso_lift_joint: 0.1}\n"
+    b = load(str(write_config(tmp_path, text, "b.yaml")))
+    assert a.robot_hash == b.robot_hash and b.config.travel == {"torso_lift_joint": 0.1}

@@ -71,3 +71,16 @@ def test_saving_words():
     assert (
         panel.waiting_line("sigma [m] changed") == "**Status:** ⏳ exact plan… (sigma [m] changed)"
     )
+
+
+def test_a_colliding_travel_posture_is_said_in_the_panel():
+    from pickstop_ui.robot_model import RobotDrawing
+
+    pairs = [("arm_4_link", "torso_lift_link")] + [(f"a{k}", "b") for k in range(5)]
+    robot = RobotDrawing("bot", None, ["j"], {}, {"j": 0.0}, pairs)
+    line = panel.travel_line(robot)
+    assert "bot's travel posture is not collision-free" in line
+    assert "arm_4_link – torso_lift_link" in line and "and 2 more" in line and "`travel`" in line
+    free = RobotDrawing("bot", None, ["j"], {}, {"j": 0.0}, [])
+    assert panel.travel_line(free) == "" and panel.travel_line(None) == ""
+    assert free.travel_theta(["j"]) == [0.0]

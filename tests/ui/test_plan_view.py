@@ -40,18 +40,64 @@ def test_a_preview_is_drawn_as_one_dashed_lighter_and_without_robots(plans):
     assert d.labels and all(text.endswith("(preview)") for text, _ in d.labels)
 
 
+def _travel(plan) -> list[float]:
+    """A travel posture for the tests: each joint a little off every witness's value."""
+    return [0.01 * (k + 1) for k in range(len(plan.joints))]
+
+
 def test_playback_drives_every_leg_and_reaches_each_witness_at_its_stop(plans):
     exact, _ = plans
-    steps = list(playback(exact, speed=1.5, dt=0.1, reach_time=0.6))
-    reaches = [s for s in steps if s.theta is not None and s.hold > 0]
-    assert len(reaches) == sum(len(s.witnesses) for s in exact.stops)
+    steps = list(playback(exact, _travel(exact), speed=1.5, dt=0.1, reach_time=0.6))
+    picks = [s for s in steps if s.what == "pick"]
+    assert len(picks) == sum(len(s.witnesses) for s in exact.stops)
     for stop in exact.stops:  # each witness is reached standing on its stop
-        mine = [s for s in reaches if (s.x, s.y, s.yaw) == (stop.x, stop.y, stop.yaw)]
+        mine = [s for s in picks if (s.x, s.y, s.yaw) == (stop.x, stop.y, stop.yaw)]
         assert [s.theta for s in mine] == [list(w.theta) for w in stop.witnesses]
-    driving = [s for s in steps if s.theta is None]
+        assert all(s.hold == 0.6 for s in mine)
+    driving = [s for s in steps if s.what == "drive"]
     # One step per 0.15 m driven and one at each leg's start.
     route = sum(leg.length for leg in exact.legs)
     assert len(driving) == pytest.approx(route / 0.15 + len(exact.legs), abs=len(exact.legs))
     first, last = exact.legs[0].polyline[0], exact.legs[-1].polyline[-1]
     assert (driving[0].x, driving[0].y) == pytest.approx(tuple(first))
     assert np.hypot(driving[-1].x - last[0], driving[-1].y - last[1]) <= 0.15 + 1e-9
+    assert (steps[-1].x, steps[-1].y) == pytest.approx(tuple(last))  # it ends at the goal
+
+
+def _postures(steps) -> list[tuple[str, object]]:
+    """The arm's postures in order, runs of one kind of move collapsed into one entry."""
+    out: list[tuple[str, object]] = []
+    for s in steps:
+        if s.theta is None:
+            continue
+        entry = (s.what, tuple(s.theta) if s.what in ("pick", "travel", "drive") else None)
+        if s.what in ("reach", "fold") and out and out[-1][0] == s.what:
+            continue
+        out.append(entry)
+    return out
+
+
+def test_playback_travels_folded_and_reaches_each_witness_from_travel_and_back(plans):
+    exact, _ = plans
+    travel = tuple(_travel(exact))
+    steps = list(playback(exact, list(travel), dt=0.1, moves=5))
+    expected: list[tuple[str, object]] = []
+    for k in range(len(exact.legs)):
+        expected.append(("drive", travel))  # the arm in travel as each leg starts
+        if k < len(exact.stops):
+            for w in exact.stops[k].witnesses:
+                expected += [("reach", None), ("pick", tuple(w.theta)), ("fold", None)]
+    expected.append(("travel", travel))
+    assert _postures(steps) == expected
+    # Between the postures the arm moves in joint space, 5 steps each way, and every fold
+    # ends exactly in the travel posture; nothing but the first drive step of a leg sets it.
+    folds = [k for k, s in enumerate(steps) if s.what == "fold"]
+    assert len(folds) == 5 * sum(len(s.witnesses) for s in exact.stops)
+    ends = [k for k in folds if k + 1 == len(steps) or steps[k + 1].what != "fold"]
+    assert all(steps[k].theta == pytest.approx(travel) for k in ends)
+    assert all(s.theta is None for s in steps if s.what == "drive" and s.theta != list(travel))
+    w = exact.stops[0].witnesses[0]
+    first = next(s for s in steps if s.what == "reach")
+    assert first.theta == pytest.approx(
+        [t + (x - t) / 5 for t, x in zip(travel, w.theta, strict=True)]
+    )

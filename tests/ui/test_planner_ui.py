@@ -135,7 +135,7 @@ def _settled_sigma(app) -> float:
 
 
 def _robots_checkbox(pg):
-    return pg.get_by_label("robots at stops")
+    return pg.get_by_label("ghost robots at stops")
 
 
 def _wait_for(cond, timeout: float = 10.0) -> None:
@@ -228,10 +228,8 @@ def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app, close_ob
     plan = planner_app.state.plan
     n_stops = len(plan.stops)
     target = _sigma_splitting_a_stop(plan)
-    # The robots stand on their circles: the engineer hides them to see the circles whole.
-    _robots_checkbox(ui_page).click()
-    # The checkbox's value reaches the server before its callback hides the robots.
-    _wait_for(lambda: not planner_app.show_robots.value)
+    # The ghost robots would stand on their circles: they are off until asked for.
+    assert not planner_app.show_robots.value
     _wait_for(lambda: not any(frame.visible for frame, _ in planner_app.layer.ghosts))
     time.sleep(1.5)
     before = _shot(ui_page, "02-sigma-before")

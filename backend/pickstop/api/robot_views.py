@@ -16,11 +16,20 @@ from pickstop.robot.assets import RobotAssets, robot_assets
 
 
 def assets_of(robots: RobotRegistry, name: str) -> RobotAssets:
-    """The drawing assets of a preset or registered robot (made once per robot)."""
+    """The drawing assets of a preset or registered robot (made once per robot; its travel
+    posture is checked exactly with its self-collision pairs, read from the cache where a
+    check, a build or a plan made them)."""
+    from pickstop.robot.cache import robots_folder
+    from pickstop.robot.selfcollision import disabled_pairs
+    from pickstop.robot.travel import travel_of
+    from pickstop.settings import cache_dir
+
     config, root = robots.config(name)
     key = (name, config.model_dump_json())
     if key not in robots.assets:
-        robots.assets[key] = robot_assets(robots.planners.robot(config, root))
+        robot = robots.planners.robot(config, root)
+        disabled = disabled_pairs(robot, cache_dir=robots_folder(cache_dir(robots.data_dir)))
+        robots.assets[key] = robot_assets(robot, travel_of(robot, disabled))
     assets: RobotAssets = robots.assets[key]
     return assets
 
@@ -34,6 +43,8 @@ def model_of(robots: RobotRegistry, name: str) -> dict[str, Any]:
         "arm_joints": a.arm_joints,
         "joint_values": a.joint_values,
         "hand_joints": a.hand_joints,
+        "travel": a.travel,
+        "travel_collisions": [list(p) for p in a.travel_collisions],
     }
 
 

@@ -4,7 +4,8 @@
 ``package://``, relative or absolute paths) to ``files/<id>`` (ids derived from the file's
 path), so the URDF can be served and its meshes fetched one by one from the same place; only
 the files listed in the result are ever served. Joint values to draw it with come along: every
-joint that is not sampled at its locked value (the hand at its pre-grasp posture).
+joint that is not sampled at its locked value (the hand at its pre-grasp posture), and the
+arm's travel posture with the link pairs the exact check finds in contact there.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pickstop.robot.model import RobotModel, resolve_path
+from pickstop.robot.travel import Travel
 
 
 @dataclass(frozen=True)
@@ -26,6 +28,8 @@ class RobotAssets:
     arm_joints: list[str]
     joint_values: dict[str, float]  # joints not sampled: locked or pre-grasp values [rad or m]
     hand_joints: list[str]
+    travel: dict[str, float]  # the arm's travel posture [rad or m]
+    travel_collisions: list[tuple[str, str]]  # link pairs in contact there (empty: free)
 
 
 def file_id(path: Path) -> str:
@@ -34,9 +38,10 @@ def file_id(path: Path) -> str:
     return digest + path.suffix.lower()
 
 
-def robot_assets(robot: RobotModel) -> RobotAssets:
+def robot_assets(robot: RobotModel, travel: Travel) -> RobotAssets:
     """The URDF of ``robot`` with every resolvable mesh served as ``files/<id>``; a visual
-    mesh that does not resolve is left out (collision meshes were checked at load)."""
+    mesh that does not resolve is left out (collision meshes were checked at load).
+    ``travel``: its travel posture (:func:`pickstop.robot.travel.travel_of`)."""
     from pickstop.robot.hand import hand_joints
 
     root = ET.parse(robot.urdf_path).getroot()
@@ -73,4 +78,6 @@ def robot_assets(robot: RobotModel) -> RobotAssets:
         arm_joints=[j.name for j in robot.joints],
         joint_values=values,
         hand_joints=list(hand_joints(robot)),
+        travel=travel.by_joint(robot),
+        travel_collisions=list(travel.collisions),
     )

@@ -5,7 +5,7 @@ joint or frame lists those that exist), then reports the resolved tool, hand and
 the collision links (and which dense meshes the screens replace by their hulls), the disabled
 self-collision pairs with their source (the SRDF, or computed as MoveIt's setup assistant does;
 with an SRDF both, and where they disagree) and the sphere screen's false rejection against
-exact coal checks.
+exact coal checks, and the arm's travel posture with the exact check of it.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from pickstop.robot.cache import COMPUTED, robots_folder
 from pickstop.robot.config import RobotConfig, resolve_robot
 from pickstop.robot.hand import hand_fit, hand_joints
 from pickstop.robot.model import RobotModel, load_robot
+from pickstop.robot.travel import problem, travel_of
 
 T = TypeVar("T")
 
@@ -74,6 +75,7 @@ def check_config(
         "screen", "the self-collision screen", lambda: self_collision(robot, cache_dir, steps)
     )
     quality = screen_quality(robot, cache_dir)
+    travel = timed("travel", "the travel posture", lambda: travel_of(robot, disabled))
     report: dict[str, Any] = {
         **_describe(robot, links, label),
         "self_collision": {
@@ -82,6 +84,11 @@ def check_config(
             "disabled": [[p.link1, p.link2, p.reason] for p in disabled.pairs],
         },
         "screen": _screen(quality),
+        "travel": {
+            "source": travel.source,
+            "joints": {k: round(v, 6) for k, v in travel.by_joint(robot).items()},
+            "collisions": [list(p) for p in travel.collisions],
+        },
         "seconds": seconds,
         "warnings": [],
     }
@@ -95,6 +102,9 @@ def check_config(
     if missed:
         report["warnings"].append(missed)
     report["warnings"] += _hand_warnings(report["hand"])
+    travel_problem = problem(robot, travel)
+    if travel_problem:
+        report["warnings"].append(travel_problem)
     report_step(steps, "")
     report["cache"] = {
         "folder": None if cache_dir is None else str(cache_dir),
@@ -373,6 +383,13 @@ def format_report(report: dict[str, Any]) -> str:
         lines += [f"    srdf only: {a} - {b}" for a, b in d["srdf_only"][:20]]
         lines += [f"    computed only: {a} - {b} ({r})" for a, b, r in d["computed_only"][:20]]
     lines.append(_screen_line(scr))
+    if "travel" in report:
+        tr = report["travel"]
+        lines.append(
+            f"  travel posture ({tr['source']}): "
+            + ", ".join(f"{k} {v:.4g}" for k, v in tr["joints"].items())
+            + ("; collision-free (exact check)" if not tr["collisions"] else "; COLLIDING")
+        )
     lines.append("  seconds: " + ", ".join(f"{k} {v}" for k, v in sec.items()))
     lines += [f"WARNING: {w}" for w in report.get("warnings", [])]
     cache = report.get("cache") or {}

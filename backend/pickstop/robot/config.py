@@ -14,7 +14,15 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from pickstop.caching import Cache
 from pickstop.errors import RobotConfigError
@@ -182,6 +190,12 @@ class RobotConfig(BaseModel):
     )
     footprint: Footprint = Field(default_factory=Footprint)
     hand: Hand = Hand()
+    travel: dict[str, float] | None = Field(
+        default=None,
+        description="the arm's posture while the base drives, by arm joint [rad or m]; unlisted "
+        "arm joints take 0 clipped into their limits; none: a folded posture computed from the "
+        "robot (pickstop.robot.travel)",
+    )
 
     hand_links: list[str] | None = Field(
         default=None, description="older configs: the hand's links (now hand.links)"
@@ -196,6 +210,24 @@ class RobotConfig(BaseModel):
         dup = sorted({j for j in v if v.count(j) > 1})
         if dup:
             raise ValueError(f"joints listed twice: {', '.join(dup)}")
+        return v
+
+    @field_validator("travel")
+    @classmethod
+    def _travel_joints(
+        cls, v: dict[str, float] | None, info: ValidationInfo
+    ) -> dict[str, float] | None:
+        arm = info.data.get("arm_joints")
+        if v is None or arm is None:
+            return v
+        other = [j for j in v if j not in arm]
+        if other:
+            raise ValueError(
+                f"not arm joints: {', '.join(other)} (the arm joints: {', '.join(arm)})"
+            )
+        bad = [j for j, x in v.items() if not math.isfinite(x)]
+        if bad:
+            raise ValueError(f"values must be finite numbers: {', '.join(bad)}")
         return v
 
     @model_validator(mode="after")

@@ -189,12 +189,13 @@ def _mesh_refs(urdf_path: Path, package_dirs: list[str]) -> tuple[ET.Element, li
 def _hash(config: RobotConfig, files: list[Path]) -> str:
     """Hash of everything a reachability database depends on: config and file contents.
 
-    The footprint and the hand's grasp description (links, tool offset, axes, opening) do not
-    change what the arm reaches nor its self-collision; the hand's pre-grasp joints and the
-    ignored links do (and enter the hash only when given, so older databases stay valid).
+    The footprint, the travel posture and the hand's grasp description (links, tool offset,
+    axes, opening) do not change what the arm reaches nor its self-collision; the hand's
+    pre-grasp joints and the ignored links do (and enter the hash only when given, so older
+    databases stay valid).
     """
     doc = config.model_dump(
-        mode="json", exclude={"footprint", "hand", "hand_links", "approach_axis"}
+        mode="json", exclude={"footprint", "hand", "hand_links", "approach_axis", "travel"}
     )
     if config.hand.pregrasp:
         doc["pregrasp"] = config.hand.pregrasp
@@ -335,6 +336,7 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
                 )
         joints.append(ArmJoint(jn, kind, _joint_axis(jm, short), lo, hi, iq, model.nqs[jid]))
 
+    _check_travel(config, joints)
     tool_id = model.getFrameId(config.tool_frame)
     if model.frames[tool_id].parentJoint != len(joints):
         raise RobotConfigError(
@@ -359,6 +361,20 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
     )
     robot.footprint = _footprint(robot, config.footprint)
     return robot
+
+
+def _check_travel(config: RobotConfig, joints: list[ArmJoint]) -> None:
+    """Every value of the config's travel posture lies within its joint's limits."""
+    by_name = {j.name: j for j in joints}
+    for jn, v in (config.travel or {}).items():
+        j = by_name[jn]
+        if not (j.lower - 1e-9 <= v <= j.upper + 1e-9):
+            unit = "m" if j.kind == "prismatic" else "rad"
+            raise RobotConfigError(
+                f"travel posture: joint {jn!r} value {v} is outside its limits "
+                f"[{j.lower:.6g}, {j.upper:.6g}] {unit}",
+                field=f"travel.{jn}",
+            )
 
 
 def _footprint(robot: RobotModel, footprint: Any) -> Any:

@@ -54,8 +54,9 @@ async def robot_check(service: ServiceDep, request: Request, name: RobotName) ->
 
 @router.get("/robots/{name}/model", dependencies=[ReadKey])
 async def robot_model(service: ServiceDep, request: Request, name: RobotName) -> dict[str, Any]:
-    """The robot's URDF (mesh references ``files/<id>``), its arm joints and the values of
-    every other joint (locked, or the hand's pre-grasp), for drawing it."""
+    """The robot's URDF (mesh references ``files/<id>``), its arm joints, the values of every
+    other joint (locked, or the hand's pre-grasp) and its travel posture (with the link pairs
+    in contact there, none when collision-free), for drawing it."""
     return await compute(
         service.threads,
         robot_views.model_of,
