@@ -117,13 +117,12 @@ def test_the_cache_behaves_as_the_reference(ops, max_items, max_weight):
             assert cache.pop(key) == (None if e is None else e[1])
             if e is not None:
                 ref.entries.remove(e)
-        elif op == "grow":  # a value that changes in place, then every entry weighed again
-            if (e := ref.find(key)) is not None:
-                cache.peek(key)[0] = w
-                e[1][0] = w
-                cache.reweigh()
-                ref.weights = {k: v[0] for k, v in ref.entries}
-                ref.evict()
+        elif op == "grow" and (e := ref.find(key)) is not None:  # changed in place, reweighed
+            cache.peek(key)[0] = w
+            e[1][0] = w
+            cache.reweigh()
+            ref.weights = {k: v[0] for k, v in ref.entries}
+            ref.evict()
         # The same entries in the same order, within the bounds (the entry used last may
         # stay alone over the weight bound).
         assert cache.items() == [tuple(e) for e in ref.entries]
