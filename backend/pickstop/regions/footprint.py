@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import hashlib
 import math
-from collections import OrderedDict
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
+from pickstop.caching import Cache
 from pickstop.frames import rot2
 from pickstop.robot.model import RobotModel
 from pickstop.scene.model import Scene
@@ -39,7 +40,7 @@ class UpperBody:
 def upper_body(robot: RobotModel) -> UpperBody:
     """The robot's base-fixed links above its footprint (made once per loaded robot and kept
     in its ``memo``)."""
-    hit = robot.memo.get("upper_body")
+    hit = robot.derived.upper_body
     if isinstance(hit, UpperBody):
         return hit
     from pickstop.robot.link_geometry import collision_links
@@ -68,7 +69,7 @@ def upper_body(robot: RobotModel) -> UpperBody:
         max(fp.bounding_radius, reach),
         fp.radius is not None and reach <= fp.radius,
     )
-    robot.memo["upper_body"] = body
+    robot.derived.upper_body = body
     return body
 
 
@@ -200,11 +201,10 @@ def _blocked_region(
     lookup), from pieces kept per solid (a layout that moves one tray makes that tray's
     pieces alone anew)."""
     key = (_solids_key(solids), float(yaw), footprint, upper)
-    memo = robot.memo.setdefault("blocked_regions", OrderedDict())
+    memo = _memo(robot, "blocked_regions", BLOCKED_MEMO)
     hit = memo.get(key)
     if hit is not None:
-        memo.move_to_end(key)
-        return hit
+        return hit  # type: ignore[no-any-return]
     fp = robot.footprint
     pieces: list[tuple[BaseGeometry | None, str]] = []
     concave = None
@@ -227,10 +227,7 @@ def _blocked_region(
     out = Blocked.of([(g, o) for g, o in pieces if g is not None], concave)
     if not keep:
         return out
-    memo[key] = out
-    while len(memo) > BLOCKED_MEMO:
-        memo.popitem(last=False)
-    return out
+    return memo.put(key, out)  # type: ignore[no-any-return]
 
 
 def _piece(robot: RobotModel, solid: Solid, yaw: float, body: str) -> BaseGeometry | None:
@@ -242,10 +239,10 @@ def _piece(robot: RobotModel, solid: Solid, yaw: float, body: str) -> BaseGeomet
     difference, the hull of the vertex differences (exact); the upper body's, those of each
     of its boxes that overlaps the solid in height (:func:`_upper_blocked`)."""
     key = (_solids_key([solid]), float(yaw), body)
-    memo = robot.memo.setdefault("blocked_pieces", OrderedDict())
+    memo = _memo(robot, "blocked_pieces", PIECES_MEMO)
     if key in memo:
-        memo.move_to_end(key)
-        return memo[key]
+        memo.touch(key)
+        return memo[key]  # type: ignore[no-any-return]
     fp = robot.footprint
     out: BaseGeometry | None
     if body == "upper":
@@ -257,10 +254,16 @@ def _piece(robot: RobotModel, solid: Solid, yaw: float, body: str) -> BaseGeomet
         rot = np.asarray(fp.polygon) @ rot2(yaw).T
         diff = (floor_outline(solid)[:-1, None, :] - rot[None, :, :]).reshape(-1, 2)
         out = shapely.MultiPoint(diff).convex_hull
-    memo[key] = out
-    while len(memo) > PIECES_MEMO:
-        memo.popitem(last=False)
-    return out
+    return memo.put(key, out)  # type: ignore[no-any-return]
+
+
+def _memo(robot: RobotModel, name: str, size: int) -> Cache[Any, Any]:
+    """The robot's cache ``name`` (a field of its ``derived``), made on first use."""
+    cache = getattr(robot.derived, name)
+    if cache is None:
+        cache = Cache(f"robot.{name}", max_items=size)
+        setattr(robot.derived, name, cache)
+    return cache  # type: ignore[no-any-return]
 
 
 def _solids_key(solids: list[Solid]) -> str:

@@ -1,7 +1,7 @@
 """Per-robot derived data that is slow to make: disabled pairs, the self-collision screen and
 other geometry derived from the robot alone (:func:`derived`).
 
-Kept in memory with the loaded robot (``RobotModel.memo``) and on disk per robot hash in the
+Kept in memory with the loaded robot (``RobotModel.derived``) and on disk per robot hash in the
 one cache every data folder and process shares (:mod:`pickstop.robot.cache`), so a check, a
 build, a region planner or a worker makes them once. A cache file that does not load, or
 belongs to another robot, is made again.
@@ -19,7 +19,6 @@ from pickstop.robot.cache import derived as derived  # where callers have found 
 from pickstop.robot.model import RobotModel
 
 _FORMAT = 2
-_SCREEN = "self_collision"  # robot.memo entry: (DisabledPairs, SphereModel, quality figures)
 
 
 def self_collision(
@@ -29,7 +28,7 @@ def self_collision(
     (:mod:`pickstop.progress`)."""
     from pickstop.robot.selfcollision import disabled_pairs
 
-    hit = robot.memo.get(_SCREEN)
+    hit = robot.derived.screen
     if hit is not None:
         return hit[0], hit[1]
     folder = robots_folder(cache_dir)
@@ -44,7 +43,7 @@ def self_collision(
                 COMPUTED["screen"] += 1
                 if path is not None:
                     write_atomic(path, pickle.dumps((robot.robot_hash, *kept), protocol=5))
-    robot.memo[_SCREEN] = (disabled, *kept)
+    robot.derived.screen = (disabled, *kept)
     return disabled, kept[0]
 
 
@@ -111,7 +110,7 @@ def screen_quality(
     the screen): ``false_rejection``, ``flagged``, ``colliding``, ``n``, ``rounds``,
     ``bound``."""
     self_collision(robot, cache_dir, steps)
-    quality: dict[str, float] = robot.memo[_SCREEN][2]
+    quality: dict[str, float] = robot.derived.screen[2]
     return quality
 
 

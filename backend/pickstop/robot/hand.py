@@ -171,10 +171,9 @@ def hand_joints(robot: RobotModel) -> dict[str, float]:
 
 def hand_shape(robot: RobotModel) -> HandShape:
     """The robot's open hand in the TCP frame (made once per loaded robot)."""
-    hit = robot.memo.get("hand_shape")
-    if isinstance(hit, HandShape):
-        return hit
-    shape = robot.memo["hand_shape"] = _make_shape(robot)
+    if robot.derived.hand_shape is None:
+        robot.derived.hand_shape = _make_shape(robot)
+    shape: HandShape = robot.derived.hand_shape
     return shape
 
 

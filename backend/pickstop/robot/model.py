@@ -53,6 +53,22 @@ class ArmJoint:
     nq: int  # 1, or 2 for continuous joints (cos, sin)
 
 
+@dataclass
+class Derived:
+    """What is derived from one loaded robot alone, each field made once by the function named
+    beside it (a loaded robot never changes, so nothing invalidates them). Typed ``Any`` where
+    the type lives in a module that imports this one."""
+
+    hand_shape: Any = None  # robot/hand.py hand_shape(): HandShape
+    screen: Any = None  # robot/artifacts.py self_collision(): (DisabledPairs, SphereModel, figures)
+    travel: Any = None  # robot/travel.py travel_of(): Travel
+    upper_body: Any = None  # regions/footprint.py upper_body(): UpperBody
+    # regions/footprint.py: where the base may not stand, per (solids, yaw, body parts) and
+    # per solid piece
+    blocked_regions: Any = None  # a pickstop.caching.Cache, made on first use
+    blocked_pieces: Any = None
+
+
 @dataclass(eq=False)
 class RobotModel:
     """A loaded robot. ``model`` is immutable; make a ``model.createData()`` per thread."""
@@ -70,10 +86,8 @@ class RobotModel:
     robot_hash: str
     footprint: Any = None  # config.Footprint with a radius or polygon (derived if not given)
     source: str = ""  # what to pass as ``--robot`` to load it again: a preset or a config path
-    # What is derived from this robot alone (its hand shape, self-collision screen, upper
-    # body), made once per loaded robot by the functions that own each entry; a loaded robot
-    # never changes, so nothing invalidates them.
-    memo: dict[str, Any] = field(default_factory=dict, repr=False)
+    # What is derived from this robot alone, made once per loaded robot (see Derived).
+    derived: Derived = field(default_factory=lambda: Derived(), repr=False)
 
     @property
     def name(self) -> str:

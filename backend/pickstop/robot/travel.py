@@ -99,10 +99,9 @@ def travel_of(robot: RobotModel, disabled: DisabledPairs) -> Travel:
     per loaded robot."""
     from pickstop.robot.exact import ExactSelfCollision
 
-    hit = robot.memo.get("travel")
-    if hit is None:
-        hit = robot.memo["travel"] = travel_posture(robot, ExactSelfCollision(robot, disabled))
-    assert isinstance(hit, Travel)
+    if robot.derived.travel is None:
+        robot.derived.travel = travel_posture(robot, ExactSelfCollision(robot, disabled))
+    hit: Travel = robot.derived.travel
     return hit
 
 
