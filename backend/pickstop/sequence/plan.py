@@ -707,6 +707,7 @@ class _Planning:
         self.circle: dict[int, Intersection] = {}  # placed candidate -> as the circle has it
         self.circle_rates: dict[int, Rate] = {}  # placed and chosen -> Monte Carlo at the circle
         self.floor: _Floor | None = None
+        self.placed_back: Paths | None = None  # paths after a placed stop went back (see run)
 
     def _clock(self, name: str, t0: float) -> float:
         now = time.perf_counter()
@@ -904,7 +905,6 @@ class _Planning:
         """The selection whose stops pass the exact check (and, with the success rule, the
         Monte Carlo), their witnesses and rates, and the paths (new if a placed stop went
         back to its circle's centre)."""
-        opts, sp, scene = self.opts, self.sp, self.scene
         for _ in range(MAX_VERIFY_ROUNDS):
             t0 = time.perf_counter()
             kept = [i for i in range(len(cands)) if i not in self.rejected]
@@ -915,62 +915,81 @@ class _Planning:
             t0 = self._clock("selection", t0)
             if self.preview:  # nothing verified: the selection as it stands
                 return sel, {c: [] for c in sel.order}, {}, paths
-            serves: dict[int, list[str]] = {}
-            for t, c in sel.serves.items():
-                serves.setdefault(c, []).append(t)
-            failed = False
+            serves = {c: tuple(t for t in self.required if sel.serves[t] == c) for c in sel.order}
             witnesses: dict[int, list[pm.Witness]] = {}
-            rates: dict[int, Rate] = {}
-            for c in sel.order:
-                cand = cands[c]
-                trays = tuple(t for t in self.required if t in serves[c])
-                ws = []
-                for t in trays:
-                    mine = sp.witnesses(scene, regions[t, cand.yaw], cand.centre, self.world)
-                    if mine is None and c in self.circle:  # try the circle's centre instead
-                        paths = self._unplace(c)
-                        failed = True
-                        break
-                    if mine is None:
-                        self.unusable.add(c)
-                        self.rejected[c] = (
-                            f"the exact check at its centre failed for tray {t} (the region's "
-                            "grid cells around it are feasible, the centre itself is not)"
-                        )
-                        failed = True
-                        break
-                    ws += mine
-                witnesses[c] = ws
+            for c in sel.order:  # every stop checked: a round learns all its failures
+                ws = self._witnesses(regions, cands[c], c, serves[c])
+                if ws is not None:
+                    witnesses[c] = ws
             t0 = self._clock("verification", t0)
-            if failed:
+            if len(witnesses) < len(sel.order):
+                if self.placed_back is not None:
+                    paths, self.placed_back = self.placed_back, None
                 continue
-            if opts.samples > 0 and self.sigma > 0:
-                for c in sel.order:
-                    trays = tuple(t for t in self.required if t in serves[c])
-                    rate = sp.success(
-                        scene, self.world, [regions[t, cands[c].yaw] for t in trays],
-                        cands[c].centre, self.sigma, opts.samples, opts.seed,
-                    )  # fmt: skip
-                    rates[c] = rate
-                    if c in self.circle:  # placed for success: the circle's rate beside it
-                        self.circle_rates[c] = sp.success(
-                            scene, self.world, [regions[t, cands[c].yaw] for t in trays],
-                            self.circle[c].centre, self.sigma, opts.samples, opts.seed,
-                        )  # fmt: skip
-                    if opts.rule == "success" and rate.rate < opts.target:
-                        lo, hi = rate.interval
-                        self.rejected[c] = (
-                            f"Monte Carlo success {rate.rate:.1%} (95% interval {lo:.1%} to "
-                            f"{hi:.1%}) is below the target {opts.target:.0%}"
-                        )
-                        failed = True
-                self._clock("monte_carlo", t0)
-            if not failed:
+            rates = self._confirm(regions, cands, sel, serves)
+            self._clock("monte_carlo", t0)
+            if all(c not in self.rejected for c in sel.order):
                 return sel, witnesses, rates, paths
         raise InfeasiblePlanError(
             f"no verified plan after {MAX_VERIFY_ROUNDS} rounds of selection: "
             + "; ".join(f"candidate {i}: {why}" for i, why in sorted(self.rejected.items())[-5:])
         )
+
+    def _witnesses(
+        self,
+        regions: dict[tuple[str, float], TrayRegion],
+        cand: Intersection,
+        c: int,
+        trays: tuple[str, ...],
+    ) -> list[pm.Witness] | None:
+        """The witnesses of candidate ``c`` serving ``trays`` from where it stands; None if the
+        exact check fails there: a placed stop goes back to its circle's centre (the new
+        paths in ``placed_back``), any other is rejected with the reason."""
+        ws: list[pm.Witness] = []
+        for t in trays:
+            mine = self.sp.witnesses(self.scene, regions[t, cand.yaw], cand.centre, self.world)
+            if mine is None and c in self.circle:  # try the circle's centre instead
+                self.placed_back = self._unplace(c)
+                return None
+            if mine is None:
+                self.unusable.add(c)
+                self.rejected[c] = (
+                    f"the exact check at its centre failed for tray {t} (the region's grid "
+                    "cells around it are feasible, the centre itself is not)"
+                )
+                return None
+            ws += mine
+        return ws
+
+    def _confirm(
+        self,
+        regions: dict[tuple[str, float], TrayRegion],
+        cands: list[Intersection],
+        sel: Selection,
+        serves: dict[int, tuple[str, ...]],
+    ) -> dict[int, Rate]:
+        """The Monte Carlo of each chosen stop (and at the circle's centre of a placed one);
+        with the success rule, a stop below the target is rejected with its rate."""
+        opts, sp, scene = self.opts, self.sp, self.scene
+        rates: dict[int, Rate] = {}
+        if opts.samples <= 0 or self.sigma <= 0:
+            return rates
+        for c in sel.order:
+            regs = [regions[t, cands[c].yaw] for t in serves[c]]
+            rate = rates[c] = sp.success(scene, self.world, regs, cands[c].centre, self.sigma,
+                                         opts.samples, opts.seed)  # fmt: skip
+            if c in self.circle:  # placed for success: the circle's rate beside it
+                self.circle_rates[c] = sp.success(
+                    scene, self.world, regs, self.circle[c].centre, self.sigma, opts.samples,
+                    opts.seed,
+                )  # fmt: skip
+            if opts.rule == "success" and rate.rate < opts.target:
+                lo, hi = rate.interval
+                self.rejected[c] = (
+                    f"Monte Carlo success {rate.rate:.1%} (95% interval {lo:.1%} to "
+                    f"{hi:.1%}) is below the target {opts.target:.0%}"
+                )
+        return rates
 
     def _solve(self, trays_of: list[frozenset[str]], idx: list[int], paths: Paths) -> Selection:
         """Stop selection over candidates ``idx``; the result is in global candidate indices."""
@@ -1154,21 +1173,74 @@ class _Planning:
         threshold: float,
         t_start: float,
     ) -> pm.Plan:
-        scene, opts, sp = self.scene, self.opts, self.sp
-        robot = sp.regions.robot
-        costs, preview = self.costs, self.preview
+        """The plan document: its stops, route, totals, the naive plan, every candidate."""
+        scene, robot = self.scene, self.sp.regions.robot
+        stops = self._stop_records(cands, sel, witnesses, rates)
+        legs, lengths = self._legs(paths, sel.order)
+        route: list[tuple[float, float]] = []
+        for leg in legs:
+            route += leg.polyline if not route else leg.polyline[1:]
+        tb = self._times(lengths, len(sel.order))
+        fails_of = [s.failures for s in stops]
+        known = [f for f in fails_of if f is not None]
+        whole = len(known) == len(stops)
+        success, interval = (None, None)
+        if rates:
+            success, interval = combined([rates[c] for c in sel.order])
+        preview_note = (
+            "preview: known regions carried with the moved trays and clipped where the base no "
+            "longer fits; stops and route are not verified"
+        )
+        return pm.Plan(
+            scene=scene.name,
+            scene_hash=scene_hash(scene),
+            database=self.sp.regions.db.id,
+            robot=robot.name,
+            robot_hash=robot.robot_hash,
+            joints=[j.name for j in robot.joints],
+            notes=([preview_note] if self.preview else []) + gripper_notes(scene)
+            + hand_notes(robot),
+            trays=list(self.required),
+            parameters=self._parameters(threshold),
+            stops=stops,
+            route=route,
+            legs=legs,
+            totals=pm.Totals(
+                stops=len(stops),
+                route_length=float(sum(leg.length for leg in legs)),
+                time=_time(tb, fails_of),
+                success=success,
+                success_interval=interval,
+                retries=float(sum(f.retries for f in known)) if whole else None,
+                operator_calls=float(sum(f.operator for f in known)) if whole else None,
+            ),
+            naive=self._naive_record(cands, paths, naive, tb, len(stops)),
+            optimal=sel.optimal,
+            candidates=self._candidate_records(cands, set(sel.order)),
+            timings=pm.Timings(**self.t, total=time.perf_counter() - t_start),
+            verified=not self.preview,
+        )  # fmt: skip
+
+    def _stop_records(
+        self,
+        cands: list[Intersection],
+        sel: Selection,
+        witnesses: dict[int, list[pm.Witness]],
+        rates: dict[int, Rate],
+    ) -> list[pm.Stop]:
+        """The chosen stops in visiting order, with their witnesses, rates and failures."""
         served = expected.served(sel)
         stops = []
         for k, c in enumerate(sel.order):
-            cand = cands[c]
-            rate = rates.get(c)
+            cand, rate = cands[c], rates.get(c)
             picked = [t for t in self.required if sel.serves[t] == c]
-            est = None if preview else self._estimates(c)[served[c]]
+            est = None if self.preview else self._estimates(c)[served[c]]
             fails = (
-                _failures(rate.rate, "monte_carlo", costs)
+                _failures(rate.rate, "monte_carlo", self.costs)
                 if rate is not None
-                else _failures(est, "estimate", costs)
+                else _failures(est, "estimate", self.costs)
             )
+            placed = c in self.circle
             stops.append(
                 pm.Stop(
                     index=k,
@@ -1182,131 +1254,95 @@ class _Planning:
                     witnesses=witnesses[c],
                     error_model=self.positioning.station_of(cand.centre, picked),
                     estimated_success=est,
-                    clearance=clearance(cand.polygon, cand.centre)
-                    if c in self.circle
-                    else cand.radius,
-                    circle_centre=self.circle[c].centre if c in self.circle else None,
+                    clearance=clearance(cand.polygon, cand.centre) if placed else cand.radius,
+                    circle_centre=self.circle[c].centre if placed else None,
                     circle_estimated_success=self._circle_estimate(c, served[c]),
                     circle_success=_success(self.circle_rates.get(c)),
-                    success=None
-                    if rate is None
-                    else pm.Success(
-                        samples=rate.samples,
-                        successes=rate.successes,
-                        rate=rate.rate,
-                        interval=rate.interval,
-                    ),
+                    success=_success(rate),
                     failures=fails,
                 )
             )
-        legs, lengths = self._legs(paths, sel.order)
-        route: list[tuple[float, float]] = []
-        for leg in legs:
-            route += leg.polyline if not route else leg.polyline[1:]
-        tb = self._times(lengths, len(sel.order))
-        fails_of = [s.failures for s in stops]
-        known = [f for f in fails_of if f is not None]
-        whole = len(known) == len(stops)
-        success, interval = (None, None)
-        if rates:
-            success, interval = combined([rates[c] for c in sel.order])
+        return stops
 
+    def _parameters(self, threshold: float) -> pm.Parameters:
+        scene, opts, m = self.scene, self.opts, self.scene.motion
+        return pm.Parameters(
+            sigma=self.sigma,
+            rule=opts.rule,
+            target=opts.target,
+            threshold_radius=threshold,
+            objective=opts.objective,
+            placement=opts.placement,
+            error_model=self.kind,
+            yaw_sigma=scene.error_model.yaw_sigma,
+            samples=opts.samples,
+            seed=opts.seed,
+            base_yaws=scene.base_yaw.yaws,
+            grid_resolution=scene.base_grid.resolution,
+            max_speed=m.max_speed,
+            max_acceleration=m.max_acceleration,
+            stop_time=m.stop_time,
+            pick_time=m.pick_time,
+            failure=scene.failure,
+        )
+
+    def _naive_record(
+        self,
+        cands: list[Intersection],
+        paths: Paths,
+        naive: tuple[list[int], Selection],
+        tb: TimeBreakdown,
+        n_stops: int,
+    ) -> pm.Naive:
+        """The naive plan (one stop per tray) beside the plan's time ``tb`` and ``n_stops``."""
         best, nsel = naive
         nlegs, nlengths = self._legs(paths, nsel.order)
         ntb = self._times(nlengths, len(best))
         nfails = [
-            None if preview else _failures(self._estimates(c)[s], "estimate", costs)
+            None if self.preview else _failures(self._estimates(c)[s], "estimate", self.costs)
             for c, s in expected.served(nsel).items()
         ]
-        chosen = set(sel.order)
-        m = scene.motion
-        return pm.Plan(
-            scene=scene.name,
-            scene_hash=scene_hash(scene),
-            database=sp.regions.db.id,
-            robot=robot.name,
-            robot_hash=robot.robot_hash,
-            joints=[j.name for j in robot.joints],
-            notes=(
-                [
-                    "preview: known regions carried with the moved trays and clipped where the "
-                    "base no longer fits; stops and route are not verified"
-                ]
-                if self.preview
-                else []
-            )
-            + gripper_notes(scene)
-            + hand_notes(robot),
-            trays=list(self.required),
-            parameters=pm.Parameters(
-                sigma=self.sigma,
-                rule=opts.rule,
-                target=opts.target,
-                threshold_radius=threshold,
-                objective=opts.objective,
-                placement=opts.placement,
-                error_model=self.kind,
-                yaw_sigma=scene.error_model.yaw_sigma,
-                samples=opts.samples,
-                seed=opts.seed,
-                base_yaws=scene.base_yaw.yaws,
-                grid_resolution=scene.base_grid.resolution,
-                max_speed=m.max_speed,
-                max_acceleration=m.max_acceleration,
-                stop_time=m.stop_time,
-                pick_time=m.pick_time,
-                failure=scene.failure,
-            ),
-            stops=stops,
-            route=route,
-            legs=legs,
-            totals=pm.Totals(
-                stops=len(stops),
-                route_length=float(sum(leg.length for leg in legs)),
-                time=_time(tb, fails_of),
-                success=success,
-                success_interval=interval,
-                retries=float(sum(f.retries for f in known)) if whole else None,
-                operator_calls=float(sum(f.operator for f in known)) if whole else None,
-            ),
-            naive=pm.Naive(
-                stops=[
-                    pm.NaiveStop(
-                        tray=next(iter(cands[i].trays)),
-                        x=cands[i].centre[0],
-                        y=cands[i].centre[1],
-                        inscribed_radius=cands[i].radius,
-                    )
-                    for i in nsel.order
-                ],
-                route_length=float(sum(leg.length for leg in nlegs)),
-                time=_time(ntb, nfails),
-                saving_time=ntb.total - tb.total,
-                saving_fraction=(ntb.total - tb.total) / ntb.total if ntb.total > 0 else 0.0,
-                saving_stops=len(best) - len(stops),
-            ),
-            optimal=sel.optimal,
-            candidates=[
+        return pm.Naive(
+            stops=[
+                pm.NaiveStop(
+                    tray=next(iter(cands[i].trays)),
+                    x=cands[i].centre[0],
+                    y=cands[i].centre[1],
+                    inscribed_radius=cands[i].radius,
+                )
+                for i in nsel.order
+            ],
+            route_length=float(sum(leg.length for leg in nlegs)),
+            time=_time(ntb, nfails),
+            saving_time=ntb.total - tb.total,
+            saving_fraction=(ntb.total - tb.total) / ntb.total if ntb.total > 0 else 0.0,
+            saving_stops=len(best) - n_stops,
+        )
+
+    def _candidate_records(
+        self, cands: list[Intersection], chosen: set[int]
+    ) -> list[pm.IntersectionRecord]:
+        """Every candidate with its circle (at the circle's centre, placed or not), status,
+        reason and success figures."""
+        out = []
+        for i, c in enumerate(cands):
+            status = "chosen" if i in chosen else ("rejected" if i in self.rejected else "kept")
+            est = None if self.preview else self._estimates(i)[frozenset(self._serveable(i))]
+            cx, cy = self.circle.get(i, c).centre
+            out.append(
                 pm.IntersectionRecord(
                     index=i,
                     trays=sorted(c.trays),
                     yaw=c.yaw,
-                    x=self.circle.get(i, c).centre[0],
-                    y=self.circle.get(i, c).centre[1],
+                    x=cx,
+                    y=cy,
                     inscribed_radius=c.radius,
                     area=c.polygon.area,
-                    status="chosen"
-                    if i in chosen
-                    else ("rejected" if i in self.rejected else "kept"),
+                    status=status,
                     reason=self.rejected.get(i),
                     predicted_success=self.predicted.get(i),
-                    estimated_success=None
-                    if preview
-                    else self._estimates(i)[frozenset(self._serveable(i))],
+                    estimated_success=est,
                     polygon=c.rings,
                 )
-                for i, c in enumerate(cands)
-            ],
-            timings=pm.Timings(**self.t, total=time.perf_counter() - t_start),
-            verified=not self.preview,
-        )
+            )
+        return out
