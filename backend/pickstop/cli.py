@@ -865,6 +865,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
 
+    _add_demo_and_regions(sub)
+    _add_plan(sub)
+    _add_layout(sub)
+    _add_service(sub)
+    _add_robot(sub)
+    _add_reach(sub)
+
+    from pickstop.fleet.cli import add_commands as add_fleet_commands
+
+    add_fleet_commands(sub)
+    return parser
+
+
+def _add_demo_and_regions(sub: Any) -> None:
+    """Add the demo and the regions commands to ``sub``."""
     demo = sub.add_parser("demo", help="the embedded default: bundled TIAGo and example scene")
     demo.add_argument("--samples", type=positive_int, default=DEFAULT_SAMPLES)
     demo.add_argument("--port", type=positive_int, help="API port (default 8000, or a free one)")
@@ -879,6 +894,9 @@ def build_parser() -> argparse.ArgumentParser:
     rg.add_argument("--robot", help=_ROBOT_HELP)
     rg.set_defaults(func=cmd_regions)
 
+
+def _add_plan(sub: Any) -> None:
+    """Add the plan command to ``sub``."""
     pl = sub.add_parser("plan", help="plan stops and route for a scene (or a folder of scenes)")
     pl.add_argument("scene", help="scene JSON file, or a folder: plan every *.json in it")
     pl.add_argument(
@@ -920,6 +938,9 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--robot", help=_ROBOT_HELP)
     pl.set_defaults(func=cmd_plan)
 
+
+def _add_layout(sub: Any) -> None:
+    """Add the layout command to ``sub``."""
     ly = sub.add_parser("layout", help="suggest where to move trays so the mix runs faster")
     ly.add_argument("scene", help="scene JSON file")
     ly.add_argument("--orders", metavar="FILE",
@@ -946,6 +967,9 @@ def build_parser() -> argparse.ArgumentParser:
     ly.add_argument("--quiet", action="store_true", help="no progress on stderr")
     ly.set_defaults(func=cmd_layout)
 
+
+def _add_service(sub: Any) -> None:
+    """Add the serve, ui and api-key commands to ``sub``."""
     sv = sub.add_parser("serve", help="run the REST API (uvicorn)")
     sv.add_argument("--host", help="listen address (default: $PICKSTOP_HOST or 127.0.0.1)")
     sv.add_argument("--port", type=positive_int, help="port (default: $PICKSTOP_PORT or 8000)")
@@ -994,6 +1018,9 @@ def build_parser() -> argparse.ArgumentParser:
     ak = sub.add_parser("api-key", help="make a new API key and print its hash for the settings")
     ak.set_defaults(func=cmd_api_key)
 
+
+def _add_robot(sub: Any) -> None:
+    """Add the robot commands to ``sub``."""
     robot = sub.add_parser("robot", help="robot configs").add_subparsers(
         dest="robot_command", required=True
     )
@@ -1011,6 +1038,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rc.set_defaults(func=cmd_robot_check)
 
+
+def _add_reach(sub: Any) -> None:
+    """Add the reach commands to ``sub``."""
     reach = sub.add_parser("reach", help="reachability databases").add_subparsers(
         dest="reach_command", required=True
     )
@@ -1066,11 +1096,6 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--refine", action="store_true", help="refine to an exact IK solution")
     q.add_argument("--refine-seeds", type=positive_int, default=20)
     q.set_defaults(func=cmd_reach_query)
-
-    from pickstop.fleet.cli import add_commands as add_fleet_commands
-
-    add_fleet_commands(sub)
-    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
