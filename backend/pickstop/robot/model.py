@@ -248,7 +248,42 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
         full = pin.buildModelFromXML(urdf_xml)
     except (ValueError, RuntimeError) as e:
         raise RobotConfigError(f"{urdf_path.name}: broken URDF: {e}", field="urdf") from None
+    _check_names(config, full, urdf_path)
+    q_full = _locked_configuration(config, full)
+    geom_full = _collision_geometry(config, full, urdf_xml, package_dirs, urdf_path)
+    arm_ids = [full.getJointId(j) for j in config.arm_joints]
+    lock_ids = [j for j in range(1, full.njoints) if j not in arm_ids]
+    model, geom_model = pin.buildReducedModel(full, geom_full, lock_ids, q_full)
+    joints = _arm_chain(config, model, urdf_path)
+    _check_travel(config, joints)
+    tool_id = model.getFrameId(config.tool_frame)
+    if model.frames[tool_id].parentJoint != len(joints):
+        raise RobotConfigError(
+            f"{urdf_path}: tool frame {config.tool_frame!r} is not carried by the last arm joint "
+            f"{config.arm_joints[-1]!r}",
+            field="tool_frame",
+        )
 
+    files = [urdf_path, *([srdf_path] if srdf_path else []), *sorted(set(meshes))]
+    robot = RobotModel(
+        config=config,
+        urdf_path=urdf_path,
+        srdf_path=srdf_path,
+        package_dirs=package_dirs,
+        full_model=full,
+        q_full=q_full,
+        model=model,
+        geom_model=geom_model,
+        tool_frame_id=tool_id,
+        joints=tuple(joints),
+        robot_hash=_hash(config, files),
+    )
+    robot.footprint = _footprint(robot, config.footprint)
+    return robot
+
+
+def _check_names(config: RobotConfig, full: Any, urdf_path: Path) -> None:
+    """Every joint and frame the config names exists in the URDF's model ``full``."""
     names = list(full.names)
     for i, jn in enumerate(config.arm_joints):
         if jn not in names:
@@ -270,7 +305,6 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
             f"{', '.join(frames)}",
             field="tool_frame",
         )
-
     for jn in config.hand.pregrasp:
         if jn not in names:
             raise RobotConfigError(
@@ -278,8 +312,11 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
                 f"{', '.join(names[1:])})",
                 field=f"hand.pregrasp.{jn}",
             )
-    # Locked configuration: the hand's pre-grasp values, the given locked values, else 0
-    # clipped into the joint limits.
+
+
+def _locked_configuration(config: RobotConfig, full: Any) -> np.ndarray:
+    """``(full.nq,)``: the hand's pre-grasp values, the given locked values, else 0 clipped
+    into the joint limits (the arm's entries are replaced when it moves)."""
     locked = {**config.locked_joints, **config.hand.pregrasp}
     q_full = pin.neutral(full)
     for jid in range(1, full.njoints):
@@ -303,7 +340,13 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
                 f"joint {jn!r} has {nq} coordinates; give its value as a list",
                 field=f"{where}.{jn}",
             )
+    return q_full  # type: ignore[no-any-return]
 
+
+def _collision_geometry(
+    config: RobotConfig, full: Any, urdf_xml: str, package_dirs: list[str], urdf_path: Path
+) -> Any:
+    """The URDF's collision geometry (pin.GeometryModel), the hand's ignored links left out."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
@@ -312,13 +355,12 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
             )
         except (ValueError, RuntimeError) as e:
             raise RobotConfigError(f"{urdf_path}: cannot load collision geometry: {e}") from None
+    return _without_ignored(geom_full, config.hand.ignore_links, urdf_path)
 
-    geom_full = _without_ignored(geom_full, config.hand.ignore_links, urdf_path)
-    arm_ids = [full.getJointId(j) for j in config.arm_joints]
-    lock_ids = [j for j in range(1, full.njoints) if j not in arm_ids]
-    model, geom_model = pin.buildReducedModel(full, geom_full, lock_ids, q_full)
 
-    # The arm must be a serial chain root -> tip that carries the tool frame.
+def _arm_chain(config: RobotConfig, model: Any, urdf_path: Path) -> list[ArmJoint]:
+    """The arm joints of the reduced ``model``: a serial chain root -> tip, each revolute,
+    prismatic or continuous with usable limits."""
     joints: list[ArmJoint] = []
     for i, jn in enumerate(config.arm_joints):
         jid = model.getJointId(jn)
@@ -349,32 +391,7 @@ def load_robot(config: RobotConfig, root: Path) -> RobotModel:
                     field=f"arm_joints[{i}]",
                 )
         joints.append(ArmJoint(jn, kind, _joint_axis(jm, short), lo, hi, iq, model.nqs[jid]))
-
-    _check_travel(config, joints)
-    tool_id = model.getFrameId(config.tool_frame)
-    if model.frames[tool_id].parentJoint != len(joints):
-        raise RobotConfigError(
-            f"{urdf_path}: tool frame {config.tool_frame!r} is not carried by the last arm joint "
-            f"{config.arm_joints[-1]!r}",
-            field="tool_frame",
-        )
-
-    files = [urdf_path, *([srdf_path] if srdf_path else []), *sorted(set(meshes))]
-    robot = RobotModel(
-        config=config,
-        urdf_path=urdf_path,
-        srdf_path=srdf_path,
-        package_dirs=package_dirs,
-        full_model=full,
-        q_full=q_full,
-        model=model,
-        geom_model=geom_model,
-        tool_frame_id=tool_id,
-        joints=tuple(joints),
-        robot_hash=_hash(config, files),
-    )
-    robot.footprint = _footprint(robot, config.footprint)
-    return robot
+    return joints
 
 
 def _check_travel(config: RobotConfig, joints: list[ArmJoint]) -> None:
