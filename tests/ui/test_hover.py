@@ -58,3 +58,24 @@ def test_without_a_plan_only_items_and_the_element_is_safe_html():
     assert parse_layout("1280,800,880") == (1280.0, 800.0, 880.0)
     assert parse_layout("1280,800,2000") == (1280.0, 800.0, 1280.0)
     assert parse_layout("x,1,2") is None and parse_layout("0,800,10") is None
+
+
+def test_a_stop_placed_for_success_tells_its_circles_centre_and_rates(plans):
+    """A placed stop's words name its clearance and, at the circle's centre, the estimate
+    and the Monte Carlo there."""
+    from pickstop.sequence.plan_model import Success
+
+    exact, _ = plans
+    s0 = exact.stops[0]
+    placed = s0.model_copy(update={
+        "x": s0.x + 0.03, "clearance": s0.inscribed_radius - 0.03, "circle_centre": (s0.x, s0.y),
+        "circle_estimated_success": 0.9123,
+        "circle_success": Success(samples=100, successes=90, rate=0.9, interval=(0.83, 0.94)),
+    })  # fmt: skip
+    plan = exact.model_copy(update={"stops": [placed, *exact.stops[1:]]})
+    text = hover_data(plan, json.loads(SCENE.read_text()))["stops"][0]["text"]
+    assert f"{placed.clearance:.3f} m clear" in text
+    assert f"({s0.x:.2f}, {s0.y:.2f})" in text and "estimate 91.2%" in text
+    assert "Monte Carlo 90.0%" in text
+    plain = hover_data(exact, json.loads(SCENE.read_text()))["stops"][0]["text"]
+    assert "circle's centre" not in plain
