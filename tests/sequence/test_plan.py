@@ -507,3 +507,23 @@ def test_expected_time_plan_is_never_worse_in_expected_time(stop_planner, name):
             assert rows[len(other.stops)].expected_time <= other.totals.time.expected + 1e-2
             compared += 1
     assert compared >= 2
+
+
+def test_a_tray_only_another_heading_reaches_is_refused_naming_it_and_planned_with_it(
+    stop_planner, paper_doc
+):
+    """The tables against the floor's edge and the base held facing away from them: no base
+    position reaches tray_2, and the refusal names the headings that do; letting the plan
+    choose among them plans every tray, each stop at a heading that reaches it."""
+    paper_doc["floor"]["max"][1] = 2.0
+    paper_doc["base_yaw"] = {"fixed": -math.pi / 2}
+    with pytest.raises(InfeasiblePlanError) as e:
+        stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=0))
+    msg = str(e.value)
+    assert "empty base region" in msg and "the base reaches tray tray_" in msg
+    headings = re.search(r"the base reaches tray \S+ at yaw ([-\d, ]+) deg", msg)
+    assert headings and "90" in headings.group(1).split(", ") and "base_yaw.candidates" in msg
+    paper_doc["base_yaw"] = {"candidates": [-math.pi / 2, math.pi / 2]}
+    plan = stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=0))
+    assert sorted(t for s in plan.stops for t in s.trays) == sorted(paper_doc["task"])
+    assert all(s.yaw == pytest.approx(math.pi / 2) for s in plan.stops)

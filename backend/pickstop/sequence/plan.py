@@ -60,6 +60,8 @@ from pickstop.sequence.rules import Rule, cut_off, judge
 from pickstop.sequence.success import Kind, Rate, combined, monte_carlo_at
 from pickstop.sequence.timing import TimeBreakdown, leg_time, pieces_time, plan_time, rest_pieces
 
+HEADINGS = 8  # headings tried (every 45 deg) to say where a tray no stop serves is reachable
+HEADING_HINT_TRAYS = 3  # such trays tried, at most (each a region per heading)
 MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
 DUPLICATE = 1e-3  # [m] candidates of the same trays this close are one
 PREFETCH_BANDS = 24  # sigma bands planned ahead in the background after a plan
@@ -810,7 +812,10 @@ class _Planning:
 
     # -- checks and explanations --------------------------------------------------------------
     def _empty_regions(self, regions: dict[tuple[str, float], TrayRegion]) -> None:
-        empty = []
+        """Refuse a plan with a tray no base position serves, saying at which other headings
+        the base would reach it (an exact plan only: the regions at :data:`HEADINGS` headings
+        of at most :data:`HEADING_HINT_TRAYS` such trays are computed for the answer)."""
+        empty, lost = [], []
         for t in self.required:
             mine = [r for (tt, _), r in regions.items() if tt == t]
             if all(len(r.cells) == 0 for r in mine):
@@ -819,8 +824,31 @@ class _Planning:
                     for r in mine
                 )
                 empty.append(f"tray {t} has an empty base region ({why})")
+                lost.append(t)
         if empty:
-            raise InfeasiblePlanError("; ".join(empty), field="trays")
+            hint = "" if self.preview else self._other_headings(lost[:HEADING_HINT_TRAYS])
+            raise InfeasiblePlanError("; ".join(empty) + hint, field="trays")
+
+    def _other_headings(self, trays: list[str]) -> str:
+        """ "; the base reaches tray t at yaw ... deg: ..." for those of ``trays`` some other
+        of :data:`HEADINGS` evenly spaced headings serves (its region has a cell), or ""."""
+        scene, rp = self.scene, self.sp.regions
+        known = scene.base_yaw.yaws
+        found: dict[str, list[float]] = {}
+        for t in trays:
+            for k in range(HEADINGS):
+                yaw = -math.pi + 2 * math.pi * k / HEADINGS
+                if any(abs(math.remainder(yaw - y, 2 * math.pi)) < 1e-6 for y in known):
+                    continue
+                if len(rp.tray_region(scene, t, yaw).cells):
+                    found.setdefault(t, []).append(yaw)
+        if not found:
+            return ""
+        said = "; ".join(f"tray {t} at yaw " + ", ".join(f"{math.degrees(y):.0f}" for y in ys)
+                         + " deg" for t, ys in found.items())  # fmt: skip
+        every = sorted({round(y, 6) for ys in found.values() for y in ys} | set(known))
+        return (f"; the base reaches {said}: let the plan choose the heading with "
+                f"base_yaw.candidates {[round(y, 4) for y in every]} [rad]")  # fmt: skip
 
     def _check_endpoints(self, floor: _Floor, paths: Paths) -> None:
         radius = upper_body(self.sp.regions.robot).radius
