@@ -53,7 +53,14 @@ from pickstop_ui.placer import Ask, Placer
 from pickstop_ui.plan_layer import PlanLayer
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
-from pickstop_ui.resting import Rest, Standing, follow, names_of_items, support_line
+from pickstop_ui.resting import (
+    Rest,
+    Standing,
+    follow,
+    names_of_items,
+    still_placed,
+    support_line,
+)
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 from pickstop_ui.scene_layer import SceneLayer
 from pickstop_ui.scene_view import initial_sigma, tray_colours
@@ -302,6 +309,12 @@ class PlannerApp:
             return
         with self._lock:
             doc = with_order(self.state.doc, self.order.value)
+            why = self.standing.verdict(names_of_items(doc))
+        if why is not None:  # the API checks the layout first: it would refuse it
+            self.guide.clear()
+            self.guidance.hide()
+            self.guidance_md.content = f"*No guidance while a tray does not stand ({why}).*"
+            return
         self.guide.submit(doc, key[1], float(self.sigma.value))
         self.guidance_md.content = f"*Guidance for {key[1]}: asking…*"
 
@@ -451,7 +464,7 @@ class PlannerApp:
             problems = dict(self.standing.problems)
             unknown = self.standing.unknown(doc)
             poses = {t["id"]: t.get("pose", {}) for t in doc["trays"]}
-            self.rests = {k: r for k, r in self.rests.items() if k in poses}
+            self.rests = still_placed(self.rests, doc)
         for tid in poses:
             self.scene.mark("trays", tid, problems.get(tid))
         for tid in unknown:

@@ -90,6 +90,17 @@ def follow(answer: Mapping[str, Any], z_now: float, names: Mapping[str, str] | N
     )
 
 
+def still_placed(rests: Mapping[str, Rest], doc: Mapping[str, Any]) -> dict[str, Rest]:
+    """The ``rests`` of trays of ``doc`` still at the place they were asked about (x, y, yaw):
+    an undo or another edit leaves the others to be asked anew."""
+    poses = {t["id"]: t.get("pose", {}) for t in doc.get("trays", [])}
+    return {
+        k: r for k, r in rests.items()
+        if k in poses and (r.x, r.y, r.yaw) == tuple(float(poses[k].get(a, 0.0))
+                                                     for a in ("x", "y", "yaw"))
+    }  # fmt: skip
+
+
 def support_line(rest: Rest | None, names: Mapping[str, str] | None = None) -> str:
     """The panel's support readout: what the tray stands on and at what height."""
     if rest is None:

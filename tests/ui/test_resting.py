@@ -13,7 +13,14 @@ import pytest
 
 from pickstop.scene.load import parse_scene
 from pickstop.scene.supports import place_tray
-from pickstop_ui.resting import Standing, follow, names_of_items, short_reason, support_line
+from pickstop_ui.resting import (
+    Standing,
+    follow,
+    names_of_items,
+    short_reason,
+    still_placed,
+    support_line,
+)
 
 SCENE = Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.json"
 
@@ -100,3 +107,9 @@ def test_a_tray_back_where_it_stood_stands_and_a_new_pose_is_asked(doc):
     assert settled.unknown(moved) == ["tray_1"] and "tray_4" not in settled.last_good
     good = settled.told("tray_1", None, moved["trays"][0]["pose"])
     assert good.unknown(moved) == [] and good.verdict() is None
+
+
+def test_after_an_undo_only_the_trays_still_where_they_were_asked_keep_their_rest(doc):
+    here = follow(_answer(doc, "tray_4", 3.6, 1.5, z_hint=0.605), 0.605)
+    gone = follow(_answer(doc, "tray_1", 3.6, 3.5, z_hint=0.725), 0.725)
+    assert still_placed({"tray_4": here, "tray_1": gone, "old": here}, doc) == {"tray_4": here}
