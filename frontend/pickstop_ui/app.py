@@ -1,7 +1,9 @@
 """The 3D planner: a viser application over the REST API.
 
 The scene (tables, trays with parts, obstacles, start and goal, the robot) is drawn from the
-stored scene; trays and obstacles are dragged on the floor (x, y and yaw only). Every change of
+stored scene; trays and obstacles are dragged on the floor (x, y and yaw), a tray's height
+following the support under it as the API places it (:mod:`pickstop_ui.placer`,
+:mod:`pickstop_ui.resting`): a tray that would not stand is drawn so and not planned. Every change of
 sigma, rule, task or layout asks the API for a new plan (not stored) and draws it: each tray's
 base region as a translucent patch in its colour, the intersections' outlines, the inscribed
 circles (dashed red where sigma rejects them, with the reason), the chosen stops with a ghost
