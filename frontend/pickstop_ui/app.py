@@ -3,12 +3,12 @@
 The scene (tables, trays with parts, obstacles, start and goal, the robot) is drawn from the
 stored scene; trays and obstacles are dragged on the floor (x, y and yaw), a tray's height
 following the support under it as the API places it (:mod:`pickstop_ui.placer`,
-:mod:`pickstop_ui.resting`): a tray that would not stand is drawn so and not planned. Every change of
-sigma, rule, task or layout asks the API for a new plan (not stored) and draws it: each tray's
-base region as a translucent patch in its colour, the intersections' outlines, the inscribed
-circles (dashed red where sigma rejects them, with the reason), the chosen stops with a ghost
-robot in its witness configuration, and the route with its direction. A quick plan without
-Monte Carlo is drawn first, then the success rates follow.
+:mod:`pickstop_ui.resting`): a tray that would not stand is drawn so and not planned.
+Every change of sigma, rule, task or layout asks the API for a new plan (not stored) and
+draws it: each tray's base region as a translucent patch in its colour, the intersections'
+outlines, the inscribed circles (dashed red where sigma rejects them, with the reason), the
+chosen stops with a ghost robot in its witness configuration, and the route with its
+direction. A quick plan without Monte Carlo is drawn first, then the success rates follow.
 
 This module is the wiring only: viser handles and callbacks. What is drawn comes from pure
 functions of the scene (:mod:`pickstop_ui.scene_view`) and of the plan
@@ -436,6 +436,7 @@ class PlannerApp:
                 return
             self.rests[tid] = rest
             self.standing = self.standing.told(tid, rest.why, pose)
+            self._gen += 1  # a drag's answer still on its way is older than this step
             before = self.state.history.doc()
             self._record(label or edits.move_label(before, self.state.doc, "trays", tid))
         self.scene.place("trays", tid, rest.x, rest.y, rest.z, rest.yaw)

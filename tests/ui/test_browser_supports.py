@@ -51,6 +51,11 @@ def _pull(pg, app, tid: str, axis: int, d: float) -> None:
     b.drag(pg, a, b.project(cam, base + (grab + d) * unit), steps=16)
 
 
+def _committed(app, tid: str) -> dict:
+    """Tray ``tid``'s pose in the history's newest step (a drag under way is not in it)."""
+    return next(t["pose"] for t in app.state.history.doc()["trays"] if t["id"] == tid)
+
+
 def _drawn(pg, name: str) -> list[float]:
     return b.node_position(pg, name) or [np.nan] * 3
 
@@ -73,8 +78,7 @@ def test_a_tray_follows_the_table_under_it_and_off_the_floor_it_is_drawn_invalid
     # Off the floor's back edge: nothing carries it. Drawn red, the reason said, no plan.
     _pull(pg, app, "tray_3", 1, 0.8)
     b.wait_for(lambda: app.standing.problems == {"tray_3": "nothing under it"}, 20, "invalid")
-    b.wait_for(lambda: app.state.history.undo_label == "move tray_3"
-               and b.tray(app, "tray_3")["pose"]["y"] > 2.1, 20, "the release")  # fmt: skip
+    b.wait_for(lambda: _committed(app, "tray_3")["y"] > 2.1, 20, "the release, one step")
     shapes = app.scene.items[("trays", "tray_3")].shapes
     assert all(tuple(h.color) == INVALID for h in shapes)
     b.wait_for(lambda: "⚠ tray_3: nothing under it" in pg.inner_text("body"), 10, "the label")
@@ -89,8 +93,8 @@ def test_a_tray_follows_the_table_under_it_and_off_the_floor_it_is_drawn_invalid
     seq = app.state.seq
     pg.keyboard.press("Control+z")
     b.wait_for(lambda: b.tray(app, "tray_3")["pose"] == on_b, what="the undo")
-    assert not app.standing.problems
-    assert all(tuple(h.color) != INVALID for h in shapes)
+    b.wait_for(lambda: not app.standing.problems, 10, "it to stand")
+    b.wait_for(lambda: all(tuple(h.color) != INVALID for h in shapes), 10, "its colours")
     b.settled(app, since=seq)
     b.ready(pg)
     assert "nothing under it" not in pg.inner_text("body") and app.state.plan.verified
