@@ -1,12 +1,14 @@
 """The 3D planner: a viser application over the REST API.
 
 The scene (tables, trays with parts, obstacles, start and goal, the robot) is drawn from the
-stored scene; trays and obstacles are dragged on the floor (x, y and yaw only). Every change of
-sigma, rule, task or layout asks the API for a new plan (not stored) and draws it: each tray's
-base region as a translucent patch in its colour, the intersections' outlines, the inscribed
-circles (dashed red where sigma rejects them, with the reason), the chosen stops with a ghost
-robot in its witness configuration, and the route with its direction. A quick plan without
-Monte Carlo is drawn first, then the success rates follow.
+stored scene; trays and obstacles are dragged on the floor (x, y and yaw), a tray's height
+following the support under it as the API places it (:mod:`pickstop_ui.placer`,
+:mod:`pickstop_ui.resting`): a tray that would not stand is drawn so and not planned.
+Every change of sigma, rule, task or layout asks the API for a new plan (not stored) and
+draws it: each tray's base region as a translucent patch in its colour, the intersections'
+outlines, the inscribed circles (dashed red where sigma rejects them, with the reason), the
+chosen stops with a ghost robot in its witness configuration, and the route with its
+direction. A quick plan without Monte Carlo is drawn first, then the success rates follow.
 
 This module is the wiring only: viser handles and callbacks. What is drawn comes from pure
 functions of the scene (:mod:`pickstop_ui.scene_view`) and of the plan
@@ -49,9 +51,18 @@ from pickstop_ui.measure import MeasureTool
 from pickstop_ui.orders import TASK, mix_summary, order_ids, with_order
 from pickstop_ui.overlay import Overlay, parse_layout
 from pickstop_ui.picking import hit_point, item_box, pick
+from pickstop_ui.placer import Ask, Placer
 from pickstop_ui.plan_layer import ROBOT_COLOUR, PlanLayer, pose, robot_urdf
 from pickstop_ui.plan_view import joint_cfg, plan_drawing, playback, style_of
 from pickstop_ui.replan import MC_SAMPLES, Replanner, Request
+from pickstop_ui.resting import (
+    Rest,
+    Standing,
+    follow,
+    names_of_items,
+    still_placed,
+    support_line,
+)
 from pickstop_ui.robot_model import fetch_robot, scene_robot_name
 from pickstop_ui.scene_layer import SceneLayer
 from pickstop_ui.scene_view import initial_sigma, tray_colours
@@ -131,6 +142,9 @@ class PlannerApp:
         self._urdf = self.robot.urdf if self.robot is not None else None
         self._locked = self.robot.joint_values if self.robot is not None else {}
         self.state = PlannerState(stored, copy.deepcopy(stored.doc))
+        self.standing = Standing.start(stored.doc)  # which trays do not stand (lock held)
+        self.rests: dict[str, Rest] = {}  # each tray's last placement answer
+        self._gen = 0  # the document's edit generation: older placement answers are dropped
         self.server = LocalServer(host=host, port=port, label="PickStop", verbose=False)
         self.port = self.server.get_port()
         self._lock = threading.Lock()
@@ -147,10 +161,12 @@ class PlannerApp:
         self.guidance = GuidanceLayer(self.server)
         self.guidance_ms: float | None = None  # the last tray selected to its zones drawn [ms]
         self.guide = GuidanceFetcher(client, self._guidance_ready)
+        self.placer = Placer(client, self._placed)
         self.request("open")
 
     # -- lifecycle ---------------------------------------------------------------------------
     def close(self) -> None:
+        self.placer.close()
         self.guide.close()
         self.replanner.close()
         self.server.stop()
@@ -288,7 +304,13 @@ class PlannerApp:
         self.remove_sel.disabled = key is None or key[0] != "trays"
         with self._lock:
             pose = None if key is None else edits.pose_of(self.state.doc, *key)
+            rest = None if key is None else self.rests.get(key[1])
+            names = names_of_items(self.state.doc)
         self._readout(pose)
+        tray = key is not None and key[0] == "trays"
+        self.support_md.content = support_line(rest, names) if tray else ""
+        if tray and rest is None and key is not None:
+            self._check_one(key[1])
         self._ask_guidance()
 
     # -- placement guidance -------------------------------------------------------------------
@@ -302,6 +324,12 @@ class PlannerApp:
             return
         with self._lock:
             doc = with_order(self.state.doc, self.order.value)
+            why = self.standing.verdict(names_of_items(doc))
+        if why is not None:  # the API checks the layout first: it would refuse it
+            self.guide.clear()
+            self.guidance.hide()
+            self.guidance_md.content = f"*No guidance while a tray does not stand ({why}).*"
+            return
         self.guide.submit(doc, key[1], float(self.sigma.value))
         self.guidance_md.content = f"*Guidance for {key[1]}: asking…*"
 
@@ -337,25 +365,154 @@ class PlannerApp:
         self.request(f"accepted {label}")
 
     def _dragged(self, key: Key, pos: tuple[float, float, float], yaw: float, final: bool) -> None:
-        """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw, the height as it
-        was; the item follows at once, a preview is planned while the drag goes on, the
-        exact plan when it ends (then the move is one undoable step)."""
+        """The gizmo moved: keep x, y (a tray's in whole base cells) and yaw; the item follows
+        at once. An obstacle keeps its height, a preview is planned while the drag goes on,
+        the exact plan when it ends (then the move is one undoable step). A tray's height
+        follows the support under it, as the API places it (:meth:`_placed`, off this loop)."""
         kind, oid = key
         steps = {"step": max(float(self.snap.value), 0.0),
                  "yaw_step": math.radians(max(float(self.turn_snap.value), 0.0))}  # fmt: skip
         with self._lock:
             pose = edits.move(self.state.doc, kind, oid, pos[0], pos[1], yaw, **steps)
-            if pose is not None and final:
+            if pose is not None and final and kind != "trays":
                 self._record(edits.move_label(self.state.history.doc(), self.state.doc, kind, oid))
+            ask = None if kind != "trays" else self.standing.ask_doc(self.state.doc)
+            gen, rest = self._gen, self.rests.get(oid)
         if pose is None:
             return
         z = float(pose.get("z", 0.0))
         self.scene.place(kind, oid, pose["x"], pose["y"], z, pose["yaw"])
         self._readout(pose)
+        if ask is not None:
+            if final and rest is not None and (rest.x, rest.y, rest.yaw) == (
+                pose["x"], pose["y"], pose["yaw"]):  # fmt: skip
+                self._commit(rest, "")  # the release's pose is placed already
+            else:
+                self.placer.submit(oid, ask, pose["x"], pose["y"], pose["yaw"], z,
+                                   "commit" if final else "drag", gen)  # fmt: skip
+            return
         if final:
             self.selection.place(pose)
             self._ask_guidance()
         self.request(f"moved {oid}" if final else f"dragging {oid}", preview=not final)
+
+    # -- what trays stand on ---------------------------------------------------------------------
+    def _placed(self, ask: Ask, answer: dict[str, Any] | ApiProblem) -> None:
+        """The API placed a tray (on the placer's thread): a dragged tray follows the support
+        under it, drawn red with the reason where it would float or overlap (and no preview
+        pretends a plan of it); a released or typed pose becomes one undoable step; a check
+        says whether a tray stands."""
+        with self._lock:
+            if ask.gen != self._gen:  # an undo or another edit came meanwhile
+                return
+            names = names_of_items(self.state.doc)
+        if isinstance(answer, ApiProblem):
+            if answer.status == 0:  # the API cannot be reached: the plan request will say so
+                log.warning("placement of %s: %s", ask.tray, answer)
+                return
+            answer = {"tray": ask.tray, "x": ask.x, "y": ask.y, "yaw": ask.yaw, "z": None,
+                      "support": None, "free": False, "problem": answer.detail}  # fmt: skip
+        rest = follow(answer, ask.z_hint, names)
+        if ask.kind == "commit":
+            self._commit(rest, ask.label)
+            return
+        with self._lock:
+            pose = edits.pose_of(self.state.doc, "trays", ask.tray)
+            if pose is None:
+                return
+            self.rests[ask.tray] = rest
+            preview = None
+            if ask.kind == "check":
+                self.standing = self.standing.told(ask.tray, rest.why, pose)
+            else:
+                self.standing = self.standing.told(ask.tray, rest.why)
+                pose = edits.place(self.state.doc, "trays", ask.tray, pose["x"], pose["y"],
+                                   pose["yaw"], rest.z)  # fmt: skip
+                preview = copy.deepcopy(self.state.doc)
+                edits.place(preview, "trays", ask.tray, rest.x, rest.y, rest.yaw, rest.z)
+        self._show_rest(ask.tray, rest)
+        if ask.kind == "drag":
+            self.scene.place("trays", ask.tray, pose["x"], pose["y"], rest.z, pose["yaw"])
+            self._readout(pose)
+            self.request(f"dragging {ask.tray}", preview=True, doc=preview)
+        elif self.standing.problems or self.state.error is not None:
+            self.request(f"checked {ask.tray}")
+
+    def _commit(self, rest: Rest, label: str) -> None:
+        """A released or typed tray pose, its height following its support, is one undoable
+        step (kept where it does not stand, drawn so and not planned: Undo takes it back)."""
+        tid = rest.tray
+        with self._lock:
+            try:
+                pose = edits.place(self.state.doc, "trays", tid, rest.x, rest.y, rest.yaw, rest.z)
+            except edits.EditError:  # removed meanwhile
+                return
+            self.rests[tid] = rest
+            self.standing = self.standing.told(tid, rest.why, pose)
+            self._gen += 1  # a drag's answer still on its way is older than this step
+            before = self.state.history.doc()
+            self._record(label or edits.move_label(before, self.state.doc, "trays", tid))
+        self.scene.place("trays", tid, rest.x, rest.y, rest.z, rest.yaw)
+        self._show_rest(tid, rest)
+        if self.selection.key == ("trays", tid):
+            self.selection.place(pose)
+            self._readout(pose)
+            self._ask_guidance()
+        self._tell()
+        self.request(f"moved {tid}")
+
+    def _show_rest(self, tid: str, rest: Rest | None) -> None:
+        """Tray ``tid`` drawn as standing or not, and the panel's support line if selected."""
+        self.scene.mark("trays", tid, None if rest is None else rest.why)
+        if self.selection.key == ("trays", tid):
+            with self._lock:
+                names = names_of_items(self.state.doc)
+            self.support_md.content = support_line(rest, names)
+
+    def _check_trays(self) -> None:
+        """After an undo, redo or other edit of the document: older placement answers are
+        dropped, and each tray not at a pose known to stand is asked about (off this thread);
+        a tray back where it stood stands."""
+        with self._lock:
+            self._gen += 1
+            doc = self.state.doc
+            self.standing = self.standing.settle(doc)
+            problems = dict(self.standing.problems)
+            unknown = self.standing.unknown(doc)
+            poses = {t["id"]: t.get("pose", {}) for t in doc["trays"]}
+            self.rests = still_placed(self.rests, doc)
+        for tid in poses:
+            self.scene.mark("trays", tid, problems.get(tid))
+        for tid in unknown:
+            self._check_one(tid)
+
+    def _check_one(self, tid: str) -> None:
+        """Ask what tray ``tid`` stands on where it is (the panel's support line)."""
+        with self._lock:
+            pose = edits.pose_of(self.state.doc, "trays", tid)
+            ask = self.standing.ask_doc(self.state.doc)
+            gen = self._gen
+        if pose is not None:
+            self.placer.submit(tid, ask, float(pose.get("x", 0.0)), float(pose.get("y", 0.0)),
+                               float(pose.get("yaw", 0.0)), float(pose.get("z", 0.0)), "check",
+                               gen)  # fmt: skip
+
+    def _unplanned(self, why: str) -> None:
+        """The layout is not planned while a tray does not stand: the panel says which and
+        why, the last plan stays greyed out."""
+        problem = ApiProblem(0, "A tray does not stand", why)
+        with self._lock:
+            self.state.error, self.state.busy = why, False
+            self.state.drawn_seq = self.state.seq
+        self.status.content = f"**Status:** no plan — ⚠ {why}"
+        self.summary.content = panel.failure_summary(problem)
+        plan = self.state.plan
+        if plan is not None:
+            with self._lock:
+                doc = copy.deepcopy(self.state.doc)
+            self.layer.show(plan_drawing(plan, tray_colours(doc), style_of(plan, True),
+                                         names=names_of(doc)))  # fmt: skip
+        self.draft.set(False)
 
     # -- undo and redo ---------------------------------------------------------------------------
     def _record(self, label: str) -> None:
@@ -381,6 +538,7 @@ class PlannerApp:
     def _show_doc(self) -> None:
         """Draw the working document: the scene's nodes, the gizmo and the trays' panel."""
         self.scene.sync(self.state.doc)
+        self._check_trays()
         key = self.selection.key
         pose = None if key is None else edits.pose_of(self.state.doc, *key)
         if key is not None and pose is None:
@@ -507,9 +665,11 @@ class PlannerApp:
                     "x": gui.add_number("x [m]", 0.0, step=0.001, disabled=True),
                     "y": gui.add_number("y [m]", 0.0, step=0.001, disabled=True),
                     "yaw": gui.add_number("yaw [°]", 0.0, step=0.1, disabled=True),
-                    "z": gui.add_number("support height [m]", 0.0, step=0.001, disabled=True,
-                                        hint="z of the item's base: the top of what it stands on"),
+                    "z": gui.add_number("z [m]", 0.0, step=0.001, disabled=True,
+                                        hint="height of the item's base; a tray's follows the "
+                                        "top of what it stands on"),
                 }  # fmt: skip
+                self.support_md = gui.add_markdown("")  # what the selected tray stands on
                 self.apply_btn = gui.add_button("Apply", icon=viser.Icon.CHECK, disabled=True,
                                                 hint="or Enter in a field")  # fmt: skip
             self.apply_btn.on_click(lambda _: form.submit())
@@ -560,6 +720,17 @@ class PlannerApp:
             return
         x, y, z = (float(self.num[k].value) for k in ("x", "y", "z"))
         yaw = math.radians(float(self.num["yaw"].value))
+        if key[0] == "trays":  # its height follows the support under the typed place
+            if not all(map(math.isfinite, (x, y, yaw))):
+                self._notify("x, y and yaw must be finite numbers", error=True)
+                return
+            with self._lock:
+                ask = self.standing.ask_doc(self.state.doc)
+                label = f"place {edits.display_name(self.state.doc, key[1])}"
+                z = float((edits.pose_of(self.state.doc, *key) or {}).get("z", 0.0))
+                gen = self._gen
+            self.placer.submit(key[1], ask, x, y, yaw, z, "commit", gen, label)
+            return
         try:
             with self._lock:
                 pose = edits.place(self.state.doc, *key, x, y, yaw, z)
@@ -572,9 +743,11 @@ class PlannerApp:
         self.request(f"placed {key[1]}")
 
     def _readout(self, pose: dict[str, Any] | None) -> None:
-        """The numbers show ``pose`` (None: nothing selected, the fields off)."""
+        """The numbers show ``pose`` (None: nothing selected, the fields off); a tray's z is
+        read only: it follows the support under it."""
+        tray = self.selection.key is not None and self.selection.key[0] == "trays"
         for name, h in self.num.items():
-            h.disabled = pose is None
+            h.disabled = pose is None or (tray and name == "z")
             if pose is not None:
                 v = float(pose.get(name, 0.0))
                 h.value = round(math.degrees(v), 2) if name == "yaw" else round(v, 4)
@@ -697,11 +870,17 @@ class PlannerApp:
             "samples": samples,
         }
 
-    def request(self, cause: str, preview: bool = False) -> None:
-        """Plan the document as it is now (the newest request wins, see :mod:`replan`)."""
+    def request(self, cause: str, preview: bool = False, doc: dict[str, Any] | None = None) -> None:
+        """Plan the document as it is now, or ``doc`` (the newest request wins, see
+        :mod:`replan`); while a tray does not stand, nothing is planned and the panel says so."""
+        with self._lock:
+            why = self.standing.verdict(names_of_items(self.state.doc))
+        if why is not None:
+            self._unplanned(why)
+            return
         self.draft.set(True)  # before the plan's update, so its frame is a quick one
         with self._lock:
-            doc = with_order(self.state.doc, self.order.value)
+            doc = with_order(self.state.doc if doc is None else doc, self.order.value)
         req = self.replanner.submit(doc, self.options(0), cause, preview)
         with self._lock:  # two callbacks may submit at once: the newest number stays
             self.state.seq, self.state.busy = max(self.state.seq, req.seq), True
@@ -711,6 +890,11 @@ class PlannerApp:
     # The re-plan worker's sink (called on its thread).
     def plan_ready(self, req: Request, plan: Plan, final: bool) -> None:
         st = self.state
+        with self._lock:
+            why = self.standing.verdict(names_of_items(st.doc))
+        if why is not None:  # a tray stopped standing since it was asked: not this plan
+            self._unplanned(why)
+            return
         if final:
             st.mc_ms = (time.perf_counter() - st.mc_t0) * 1e3
         names = names_of(st.doc)
@@ -772,6 +956,12 @@ class PlannerApp:
     # -- saving and exporting -------------------------------------------------------------------
     def _save(self) -> None:
         st = self.state
+        with self._lock:
+            why = self.standing.verdict(names_of_items(st.doc))
+        if why is not None:
+            self.saved.content = f"⚠ **Not saved:** a tray does not stand: {why}"
+            self._notify(self.saved.content, error=True)
+            return
         try:
             new = self.api.save_scene(st.stored.id, st.doc, st.stored.etag)
         except ApiProblem as e:

@@ -83,6 +83,16 @@ class PickStopClient:
         body = r.json()
         return StoredScene(body["id"], _etag(r), body["revision"], body["scene"])
 
+    def placement(
+        self, scene: dict[str, Any], tray: str, x: float, y: float, yaw: float,
+        z_hint: float | None = None,
+    ) -> dict[str, Any]:  # fmt: skip
+        """Where ``tray`` of an inline scene would stand with its footprint at ``(x, y)`` [m]
+        turned to ``yaw`` [rad] (``POST /placements``): the support under it, its top and the
+        pose height that rests the tray there [m], whether it stands free and why not."""
+        body = {"scene": scene, "tray": tray, "x": x, "y": y, "yaw": yaw, "z_hint": z_hint}
+        return dict(self._check(self.http.post(f"{API}/placements", json=body)).json())
+
     def copy_tray(self, scene: dict[str, Any], tray: str) -> dict[str, Any] | None:
         """A copy of ``tray`` on the nearest free spot of the support it stands on, as a tray
         document with new ids (None: that support has no free spot)."""

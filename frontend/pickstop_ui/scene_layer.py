@@ -8,7 +8,8 @@ scratch costs hundreds of milliseconds a frame, and an undo must not cost that.
 
 Each tray or obstacle hangs below a root frame at its pose (``/trays/<id>``,
 ``/obstacles/<id>``); the gizmo that moves the selected one lives elsewhere
-(:mod:`pickstop_ui.selection`).
+(:mod:`pickstop_ui.selection`). A tray that does not stand (:meth:`SceneLayer.mark`) is drawn
+red and translucent, its label saying why, until it is marked standing again.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import viser
 
 from pickstop.frames import yaw_quat
 from pickstop_ui.declutter import quat_matrix
+from pickstop_ui.resting import INVALID, INVALID_OPACITY
 from pickstop_ui.scene_view import Item, Marker, SceneDrawing, scene_drawing
 
 log = logging.getLogger("pickstop.ui")
@@ -29,11 +31,13 @@ log = logging.getLogger("pickstop.ui")
 
 @dataclass
 class ItemNodes:
-    """What is drawn of one item: its root, its label and the item it was drawn from."""
+    """What is drawn of one item: its root, its label, its shapes' nodes and the item it was
+    drawn from."""
 
     root: Any
     label: Any | None
     item: Item
+    shapes: list[Any]
 
 
 def _structure(item: Item) -> tuple[Any, ...]:
@@ -49,6 +53,7 @@ class SceneLayer:
         self.items: dict[tuple[str, str], ItemNodes] = {}
         self.markers: dict[str, Any] = {}
         self.marker_labels: dict[str, tuple[Any, Any]] = {}  # name -> (marker, its label)
+        self.invalid: dict[tuple[str, str], str] = {}  # items drawn as not standing -> why
 
     # -- whole scene ------------------------------------------------------------------------------
     def sync(self, doc: dict[str, Any]) -> SceneDrawing:
@@ -103,26 +108,62 @@ class SceneLayer:
             nodes.root.position = np.array([x, y, z])
             nodes.root.wxyz = np.array(yaw_quat(yaw))
 
+    def mark(self, kind: str, oid: str, why: str | None) -> None:
+        """Draw item ``oid`` as not standing, for ``why`` (red, translucent, its label saying
+        why), or (``why`` None) as it is."""
+        key = (kind, oid)
+        if self.invalid.get(key) == why:
+            return
+        if why is None:
+            self.invalid.pop(key, None)
+        else:
+            self.invalid[key] = why
+        nodes = self.items.get(key)
+        if nodes is not None:
+            with self.server.atomic():
+                self._look(nodes)
+
+    def _look(self, nodes: ItemNodes) -> None:
+        """The shapes' colours and the label's text as the item's standing says."""
+        item = nodes.item
+        why = self.invalid.get((item.kind, item.id))
+        for h, s in zip(nodes.shapes, item.shapes, strict=True):
+            colour, opacity = (s.colour, None) if why is None else (INVALID, INVALID_OPACITY)
+            if tuple(h.color) != colour:
+                h.color = colour
+            if h.opacity != opacity:
+                h.opacity = opacity
+        if nodes.label is not None and item.label is not None:
+            text = item.label[0] if why is None else f"⚠ {item.label[0]}: {why}"
+            if nodes.label.text != text:
+                nodes.label.text = text
+
     # -- one item ---------------------------------------------------------------------------------
     def _add(self, item: Item) -> ItemNodes:
         sc, root_name = self.server.scene, f"/{item.kind}/{item.id}"
         root = sc.add_frame(root_name, show_axes=False, position=item.position, wxyz=item.wxyz)
         if item.body_wxyz is not None:
             sc.add_frame(f"{root_name}/body", show_axes=False, wxyz=item.body_wxyz)
+        shapes: list[Any] = []
         for s in item.shapes:
+            h: Any
             name = f"{root_name}/{s.name}"
             if s.kind == "box":
-                sc.add_box(name, dimensions=s.dims, color=s.colour, position=s.position,
-                           wxyz=s.wxyz)  # fmt: skip
+                h = sc.add_box(name, dimensions=s.dims, color=s.colour, position=s.position,
+                               wxyz=s.wxyz)  # fmt: skip
             else:
                 r, height = s.dims
-                sc.add_cylinder(name, radius=r, height=height, color=s.colour,
-                                position=s.position, wxyz=s.wxyz)  # fmt: skip
+                h = sc.add_cylinder(name, radius=r, height=height, color=s.colour,
+                                    position=s.position, wxyz=s.wxyz)  # fmt: skip
+            shapes.append(h)
         label = None
         if item.label is not None:
             label = sc.add_label(f"{root_name}/label", item.label[0], position=item.label[1],
                                  anchor="bottom-center")  # fmt: skip
-        return ItemNodes(root, label, item)
+        nodes = ItemNodes(root, label, item, shapes)
+        if (item.kind, item.id) in self.invalid:
+            self._look(nodes)
+        return nodes
 
     def _update(self, nodes: ItemNodes, item: Item) -> None:
         old, root = nodes.item, nodes.root
@@ -136,6 +177,7 @@ class SceneLayer:
             nodes.label.text = item.label[0]
             nodes.label.position = np.asarray(item.label[1], float)
         nodes.item = item
+        self._look(nodes)
 
     def _marker(self, m: Marker) -> None:
         h = self.markers.get(m.name)

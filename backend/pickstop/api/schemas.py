@@ -347,7 +347,8 @@ class PlacementRequest(BatchItem):
 
 class PlacementAnswer(BaseModel):
     """The support under the footprint (an obstacle id, ``floor``, or null), the pose height
-    that rests the tray there [m] and whether it stands free (else ``problem`` says why)."""
+    that rests the tray there [m] and whether it stands free (else ``problem`` says why);
+    ``top``: the support's top face height [m]."""
 
     tray: str
     x: float
@@ -357,6 +358,7 @@ class PlacementAnswer(BaseModel):
     support: str | None
     free: bool
     problem: str | None = None
+    top: float | None = None
 
 
 class CopyRequest(BatchItem):

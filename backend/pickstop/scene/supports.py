@@ -72,7 +72,8 @@ class Placement:
     ``"floor"``, or None: nothing is under it), ``z`` the tray pose's height [m] that rests it
     on that support (None without one), ``free``: it stands there, on the support within
     :data:`SUPPORT_OVERHANG`, inside the floor, without meeting another tray or a solid;
-    ``problem`` says why not, naming what and how far [m]."""
+    ``problem`` says why not, naming what and how far [m]; ``top`` the support's top face
+    height [m] (None without one)."""
 
     tray: str
     x: float
@@ -82,6 +83,7 @@ class Placement:
     support: str | None
     free: bool
     problem: str | None = None
+    top: float | None = None
 
     def pose(self) -> Pose:
         """The tray pose of this placement (``z`` 0 if nothing carries it)."""
@@ -301,7 +303,7 @@ class _Placer:
             return (o[2] is not None, near)
 
         face, at, why = min(options, key=rank)
-        return Placement(tray.id, x, y, yaw, at.pose.z, face.id, why is None, why)
+        return Placement(tray.id, x, y, yaw, at.pose.z, face.id, why is None, why, face.top)
 
     def blocked(self, tray: Tray, outline: BaseGeometry) -> str | None:
         """Why ``tray`` (placed) does not stand free: off the floor, or meeting a solid."""
@@ -352,7 +354,7 @@ def free_spot(
     for x, y in spots(face.outline, tray, step, (cx, cy)):
         at = moved(tray, x, y, tray.pose.yaw, face.top - z0)
         if placer.blocked(at, tray_footprint(at)) is None:
-            return Placement(tray.id, x, y, tray.pose.yaw, at.pose.z, face.id, True)
+            return Placement(tray.id, x, y, tray.pose.yaw, at.pose.z, face.id, True, top=face.top)
     return None
 
 

@@ -24,7 +24,8 @@ def test_a_dragged_tray_follows_the_support_under_it(client):
     ask = {"scene": paper(), "tray": "tray_4", "y": 1.5, "z_hint": 0.725}
     on = client.post("/api/v1/placements", json={**ask, "x": 3.7}, headers=AUTH).json()
     assert on == {"tray": "tray_4", "x": 3.7, "y": 1.5, "yaw": 0.0, "z": pytest.approx(0.725),
-                  "support": "table_b", "free": True, "problem": None}  # fmt: skip
+                  "support": "table_b", "free": True, "problem": None,
+                  "top": pytest.approx(0.72)}  # fmt: skip
     off = client.post("/api/v1/placements", json={**ask, "x": 3.95}, headers=AUTH).json()
     assert off["support"] == "table_b" and not off["free"] and "overhang" in off["problem"]
     problem(
