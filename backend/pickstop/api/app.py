@@ -27,6 +27,7 @@ from pickstop.api.problems import install, server_roots
 from pickstop.api.routes import (
     databases,
     errors,
+    fleet,
     guidance,
     health,
     jobs,
@@ -54,8 +55,8 @@ from pickstop.pool import PlannerPool
 from pickstop.settings import Settings
 
 ROUTERS = (health.router, robots.router, databases.router, scenes.router, plans.router,
-           reports.router, jobs.router, errors.router, placements.router, mixes.router,
-           guidance.router, layouts.router)  # fmt: skip
+           fleet.router, reports.router, jobs.router, errors.router, placements.router,
+           mixes.router, guidance.router, layouts.router)  # fmt: skip
 
 
 def create_app(

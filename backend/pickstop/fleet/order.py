@@ -89,85 +89,19 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order:
     """The plan's order message, validated by the version's model."""
     opts = opts or OrderOptions()
     version = version_of(opts.version)
-    if opts.release_stops is not None and opts.release_stops < 0:
-        raise InputError("release_stops: must be >= 0", field="release_stops")
-    for name in ("manufacturer", "serial_number"):
-        value = getattr(opts, name)
-        if not value or any(c in value for c in "/+#"):
-            raise InputError(
-                f"{name}: {value!r} must be non-empty without '/', '+' or '#' (a topic level)",
-                field=name,
-            )
+    _check_options(opts)
     wps = rt.waypoints(plan, opts.start_yaw, opts.goal_yaw, opts.yaw_tolerance, opts.shapes)
     oid = opts.order_id or order_id_of(plan)
     map_id = opts.map_id or "map"
-    # The base ends at the last released stop's node (or the goal when all are released).
-    last = len(wps) - 1
-    if opts.release_stops is not None and opts.release_stops < len(plan.stops):
-        if opts.release_stops == 0:
-            last = 0
-        else:
-            last = next(i for i, w in enumerate(wps) if w.stop == opts.release_stops - 1)
+    last = _last_released(plan, wps, opts.release_stops)
     v3 = v.v3(version)
     act = opts.pick or DEFAULT_PICK
     nodes, edges = [], []
     for i, w in enumerate(wps):
-        actions = [
-            {
-                "actionType": act.action_type,
-                "actionId": action_id(oid, w.stop, p),
-                ("actionDescriptor" if v3 else "actionDescription"): (
-                    f"pick {p.part_id} from {p.tray_id}"
-                ),
-                "blockingType": act.blocking_type,
-                "actionParameters": pick_parameters(p, w.stop, act),
-            }
-            for p in w.picks
-            if w.stop is not None
-        ]
-        pos: dict[str, Any] = {"x": w.x, "y": w.y, "mapId": map_id}
-        if w.yaw is not None:
-            pos["theta"] = w.yaw
-        if v3 and w.ellipse is not None:
-            a, b, th = w.ellipse
-            pos["allowedDeviationXY"] = {"a": a, "b": b, "theta": th}
-        elif v3:
-            pos["allowedDeviationXY"] = {"a": w.tolerance_xy, "b": w.tolerance_xy, "theta": 0.0}
-        else:
-            pos["allowedDeviationXY"] = w.tolerance_xy
-        if w.tolerance_yaw is not None:
-            pos["allowedDeviationTheta"] = w.tolerance_yaw
-        via = "floor path corner" if w.yaw is None else "docking leg end: turn here"
-        desc = {"start": "start", "via": via, "goal": "goal"}.get(
-            w.kind, f"stop {w.stop}: trays {', '.join(sorted({p.tray_id for p in w.picks}))}"
-        )
-        nodes.append(
-            {
-                "nodeId": w.id,
-                "sequenceId": 2 * i,
-                ("nodeDescriptor" if v3 else "nodeDescription"): desc,
-                "released": i <= last,
-                "nodePosition": pos,
-                "actions": actions,
-            }
-        )
-        if i == 0:
-            continue
-        a = wps[i - 1]
-        edge: dict[str, Any] = {
-            "edgeId": f"{a.id}->{w.id}",
-            "sequenceId": 2 * i - 1,
-            "released": i <= last,
-            ("maximumSpeed" if v3 else "maxSpeed"): plan.parameters.max_speed,
-            "length": math.dist((a.x, a.y), (w.x, w.y)),
-            "actions": [],
-        }
-        if w.hold_yaw is not None:  # a docking leg: driven straight at the stop's yaw
-            edge |= {"orientation": w.hold_yaw, "orientationType": "GLOBAL"}
-            edge |= {"reachOrientationBeforeEntering": True} if v3 else {"rotationAllowed": False}
-        if not v3:
-            edge |= {"startNodeId": a.id, "endNodeId": w.id}
-        edges.append(edge)
+        nodes.append(_node(i, w, oid, map_id, act, v3, released=i <= last))
+        if i > 0:
+            speed = plan.parameters.max_speed
+            edges.append(_edge(i, wps[i - 1], w, speed, v3, released=i <= last))
     doc = {
         "headerId": opts.header_id,
         "timestamp": opts.timestamp or timestamp(),
@@ -180,6 +114,97 @@ def build_order(plan: pm.Plan, opts: OrderOptions | None = None) -> v.Order:
         "edges": edges,
     }
     return v.ORDER_MODELS[version].model_validate(doc)
+
+
+def _check_options(opts: OrderOptions) -> None:
+    """``release_stops`` not negative; the vehicle's names usable as topic levels."""
+    if opts.release_stops is not None and opts.release_stops < 0:
+        raise InputError("release_stops: must be >= 0", field="release_stops")
+    for name in ("manufacturer", "serial_number"):
+        value = getattr(opts, name)
+        if not value or any(c in value for c in "/+#"):
+            raise InputError(
+                f"{name}: {value!r} must be non-empty without '/', '+' or '#' (a topic level)",
+                field=name,
+            )
+
+
+def _last_released(plan: pm.Plan, wps: list[rt.Waypoint], release_stops: int | None) -> int:
+    """The index of the last released waypoint: the base ends at the last released stop's
+    node (or the goal when all are released)."""
+    if release_stops is None or release_stops >= len(plan.stops):
+        return len(wps) - 1
+    if release_stops == 0:
+        return 0
+    return next(i for i, w in enumerate(wps) if w.stop == release_stops - 1)
+
+
+def _node(
+    i: int, w: rt.Waypoint, oid: str, map_id: str, act: PickAction, v3: bool, released: bool
+) -> dict[str, Any]:
+    """Waypoint ``i`` as an order node, with its picks as actions."""
+    actions = [
+        {
+            "actionType": act.action_type,
+            "actionId": action_id(oid, w.stop, p),
+            ("actionDescriptor" if v3 else "actionDescription"): (
+                f"pick {p.part_id} from {p.tray_id}"
+            ),
+            "blockingType": act.blocking_type,
+            "actionParameters": pick_parameters(p, w.stop, act),
+        }
+        for p in w.picks
+        if w.stop is not None
+    ]
+    via = "floor path corner" if w.yaw is None else "docking leg end: turn here"
+    desc = {"start": "start", "via": via, "goal": "goal"}.get(
+        w.kind, f"stop {w.stop}: trays {', '.join(sorted({p.tray_id for p in w.picks}))}"
+    )
+    return {
+        "nodeId": w.id,
+        "sequenceId": 2 * i,
+        ("nodeDescriptor" if v3 else "nodeDescription"): desc,
+        "released": released,
+        "nodePosition": _node_position(w, map_id, v3),
+        "actions": actions,
+    }
+
+
+def _node_position(w: rt.Waypoint, map_id: str, v3: bool) -> dict[str, Any]:
+    """Where the node lies and its allowed deviations: a circle (2.x) or an ellipse (3.0)."""
+    pos: dict[str, Any] = {"x": w.x, "y": w.y, "mapId": map_id}
+    if w.yaw is not None:
+        pos["theta"] = w.yaw
+    if v3 and w.ellipse is not None:
+        a, b, th = w.ellipse
+        pos["allowedDeviationXY"] = {"a": a, "b": b, "theta": th}
+    elif v3:
+        pos["allowedDeviationXY"] = {"a": w.tolerance_xy, "b": w.tolerance_xy, "theta": 0.0}
+    else:
+        pos["allowedDeviationXY"] = w.tolerance_xy
+    if w.tolerance_yaw is not None:
+        pos["allowedDeviationTheta"] = w.tolerance_yaw
+    return pos
+
+
+def _edge(
+    i: int, a: rt.Waypoint, w: rt.Waypoint, max_speed: float, v3: bool, released: bool
+) -> dict[str, Any]:
+    """The edge from waypoint ``a`` to waypoint ``i`` (``w``); max_speed [m/s]."""
+    edge: dict[str, Any] = {
+        "edgeId": f"{a.id}->{w.id}",
+        "sequenceId": 2 * i - 1,
+        "released": released,
+        ("maximumSpeed" if v3 else "maxSpeed"): max_speed,
+        "length": math.dist((a.x, a.y), (w.x, w.y)),
+        "actions": [],
+    }
+    if w.hold_yaw is not None:  # a docking leg: driven straight at the stop's yaw
+        edge |= {"orientation": w.hold_yaw, "orientationType": "GLOBAL"}
+        edge |= {"reachOrientationBeforeEntering": True} if v3 else {"rotationAllowed": False}
+    if not v3:
+        edge |= {"startNodeId": a.id, "endNodeId": w.id}
+    return edge
 
 
 def check_order(order: v.Order) -> list[str]:

@@ -121,6 +121,33 @@ def waypoints(
     (:func:`pickstop.fleet.tolerance.stop_shapes`): a stop's radius is then its checked
     circle's and it carries its checked ellipse; default :func:`guaranteed_radius`, no ellipse.
     """
+    _check_route(plan, shapes)
+    tols = _stop_yaw_tolerances(plan, yaw_tol)
+    joints = tuple(plan.joints)
+    dock_tol = min(tols) if tols else yaw_tolerance(plan)  # the tightest band on docking legs
+    if not plan.legs or not plan.legs[0].polyline:
+        raise InputError("legs: the plan has no route", field="legs")
+    x0, y0 = plan.legs[0].polyline[0]
+    out = [Waypoint("start", "start", x0, y0, start_yaw, VIA_TOLERANCE, None)]
+    for k, leg in enumerate(plan.legs):
+        held = _held_yaws(k, leg)
+        if held[0] is not None and k == 0:  # the start itself is docked: it holds that yaw
+            first = out[0]
+            out[0] = Waypoint(first.id, "start", first.x, first.y, held[0], VIA_TOLERANCE, None)
+        out += _vias(k, leg.polyline, held, dock_tol)
+        x, y = leg.polyline[-1]
+        if k < len(plan.stops):
+            sh = None if shapes is None else shapes[k]
+            out.append(_stop_waypoint(plan.stops[k], k, joints, tols[k], held[-1], sh))
+        else:
+            # a docked goal is reached at the yaw it was planned with
+            gyaw = held[-1] if held[-1] is not None or goal_yaw is None else wrap_angle(goal_yaw)
+            out.append(Waypoint("goal", "goal", x, y, gyaw, VIA_TOLERANCE, None, hold_yaw=held[-1]))
+    return out
+
+
+def _check_route(plan: pm.Plan, shapes: Sequence[StopShapes] | None) -> None:
+    """A shape per stop (if any), a leg more than stops, at most :data:`MAX_WAYPOINTS`."""
     if shapes is not None and len(shapes) != len(plan.stops):
         raise InputError(f"shapes: {len(shapes)} for {len(plan.stops)} stops", field="shapes")
     n = sum(max(0, len(leg.polyline) - 1) for leg in plan.legs) + 1
@@ -133,6 +160,10 @@ def waypoints(
             f"legs: {len(plan.legs)} legs for {len(plan.stops)} stops (expected stops + 1)",
             field="legs",
         )
+
+
+def _stop_yaw_tolerances(plan: pm.Plan, yaw_tol: float | Sequence[float] | None) -> list[float]:
+    """The yaw tolerance of each stop [rad], each in [0, pi]."""
     if yaw_tol is None or isinstance(yaw_tol, float | int):
         tols = [yaw_tolerance(plan) if yaw_tol is None else float(yaw_tol)] * len(plan.stops)
     else:
@@ -144,64 +175,66 @@ def waypoints(
             )
     if any(not 0 <= t <= math.pi for t in tols):
         raise InputError("yaw_tolerance: each must be in [0, pi] rad", field="yaw_tolerance")
-    joints = tuple(plan.joints)
-    dock_tol = min(tols) if tols else yaw_tolerance(plan)  # the tightest band on docking legs
-    if not plan.legs or not plan.legs[0].polyline:
-        raise InputError("legs: the plan has no route", field="legs")
-    x0, y0 = plan.legs[0].polyline[0]
-    out = [Waypoint("start", "start", x0, y0, start_yaw, VIA_TOLERANCE, None)]
-    for k, leg in enumerate(plan.legs):
-        line = leg.polyline
-        held = leg.segment_yaws or [None] * (len(line) - 1)
-        if len(held) != len(line) - 1:
-            raise InputError(
-                f"legs.{k}.segment_yaws: {len(held)} values for {len(line) - 1} segments",
-                field=f"legs.{k}.segment_yaws",
+    return tols
+
+
+def _held_yaws(k: int, leg: pm.Leg) -> list[float | None]:
+    """The yaw [rad] leg ``k`` holds on each segment (wrapped), None where it is free."""
+    line = leg.polyline
+    held = leg.segment_yaws or [None] * (len(line) - 1)
+    if len(held) != len(line) - 1:
+        raise InputError(
+            f"legs.{k}.segment_yaws: {len(held)} values for {len(line) - 1} segments",
+            field=f"legs.{k}.segment_yaws",
+        )
+    return [None if y is None else wrap_angle(y) for y in held]
+
+
+def _vias(
+    k: int, line: Sequence[pm.Point2], held: list[float | None], dock_tol: float
+) -> list[Waypoint]:
+    """The inner corners of leg ``k``'s floor path; docked where a segment holds a yaw."""
+    out = []
+    for i, (x, y) in enumerate(line[1:-1], start=1):
+        yaw = held[i - 1] if held[i - 1] is not None else held[i]
+        out.append(
+            Waypoint(
+                f"leg{k}-via{i}",
+                "via",
+                x,
+                y,
+                yaw,
+                VIA_TOLERANCE if yaw is None else DOCK_TOLERANCE,
+                None if yaw is None else dock_tol,
+                hold_yaw=held[i - 1],
             )
-        held = [None if y is None else wrap_angle(y) for y in held]
-        if held[0] is not None and k == 0:  # the start itself is docked: it holds that yaw
-            first = out[0]
-            out[0] = Waypoint(first.id, "start", first.x, first.y, held[0], VIA_TOLERANCE, None)
-        for i, (x, y) in enumerate(line[1:-1], start=1):
-            yaw = held[i - 1] if held[i - 1] is not None else held[i]
-            out.append(
-                Waypoint(
-                    f"leg{k}-via{i}",
-                    "via",
-                    x,
-                    y,
-                    yaw,
-                    VIA_TOLERANCE if yaw is None else DOCK_TOLERANCE,
-                    None if yaw is None else dock_tol,
-                    hold_yaw=held[i - 1],
-                )
-            )
-        x, y = line[-1]
-        if k < len(plan.stops):
-            s = plan.stops[k]
-            picks = tuple(
-                Pick(w.tray_id, w.part_id, w.grasp_index, joints, tuple(w.theta))
-                for w in s.witnesses
-            )
-            sh = None if shapes is None else shapes[k]
-            out.append(
-                Waypoint(
-                    f"stop{k}",
-                    "stop",
-                    s.x,
-                    s.y,
-                    wrap_angle(s.yaw),
-                    guaranteed_radius(s) if sh is None else sh.radius,
-                    tols[k],
-                    stop=k,
-                    picks=picks,
-                    predicted_success=None if s.success is None else s.success.rate,
-                    hold_yaw=held[-1],
-                    ellipse=None if sh is None else (sh.ellipse.a, sh.ellipse.b, sh.ellipse.theta),
-                )
-            )
-        else:
-            # a docked goal is reached at the yaw it was planned with
-            gyaw = held[-1] if held[-1] is not None or goal_yaw is None else wrap_angle(goal_yaw)
-            out.append(Waypoint("goal", "goal", x, y, gyaw, VIA_TOLERANCE, None, hold_yaw=held[-1]))
+        )
     return out
+
+
+def _stop_waypoint(
+    s: pm.Stop,
+    k: int,
+    joints: tuple[str, ...],
+    tol: float,
+    hold_yaw: float | None,
+    sh: StopShapes | None,
+) -> Waypoint:
+    """Stop ``k`` with its picks; its radius the checked circle's if ``sh``, else the plan's."""
+    picks = tuple(
+        Pick(w.tray_id, w.part_id, w.grasp_index, joints, tuple(w.theta)) for w in s.witnesses
+    )
+    return Waypoint(
+        f"stop{k}",
+        "stop",
+        s.x,
+        s.y,
+        wrap_angle(s.yaw),
+        guaranteed_radius(s) if sh is None else sh.radius,
+        tol,
+        stop=k,
+        picks=picks,
+        predicted_success=None if s.success is None else s.success.rate,
+        hold_yaw=hold_yaw,
+        ellipse=None if sh is None else (sh.ellipse.a, sh.ellipse.b, sh.ellipse.theta),
+    )

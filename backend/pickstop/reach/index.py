@@ -99,64 +99,11 @@ def index_database(
                      chain, voxel, lower, upper)
             for s in shards
         ]  # fmt: skip
-        workers = max(1, min(workers, len(jobs)))
-        if workers == 1:
-            for job in jobs:
-                _pose_shard(job)
-        else:
-            ctx = get_context("spawn")
-            with ProcessPoolExecutor(
-                workers, mp_context=ctx, initializer=_init_worker, initargs=(nice,)
-            ) as ex:
-                list(ex.map(_pose_shard, jobs))
-        n = sum(_open(job.out, "keys").shape[0] for job in jobs)
-        bounds = _merge_bounds([_open(job.out, "keys") for job in jobs], n)
-
-        # Pass 2: merge key range by key range, appending to the output files. Inputs are
-        # mapped afresh for each range and written with plain writes, so what this process
-        # holds stays about one range, not the database.
+        _pose_all(jobs, workers, nice)
+        # Pass 2: merge key range by key range into the index's arrays.
         out_dir = work / "index"
+        all_keys, reach_xy = _merge(jobs, dof, out_dir)
         rel = index_relpath(db_id)
-        shapes = {"joints": (n, dof), "manip": (n,), "positions": (n, 3), "quats": (n, 4)}
-        offsets = {}
-        for name, shape in shapes.items():
-            arr = create_array(out_dir / f"{name}.npy", ARRAYS[name], shape)
-            offsets[name] = arr.offset
-            del arr
-        voxel_keys, voxel_counts = [], []
-        reach_xy = 0.0
-        at = 0
-        for lo, hi in itertools.pairwise(bounds):
-            parts = [{name: _open(job.out, name) for name in _PASS1} for job in jobs]
-            cuts = [
-                (int(np.searchsorted(p["keys"], lo)), int(np.searchsorted(p["keys"], hi)))
-                for p in parts
-            ]
-            keys = np.concatenate([p["keys"][a:b] for p, (a, b) in zip(parts, cuts, strict=True)])
-            m = len(keys)
-            if m == 0:
-                continue
-            order = np.argsort(keys, kind="stable")
-            for name in shapes:
-                merged = np.concatenate(
-                    [p[name][a:b] for p, (a, b) in zip(parts, cuts, strict=True)]
-                )[order]
-                with open(out_dir / f"{name}.npy", "r+b") as f:
-                    f.seek(offsets[name] + at * merged[:1].nbytes)
-                    merged.tofile(f)
-                if name == "positions":
-                    reach_xy = max(reach_xy, float(np.hypot(merged[:, 0], merged[:, 1]).max()))
-            del parts, merged
-            keys = keys[order]
-            first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-            voxel_keys.append(keys[first])
-            voxel_counts.append(np.diff(np.r_[first, m]))
-            at += m
-        assert at == n, (at, n)
-        all_keys = np.concatenate(voxel_keys) if voxel_keys else np.empty(0, np.int64)
-        counts = np.concatenate(voxel_counts) if voxel_counts else np.empty(0, np.int64)
-        np.save(out_dir / "keys.npy", all_keys.astype(ARRAYS["keys"]))
-        np.save(out_dir / "starts.npy", np.r_[0, np.cumsum(counts)].astype(ARRAYS["starts"]))
         files: list[ArrayFile] = [
             seal_array(name, out_dir / f"{name}.npy", f"{rel}/{name}.npy") for name in ARRAYS
         ]
@@ -171,6 +118,85 @@ def index_database(
         return files, figures
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _pose_all(jobs: list[_PoseJob], workers: int, nice: int) -> None:
+    """Pass 1 over every shard, on up to ``workers`` processes lowered by ``nice``."""
+    workers = max(1, min(workers, len(jobs)))
+    if workers == 1:
+        for job in jobs:
+            _pose_shard(job)
+        return
+    ctx = get_context("spawn")
+    with ProcessPoolExecutor(
+        workers, mp_context=ctx, initializer=_init_worker, initargs=(nice,)
+    ) as ex:
+        list(ex.map(_pose_shard, jobs))
+
+
+def _merge(jobs: list[_PoseJob], dof: int, out_dir: Path) -> tuple[np.ndarray, float]:
+    """Pass 2: the shards' sorted rows merged key range by key range, appended to the output
+    arrays in ``out_dir``; then the voxel keys and starts saved. Inputs are mapped afresh for
+    each range and written with plain writes, so what this process holds stays about one
+    range, not the database. Returns the voxel keys and the farthest reach in xy [m]."""
+    n = sum(_open(job.out, "keys").shape[0] for job in jobs)
+    bounds = _merge_bounds([_open(job.out, "keys") for job in jobs], n)
+    shapes = {"joints": (n, dof), "manip": (n,), "positions": (n, 3), "quats": (n, 4)}
+    offsets = {}
+    for name, shape in shapes.items():
+        arr = create_array(out_dir / f"{name}.npy", ARRAYS[name], shape)
+        offsets[name] = arr.offset
+        del arr
+    voxel_keys, voxel_counts = [], []
+    reach_xy = 0.0
+    at = 0
+    for lo, hi in itertools.pairwise(bounds):
+        m, reach = _merge_range(jobs, lo, hi, out_dir, offsets, at, voxel_keys, voxel_counts)
+        reach_xy = max(reach_xy, reach)
+        at += m
+    assert at == n, (at, n)
+    all_keys = np.concatenate(voxel_keys) if voxel_keys else np.empty(0, np.int64)
+    counts = np.concatenate(voxel_counts) if voxel_counts else np.empty(0, np.int64)
+    np.save(out_dir / "keys.npy", all_keys.astype(ARRAYS["keys"]))
+    np.save(out_dir / "starts.npy", np.r_[0, np.cumsum(counts)].astype(ARRAYS["starts"]))
+    return all_keys, reach_xy
+
+
+def _merge_range(
+    jobs: list[_PoseJob],
+    lo: int,
+    hi: int,
+    out_dir: Path,
+    offsets: dict[str, int],
+    at: int,
+    voxel_keys: list[np.ndarray],
+    voxel_counts: list[np.ndarray],
+) -> tuple[int, float]:
+    """The rows of keys in ``[lo, hi)`` merged and written at row ``at``; their voxels' keys
+    and counts appended. Returns the rows written and their farthest reach in xy [m]."""
+    parts = [{name: _open(job.out, name) for name in _PASS1} for job in jobs]
+    cuts = [
+        (int(np.searchsorted(p["keys"], lo)), int(np.searchsorted(p["keys"], hi))) for p in parts
+    ]
+    keys = np.concatenate([p["keys"][a:b] for p, (a, b) in zip(parts, cuts, strict=True)])
+    m = len(keys)
+    reach_xy = 0.0
+    if m == 0:
+        return 0, reach_xy
+    order = np.argsort(keys, kind="stable")
+    for name in offsets:
+        merged = np.concatenate([p[name][a:b] for p, (a, b) in zip(parts, cuts, strict=True)])
+        merged = merged[order]
+        with open(out_dir / f"{name}.npy", "r+b") as f:
+            f.seek(offsets[name] + at * merged[:1].nbytes)
+            merged.tofile(f)
+        if name == "positions":
+            reach_xy = float(np.hypot(merged[:, 0], merged[:, 1]).max())
+    keys = keys[order]
+    first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+    voxel_keys.append(keys[first])
+    voxel_counts.append(np.diff(np.r_[first, m]))
+    return m, reach_xy
 
 
 _PASS1 = ("keys", "joints", "manip", "positions", "quats")

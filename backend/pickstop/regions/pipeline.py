@@ -100,11 +100,7 @@ def compute_tray_region(
     grid = CellGrid.of(scene)
     counts = {"grid": grid.nx * grid.ny}
     part_ids = tuple(p.id for p in tray.parts)
-
-    env = Envelope.empty(scene.floor.min, scene.floor.max)
-    # The open hands at every candidate grasp: what reaches in there may change the grasps.
-    for part in tray.parts:
-        env.mark_box(*planner.hand_space(scene, tray, part))
+    env = _hand_envelope(planner, scene, tray)
 
     def empty(reason: str) -> TrayRegion:
         seconds = time.perf_counter() - t0
@@ -119,36 +115,20 @@ def compute_tray_region(
     if base.reason is not None:
         return empty(base.reason)
     _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
-    IX, IY, cen = base.ix, base.iy, base.centres
-
     grasp_sets = planner.grasps(scene, tray)
     why = ungraspable(planner, scene, tray, grasp_sets)
     if why is not None:
         return empty(why)
-    anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
-    memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
-    around = memo.around(Surroundings.of(solids, tray))
-    world = ArmWorld(
-        boxes, solids, yaw, env, scene.floor_clearance, (tray.pose.x, tray.pose.y), around
-    )
-    keys = anchor.cell_keys(IX, IY)
-    targets = [Targets.of(gs, cen, R_base_world, keys, memo) for gs in grasp_sets]
-    # Cells the database cannot serve for some part are left to the growth below.
-    alive = np.flatnonzero(
-        memo.served(keys, lambda idx: solve.served(planner.db, [t.take(idx) for t in targets]))
+    world, targets, alive = _arm_targets(
+        planner, scene, tray, yaw, base, grasp_sets, (solids, boxes, R_base_world, grid, env)
     )
     counts["served"] = len(alive)
-    witness = np.zeros((len(IX), len(part_ids), robot.dof))
-    grasp_of = np.zeros((len(IX), len(part_ids)), int)
-    for k, tg in enumerate(targets):
-        planner.checkpoint()
-        found, th, gi = solve.solve_part(planner, world, tg.take(alive), cen[alive])
-        alive = alive[found]
-        witness[alive, k] = th[found]
-        grasp_of[alive, k] = gi[found]
-        counts[f"feasible_after_{tg.grasps.part_id}"] = len(alive)
-        if len(alive) == 0:
-            return empty(no_cell_grasps(tg.grasps.part_id, tray, counts["footprint_free"]))
+    alive, witness, grasp_of, failed = _solve_parts(
+        planner, world, targets, base, alive, len(part_ids), counts
+    )
+    if failed is not None:
+        return empty(no_cell_grasps(failed, tray, counts["footprint_free"]))
+    IX, IY, cen = base.ix, base.iy, base.centres
     solved = np.zeros(len(IX), bool)
     solved[alive] = True
     planner.checkpoint()
@@ -171,6 +151,69 @@ def compute_tray_region(
         key,
         env,
     )
+
+
+def _hand_envelope(planner: RegionKit, scene: Scene, tray: Tray) -> Envelope:
+    """The open hands at every candidate grasp: what reaches in there may change the grasps."""
+    env = Envelope.empty(scene.floor.min, scene.floor.max)
+    for part in tray.parts:
+        env.mark_box(*planner.hand_space(scene, tray, part))
+    return env
+
+
+def _arm_targets(
+    planner: RegionKit,
+    scene: Scene,
+    tray: Tray,
+    yaw: float,
+    base: BaseCells,
+    grasp_sets: list[GraspSet],
+    near: tuple[list[Solid], BoxArrays, np.ndarray, CellGrid, Envelope],
+) -> tuple[ArmWorld, list[Targets], np.ndarray]:
+    """The arm's world, each part's targets from the base cells, and the cells the database
+    serves for every part (indices into ``base``); the others are left to the growth.
+    ``near``: the solids near the tray (exact and as arrays), R_base_world, the grid, the
+    hands' envelope."""
+    solids, boxes, R_base_world, grid, env = near
+    anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
+    memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
+    around = memo.around(Surroundings.of(solids, tray))
+    world = ArmWorld(
+        boxes, solids, yaw, env, scene.floor_clearance, (tray.pose.x, tray.pose.y), around
+    )
+    keys = anchor.cell_keys(base.ix, base.iy)
+    targets = [Targets.of(gs, base.centres, R_base_world, keys, memo) for gs in grasp_sets]
+    alive = np.flatnonzero(
+        memo.served(keys, lambda idx: solve.served(planner.db, [t.take(idx) for t in targets]))
+    )
+    return world, targets, alive
+
+
+def _solve_parts(
+    planner: RegionKit,
+    world: ArmWorld,
+    targets: list[Targets],
+    base: BaseCells,
+    alive: np.ndarray,
+    n_parts: int,
+    counts: dict[str, int],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, str | None]:
+    """Each part solved in turn on the cells every earlier part was solved on: (the cells
+    solved for all, witnesses ``(cells, parts, dof)`` [rad or m], grasp indices ``(cells,
+    parts)``, the part no cell serves or None). ``counts`` gains the cells left per part."""
+    shape = (len(base.ix), n_parts)
+    witness = np.zeros((*shape, planner.robot.dof))
+    grasp_of = np.zeros(shape, int)
+    for k, tg in enumerate(targets):
+        planner.checkpoint()
+        found, th, gi = solve.solve_part(planner, world, tg.take(alive), base.centres[alive])
+        alive = alive[found]
+        witness[alive, k] = th[found]
+        grasp_of[alive, k] = gi[found]
+        counts[f"feasible_after_{tg.grasps.part_id}"] = len(alive)
+        if len(alive) == 0:
+            return alive, witness, grasp_of, tg.grasps.part_id
+    return alive, witness, grasp_of, None
 
 
 def reuse_key(

@@ -87,12 +87,7 @@ def select_stops(
     assert cost.shape == (N + 2, N + 2)
     assert groups is None or len(groups) == N
     req = list(dict.fromkeys(required))
-    servable = {t: [c for c in range(N) if t in trays_of[c]] for t in req}
-    missing = [t for t in req if not servable[t]]
-    if missing:
-        raise InfeasiblePlanError(
-            f"no candidate stop serves tray(s) {', '.join(missing)}", field="trays"
-        )
+    servable = _servable(trays_of, req)
     icost = np.where(np.isfinite(cost), np.round(cost * SCALE), -1).astype(np.int64)
     stop_unit = round(stop_cost * SCALE) if objective == "time" else None
     group = np.arange(N) if groups is None else np.asarray(groups, np.int64)
@@ -101,6 +96,56 @@ def select_stops(
         best_order, best_serves = found
         return Selection(best_order, best_serves, _cost(cost, best_order, objective, stop_cost),
                          True, time.perf_counter() - t0)  # fmt: skip
+    m = _cover_model(req, servable, icost, group, n_stops)
+    solver = cp_model.CpSolver()
+    solver.parameters.num_workers = workers or (1 if N <= ONE_WORKER else 8)
+    solver.parameters.max_time_in_seconds = time_limit
+    optimal = True
+    pruned = 0
+    if objective == "stops":
+        optimal, pruned = _fewest_stops_first(m, solver, req, icost)
+    else:
+        m.model.minimize(m.route + round(stop_cost * SCALE) * m.count)
+    status = solver.solve(m.model)
+    _check(status, req)
+    optimal &= status == cp_model.OPTIMAL
+    order, serves = _solution(m, solver)
+    total = _cost(cost, order, objective, stop_cost)
+    return Selection(order, serves, total, optimal, time.perf_counter() - t0, pruned)
+
+
+@dataclass(frozen=True)
+class _CoverModel:
+    """The CP-SAT model and the variables read back from it."""
+
+    model: cp_model.CpModel
+    x: list[cp_model.IntVar]  # candidate c chosen
+    y: dict[tuple[int, str], cp_model.IntVar]  # candidate c serves tray t
+    arc_lits: list[tuple[int, int, cp_model.IntVar]]  # leg i -> j taken (nodes)
+    route: Any  # the route cost [mm or ms]
+    count: Any  # the number of stops
+
+
+def _servable(trays_of: list[frozenset[str]], req: list[str]) -> dict[str, list[int]]:
+    """The candidates that can serve each required tray; an error naming any tray none can."""
+    servable = {t: [c for c in range(len(trays_of)) if t in trays_of[c]] for t in req}
+    missing = [t for t in req if not servable[t]]
+    if missing:
+        raise InfeasiblePlanError(
+            f"no candidate stop serves tray(s) {', '.join(missing)}", field="trays"
+        )
+    return servable
+
+
+def _cover_model(
+    req: list[str],
+    servable: dict[str, list[int]],
+    icost: np.ndarray,
+    group: np.ndarray,
+    n_stops: int | None,
+) -> _CoverModel:
+    """Stop choice, tray service and the route as one circuit, without an objective."""
+    N = len(group)
     model = cp_model.CpModel()
     x = [model.new_bool_var(f"x{c}") for c in range(N)]
     y = {(c, t): model.new_bool_var(f"y{c}_{t}") for t in req for c in servable[t]}
@@ -114,7 +159,24 @@ def select_stops(
             model.add_bool_or(mine).only_enforce_if(x[c])
         else:
             model.add(x[c] == 0)
-    # Route: a circuit through start (0), goal (1) and the chosen stops, closed by goal->start.
+    arc_lits = _route_circuit(model, x, icost)
+    for g in np.unique(group):
+        alike = np.flatnonzero(group == g)
+        if len(alike) > 1:
+            model.add_at_most_one(x[int(c)] for c in alike)
+    route = sum(int(icost[i, j]) * lit for i, j, lit in arc_lits)
+    count = sum(x)
+    if n_stops is not None:
+        model.add(count == n_stops)
+    return _CoverModel(model, x, y, arc_lits, route, count)
+
+
+def _route_circuit(
+    model: cp_model.CpModel, x: list[cp_model.IntVar], icost: np.ndarray
+) -> list[tuple[int, int, cp_model.IntVar]]:
+    """A circuit through start (0), goal (1) and the chosen stops, closed by goal -> start,
+    unchosen stops skipped by self-loops; the legs' literals (missing legs left out)."""
+    N = len(x)
     arcs: list[tuple[int, int, Any]] = [(1, 0, model.new_constant(1))]
     arc_lits: list[tuple[int, int, cp_model.IntVar]] = []
     for i in range(N + 2):
@@ -131,52 +193,46 @@ def select_stops(
     for c in range(N):
         arcs.append((c + 2, c + 2, x[c].negated()))
     model.add_circuit(arcs)
-    for g in np.unique(group):
-        alike = np.flatnonzero(group == g)
-        if len(alike) > 1:
-            model.add_at_most_one(x[int(c)] for c in alike)
-    route = sum(int(icost[i, j]) * lit for i, j, lit in arc_lits)
-    count = sum(x)
-    if n_stops is not None:
-        model.add(count == n_stops)
-    solver = cp_model.CpSolver()
-    solver.parameters.num_workers = workers or (1 if N <= ONE_WORKER else 8)
-    solver.parameters.max_time_in_seconds = time_limit
-    optimal = True
-    pruned = 0
-    if objective == "stops":
-        model.minimize(count)
-        status = solver.solve(model)
-        _check(status, req)
-        optimal &= status == cp_model.OPTIMAL
-        best = round(solver.objective_value)
-        model.add(count == best)
-        model.minimize(route)
-        # Prune: a route through c is at least start -> c -> goal long (shortest paths obey
-        # the triangle inequality), so c cannot beat the first phase's route if that is longer.
-        # Each leg's cost is rounded by at most half a unit: the margin keeps the bound safe.
-        incumbent = sum(int(icost[i, j]) for i, j, lit in arc_lits if solver.value(lit))
-        for c in range(N):
-            lb = icost[0, c + 2] + icost[c + 2, 1]
-            if icost[0, c + 2] < 0 or icost[c + 2, 1] < 0 or lb > incumbent + N + 2:
-                model.add(x[c] == 0)
-                pruned += 1
-        for c in range(N):  # warm start from the first phase's stops
-            model.add_hint(x[c], bool(solver.value(x[c])))
-    else:
-        model.minimize(route + round(stop_cost * SCALE) * count)
-    status = solver.solve(model)
+    return arc_lits
+
+
+def _fewest_stops_first(
+    m: _CoverModel, solver: cp_model.CpSolver, req: list[str], icost: np.ndarray
+) -> tuple[bool, int]:
+    """Solve for the fewest stops, fix that count and set the model to minimise the route:
+    (the first phase proven optimal, candidates pruned by the route bound)."""
+    N = len(m.x)
+    m.model.minimize(m.count)
+    status = solver.solve(m.model)
     _check(status, req)
-    optimal &= status == cp_model.OPTIMAL
-    succ = {i: j for i, j, lit in arc_lits if solver.value(lit)}
+    best = round(solver.objective_value)
+    m.model.add(m.count == best)
+    m.model.minimize(m.route)
+    # Prune: a route through c is at least start -> c -> goal long (shortest paths obey
+    # the triangle inequality), so c cannot beat the first phase's route if that is longer.
+    # Each leg's cost is rounded by at most half a unit: the margin keeps the bound safe.
+    incumbent = sum(int(icost[i, j]) for i, j, lit in m.arc_lits if solver.value(lit))
+    pruned = 0
+    for c in range(N):
+        lb = icost[0, c + 2] + icost[c + 2, 1]
+        if icost[0, c + 2] < 0 or icost[c + 2, 1] < 0 or lb > incumbent + N + 2:
+            m.model.add(m.x[c] == 0)
+            pruned += 1
+    for c in range(N):  # warm start from the first phase's stops
+        m.model.add_hint(m.x[c], bool(solver.value(m.x[c])))
+    return status == cp_model.OPTIMAL, pruned
+
+
+def _solution(m: _CoverModel, solver: cp_model.CpSolver) -> tuple[tuple[int, ...], dict[str, int]]:
+    """The chosen candidates in visiting order and the candidate serving each tray."""
+    succ = {i: j for i, j, lit in m.arc_lits if solver.value(lit)}
     order, node = [], 0
     while node != 1:
         node = succ[node]
         if node >= 2:
             order.append(node - 2)
-    serves = {t: c for (c, t), v in y.items() if solver.value(v)}
-    total = _cost(cost, tuple(order), objective, stop_cost)
-    return Selection(tuple(order), serves, total, optimal, time.perf_counter() - t0, pruned)
+    serves = {t: c for (c, t), v in m.y.items() if solver.value(v)}
+    return tuple(order), serves
 
 
 def _cost(

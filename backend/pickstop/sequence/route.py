@@ -225,74 +225,26 @@ def shortest_paths(
     Q = len(points)
     yaws = np.full(Q, np.nan) if yaws is None else np.asarray(yaws, float).reshape(Q)
     docked: list[int] = []
-    if docking is not None:
-        outside = ~fmap.free_xy(points) & np.isfinite(yaws)
-        docked = np.flatnonzero(outside).tolist()
     undocked: dict[int, str] = {}
     stage_pts: list[np.ndarray] = []
     dock_edges: list[tuple[int, int, float]] = []  # (query point, node, yaw)
-    base = Q + len(fmap.corners)
-    for q in docked:
-        p, yaw = points[q], float(yaws[q])
-        assert docking is not None
-        blocked, owners = docking.sweep(p[None], p[None], yaw)
-        if blocked[0]:
-            undocked[q] = (
-                f"the base at yaw {math.degrees(yaw):.0f} deg does not fit there: it meets "
-                + ", ".join(sorted(owners[0]))
-            )
-            continue
-        stage = fmap.staging(p, yaw, docking.reach, docking.omnidirectional)
-        if not len(stage):
-            undocked[q] = (
-                f"no floor where the base may turn lies within {docking.reach:.2f} m of it"
-                if docking.omnidirectional
-                else f"no floor where the base may turn lies straight ahead or behind it "
-                f"within {docking.reach:.2f} m at yaw {math.degrees(yaw):.0f} deg (a "
-                "differential base moves straight only along its heading)"
-            )
-            continue
-        blocked, owners = docking.sweep(np.repeat(p[None], len(stage), 0), stage, yaw)
-        if blocked.all():
-            met = sorted(set().union(*owners))
-            undocked[q] = (
-                f"every straight leg at yaw {math.degrees(yaw):.0f} deg toward floor where the "
-                f"base may turn ({len(stage)} tried) meets " + ", ".join(met)
-            )
-            continue
-        for sxy in stage[~blocked]:
-            dock_edges.append((q, base + len(stage_pts), yaw))
-            stage_pts.append(sxy)
-    # Two docked points of the same yaw: slide between them at that yaw.
-    ok_docked = [q for q in docked if q not in undocked]
-    pairs = [
-        (a, b)
-        for k, a in enumerate(ok_docked)
-        for b in ok_docked[k + 1 :]
-        if abs(math.remainder(yaws[a] - yaws[b], 2 * math.pi)) < 1e-9
-        and np.linalg.norm(points[a] - points[b]) <= MAX_SLIDE
-        and (docking is None or docking.omnidirectional or _along(points[b] - points[a], yaws[a]))
-    ]
-    for yaw in sorted({float(yaws[a]) for a, _ in pairs}):
-        assert docking is not None
-        mine = [(a, b) for a, b in pairs if float(yaws[a]) == yaw]
-        ia, ib = np.array(mine).T
-        blocked, _ = docking.sweep(points[ia], points[ib], yaw)
-        dock_edges += [(a, b, yaw) for (a, b), bl in zip(mine, blocked, strict=True) if not bl]
+    if docking is not None:
+        outside = ~fmap.free_xy(points) & np.isfinite(yaws)
+        docked = np.flatnonzero(outside).tolist()
+        base = Q + len(fmap.corners)
+        for q in docked:
+            stage, why = _staging(fmap, points[q], float(yaws[q]), docking)
+            if why is not None:
+                undocked[q] = why
+                continue
+            for sxy in stage:
+                dock_edges.append((q, base + len(stage_pts), float(yaws[q])))
+                stage_pts.append(sxy)
+        ok_docked = [q for q in docked if q not in undocked]
+        dock_edges += _slides(points, yaws, ok_docked, docking)
 
     nodes = np.concatenate([points, fmap.corners, np.array(stage_pts, float).reshape(-1, 2)])
-    n, V = len(nodes), len(fmap.corners)
-    # Legs: between corners as the map keeps them, and from each query or staging point not
-    # docked to every node after it that is not docked either.
-    visible = np.setdiff1d(np.arange(n), docked)
-    vi, vj = np.triu_indices(len(visible), 1)
-    ii, jj = visible[vi], visible[vj]
-    own = (ii < Q) | (ii >= Q + V) | (jj < Q) | (jj >= Q + V)
-    ii, jj = ii[own], jj[own]
-    ok = fmap.leg_ok(nodes[ii], nodes[jj])
-    ci, cj = fmap.corner_legs
-    ii = np.concatenate([ii[ok], ci + Q])
-    jj = np.concatenate([jj[ok], cj + Q])
+    ii, jj = _free_legs(fmap, nodes, docked, Q)
     held: dict[tuple[int, int], float] = {}
     for a, b, yaw in dock_edges:
         held[a, b] = held[b, a] = yaw
@@ -301,6 +253,75 @@ def shortest_paths(
         jj = np.concatenate([jj, [b for _, b, _ in dock_edges]]).astype(np.int64)
     dist, prevs = _dijkstra(nodes, ii, jj, Q)
     return Paths(points, dist, prevs, nodes, held, undocked)
+
+
+def _staging(
+    fmap: FloorMap, p: np.ndarray, yaw: float, docking: Docking
+) -> tuple[np.ndarray, str | None]:
+    """The staging points ``(S, 2)`` [m] a docked point ``p`` at ``yaw`` [rad] is reached from
+    by a clear straight leg, or (empty, why the point cannot be docked)."""
+    none = np.empty((0, 2))
+    blocked, owners = docking.sweep(p[None], p[None], yaw)
+    if blocked[0]:
+        return none, (
+            f"the base at yaw {math.degrees(yaw):.0f} deg does not fit there: it meets "
+            + ", ".join(sorted(owners[0]))
+        )
+    stage = fmap.staging(p, yaw, docking.reach, docking.omnidirectional)
+    if not len(stage):
+        return none, (
+            f"no floor where the base may turn lies within {docking.reach:.2f} m of it"
+            if docking.omnidirectional
+            else f"no floor where the base may turn lies straight ahead or behind it "
+            f"within {docking.reach:.2f} m at yaw {math.degrees(yaw):.0f} deg (a "
+            "differential base moves straight only along its heading)"
+        )
+    blocked, owners = docking.sweep(np.repeat(p[None], len(stage), 0), stage, yaw)
+    if blocked.all():
+        met = sorted(set().union(*owners))
+        return none, (
+            f"every straight leg at yaw {math.degrees(yaw):.0f} deg toward floor where the "
+            f"base may turn ({len(stage)} tried) meets " + ", ".join(met)
+        )
+    return stage[~blocked], None
+
+
+def _slides(
+    points: np.ndarray, yaws: np.ndarray, docked: list[int], docking: Docking
+) -> list[tuple[int, int, float]]:
+    """Two docked points of the same yaw: a slide between them at that yaw, where it is clear
+    and at most :data:`MAX_SLIDE` long (along the heading for a differential base)."""
+    pairs = [
+        (a, b)
+        for k, a in enumerate(docked)
+        for b in docked[k + 1 :]
+        if abs(math.remainder(yaws[a] - yaws[b], 2 * math.pi)) < 1e-9
+        and np.linalg.norm(points[a] - points[b]) <= MAX_SLIDE
+        and (docking.omnidirectional or _along(points[b] - points[a], yaws[a]))
+    ]
+    edges = []
+    for yaw in sorted({float(yaws[a]) for a, _ in pairs}):
+        mine = [(a, b) for a, b in pairs if float(yaws[a]) == yaw]
+        ia, ib = np.array(mine).T
+        blocked, _ = docking.sweep(points[ia], points[ib], yaw)
+        edges += [(a, b, yaw) for (a, b), bl in zip(mine, blocked, strict=True) if not bl]
+    return edges
+
+
+def _free_legs(
+    fmap: FloorMap, nodes: np.ndarray, docked: list[int], Q: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The free-floor legs ``(ii, jj)`` between nodes: between corners as the map keeps them,
+    and from each query or staging point not docked to every later node not docked either."""
+    n, V = len(nodes), len(fmap.corners)
+    visible = np.setdiff1d(np.arange(n), docked)
+    vi, vj = np.triu_indices(len(visible), 1)
+    ii, jj = visible[vi], visible[vj]
+    own = (ii < Q) | (ii >= Q + V) | (jj < Q) | (jj >= Q + V)
+    ii, jj = ii[own], jj[own]
+    ok = fmap.leg_ok(nodes[ii], nodes[jj])
+    ci, cj = fmap.corner_legs
+    return np.concatenate([ii[ok], ci + Q]), np.concatenate([jj[ok], cj + Q])
 
 
 def _dijkstra(

@@ -10,8 +10,9 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,7 @@ from pickstop.reach.build import (
 )
 from pickstop.reach.index import index_database
 from pickstop.robot.floor import floor_identity
+from pickstop.robot.kinematics import Chain
 from pickstop.robot.model import RobotModel
 from pickstop.store import reach_catalog as rc
 from pickstop.store.catalog import Catalog
@@ -135,7 +137,6 @@ def build(
     todo = [c for c in range(params.n_chunks) if c not in done]
     if max_chunks is not None:
         todo = todo[:max_chunks]
-    samples_done = sum(params.chunk_samples(c) for c in done)
     workers = workers or os.cpu_count() or 1
     run = runner or (
         lambda k, c, d, i: run_local(k, c, d, i, min(workers, max(len(c), 1)), nice=nice)
@@ -144,28 +145,65 @@ def build(
         kernel = make_kernel(robot, params, data_dir, steps)
         rc.update_database(catalog, db_id, screen_figures(robot, data_dir))
         step(steps, "")
-        if progress:
-            progress(samples_done, params.samples)
-        for res in run(kernel, todo, data_dir, db_id):
-            rc.record_shard(catalog, db_id, _shard_row(db_id, res))
-            done.add(res.chunk)
-            samples_done += res.samples
-            if progress:
-                progress(samples_done, params.samples)
+        chunks = partial(run, kernel, todo, data_dir, db_id)
+        _run_chunks(catalog, db_id, params, chunks, done, progress)
         if len(done) == params.n_chunks:
-            current = rc.database_row(catalog, db_id)
-            assert current is not None
-            step(steps, "indexing the stored configurations")
-            files, figures = index_database(
-                data_dir, current, rc.shards(catalog, db_id), kernel.chain, workers, nice
-            )
-            rc.record_index(catalog, db_id, files, figures)
-            step(steps, "")
+            _index(catalog, db_id, data_dir, kernel.chain, workers, nice, steps)
     finally:
         # Whatever stopped it (Ctrl-C, an error, a chunk limit), an unfinished build is
         # 'interrupted' until the same command resumes it; a killed one is found out by
         # list_databases from its builder tag.
         rc.end_build(catalog, db_id, time.perf_counter() - t0)
+    return _finish(catalog, db_id, params, done, max_chunks)
+
+
+def _run_chunks(
+    catalog: Catalog,
+    db_id: str,
+    params: BuildParams,
+    chunks: Callable[[], Iterable[ChunkResult]],
+    done: set[int],
+    progress: Callable[[int, int], None] | None,
+) -> None:
+    """Compute the chunks (``chunks()``, after a first ``progress``), recording each one's
+    shard as it comes in, adding it to ``done`` and telling ``progress`` (samples done, samples
+    total)."""
+    samples_done = sum(params.chunk_samples(c) for c in done)
+    if progress:
+        progress(samples_done, params.samples)
+    for res in chunks():
+        rc.record_shard(catalog, db_id, _shard_row(db_id, res))
+        done.add(res.chunk)
+        samples_done += res.samples
+        if progress:
+            progress(samples_done, params.samples)
+
+
+def _index(
+    catalog: Catalog,
+    db_id: str,
+    data_dir: Path,
+    chain: Chain,
+    workers: int,
+    nice: int,
+    steps: Steps | None,
+) -> None:
+    """The voxel index of the complete database, built and recorded."""
+    current = rc.database_row(catalog, db_id)
+    assert current is not None
+    step(steps, "indexing the stored configurations")
+    files, figures = index_database(
+        data_dir, current, rc.shards(catalog, db_id), chain, workers, nice
+    )
+    rc.record_index(catalog, db_id, files, figures)
+    step(steps, "")
+
+
+def _finish(
+    catalog: Catalog, db_id: str, params: BuildParams, done: set[int], max_chunks: int | None
+) -> dict[str, Any]:
+    """The database marked complete if every chunk is done; its row (the catalog closed).
+    Missing chunks without a chunk limit are an error."""
     if len(done) == params.n_chunks:
         fields: dict[str, Any] = {"state": "complete", "completed": _now()}
         rc.update_database(catalog, db_id, {**fields, **rc.shard_totals(catalog, db_id)})

@@ -148,9 +148,3 @@ def get_plan(service: ServiceDep, plan_id: str, include_scene: bool = False) -> 
     if body is None:
         raise Problem(404, "Not found", f"no plan {plan_id!r}", field="plan_id")
     return Response(body, media_type="application/json", headers=IMMUTABLE)
-
-
-# Fleet: export (VDA 5050, Nav2) and dispatch over MQTT of a stored plan.
-from pickstop.api.fleet import add_fleet_routes  # noqa: E402
-
-add_fleet_routes(router, [WriteKey], [ReadKey])
