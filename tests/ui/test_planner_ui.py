@@ -247,9 +247,10 @@ def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app, close_ob
     assert f"below sigma {sigma:.3f} m" in text
     time.sleep(1.5)
     after = _shot(ui_page, "03-sigma-raised")
-    # The shared stop's solid green centre and circle are gone (now red, the circle dashed;
-    # how much of the markers the route covers depends on the pixel ratio the view has).
-    assert green_before > 40 and len(_pixels(after, KEPT, tol=35)) < 0.6 * green_before
+    # The shared stop's solid green centre and circle are gone (now red, the circle dashed):
+    # at least a marker's worth of green less (how much of the markers the route and the
+    # labels cover depends on the pixel ratio and where the labels settle).
+    assert green_before > 40 and len(_pixels(after, KEPT, tol=35)) < green_before - 40
     assert len(_pixels(after, REJECTED)) > red_before + 25
     _robots_checkbox(ui_page).click()
     _wait_for(lambda: planner_app.show_robots.value)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import sqlite3
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -81,6 +83,25 @@ class Catalog:
                 raise
             finally:
                 conn.execute("PRAGMA foreign_keys=ON")
+
+    @contextmanager
+    def transaction(self) -> Iterator[sqlite3.Connection]:
+        """One ``BEGIN IMMEDIATE`` transaction on this connection, committed when the block
+        ends and rolled back on any exception, however early it comes (a job's cancellation
+        is raised in its thread at any bytecode: right after BEGIN too). A transaction an
+        interrupted block left open on this connection is rolled back first (a connection
+        belongs to one thread: nothing else can be using it)."""
+        conn = self.conn
+        if conn.in_transaction:
+            conn.execute("ROLLBACK")
+        try:
+            conn.execute("BEGIN IMMEDIATE")
+            yield conn
+            conn.execute("COMMIT")
+        except BaseException:
+            if conn.in_transaction:
+                conn.execute("ROLLBACK")
+            raise
 
     def table(self, name: str) -> sqlite_utils.db.Table:
         return self.db.table(name)

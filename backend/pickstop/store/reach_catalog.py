@@ -101,18 +101,12 @@ def shard_totals(catalog: Catalog, db_id: str) -> dict[str, int]:
 def delete_database(catalog: Catalog, db_id: str) -> bool:
     """Forget database ``db_id`` (its row, shards and index files) in one transaction; False
     if the catalog has no such database. Its files are the caller's to remove."""
-    conn = catalog.conn
-    conn.execute("BEGIN IMMEDIATE")
-    try:
+    with catalog.transaction() as conn:
         found = conn.execute("SELECT 1 FROM reach_databases WHERE id = ?", [db_id]).fetchone()
         if found is not None:
             conn.execute("DELETE FROM reach_shards WHERE db_id = ?", [db_id])
             conn.execute("DELETE FROM reach_arrays WHERE db_id = ?", [db_id])
             conn.execute("DELETE FROM reach_databases WHERE id = ?", [db_id])
-    except BaseException:
-        conn.execute("ROLLBACK")
-        raise
-    conn.execute("COMMIT")
     return found is not None
 
 
@@ -151,9 +145,7 @@ def record_index(
     catalog: Catalog, db_id: str, files: list[ArrayFile], figures: dict[str, Any]
 ) -> None:
     """Record a new index of ``db_id`` (replacing any older one) with its ``figures``."""
-    conn = catalog.conn
-    conn.execute("BEGIN IMMEDIATE")
-    try:
+    with catalog.transaction() as conn:
         conn.execute("DELETE FROM reach_arrays WHERE db_id = ?", [db_id])
         for f in files:
             conn.execute(
@@ -167,10 +159,6 @@ def record_index(
             "index_seconds = ? WHERE id = ?",
             [INDEX_FORMAT, figures["voxels"], figures["reach_xy"], figures["seconds"], db_id],
         )
-        conn.execute("COMMIT")
-    except Exception:
-        conn.execute("ROLLBACK")
-        raise
 
 
 def index_intact(catalog: Catalog, row: dict[str, Any], data_dir: Path) -> bool:

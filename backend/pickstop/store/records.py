@@ -53,14 +53,8 @@ class ServiceStore:
 
     @contextmanager
     def transaction(self) -> Iterator[Any]:
-        conn = self.catalog.conn
-        conn.execute("BEGIN IMMEDIATE")
-        try:
+        with self.catalog.transaction() as conn:
             yield conn
-        except BaseException:
-            conn.execute("ROLLBACK")
-            raise
-        conn.execute("COMMIT")
 
     def rows(self, sql: str, params: Any = ()) -> list[dict[str, Any]]:
         return self.catalog.query(sql, params)
