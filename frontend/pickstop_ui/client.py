@@ -42,11 +42,27 @@ class PlanResult:
     seconds: float  # round trip [s]
 
 
+class StaleConnectionRetry(httpx.HTTPTransport):
+    """Sends a request once more, on a new connection, when a kept-alive one turns out to be
+    closed before any response came: the API ends an idle connection (uvicorn after 5 s) and
+    the pool may hand it out at that moment ("Server disconnected without sending a
+    response"). A request that got any answer is never sent twice."""
+
+    def handle_request(self, request: httpx.Request) -> httpx.Response:
+        try:
+            return super().handle_request(request)
+        except httpx.RemoteProtocolError as e:
+            if "without sending a response" not in str(e):
+                raise
+            return super().handle_request(request)
+
+
 class PickStopClient:
     def __init__(self, base_url: str, api_key: str | None = None, timeout: float = 300) -> None:
         self.base_url = base_url.rstrip("/")
         headers = {"Authorization": f"Bearer {api_key}"} if api_key else {}
-        self.http = httpx.Client(base_url=self.base_url, headers=headers, timeout=timeout)
+        self.http = httpx.Client(base_url=self.base_url, headers=headers, timeout=timeout,
+                                 transport=StaleConnectionRetry())  # fmt: skip
 
     def close(self) -> None:
         self.http.close()
