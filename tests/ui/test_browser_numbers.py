@@ -21,7 +21,9 @@ def _field(pg, label: str):
 def test_typing_x_and_y_moves_the_selected_tray_there(pg, app):
     b.settled(app)
     b.click_item(pg, app, "trays", "tray_4")
-    assert float(_field(pg, "x [m]").input_value()) == pytest.approx(3.6)
+    # The selection's numbers reach the page after the click (a message of their own).
+    b.wait_for(lambda: float(_field(pg, "x [m]").input_value()) == pytest.approx(3.6), 10,
+               "the selected tray's x")  # fmt: skip
     assert float(_field(pg, "z [m]").input_value()) == pytest.approx(0.725)
     stops0, seq = b.stops(app.state.plan), app.state.seq
     for label, value in (("x [m]", "3.415"), ("y [m]", "1.435")):

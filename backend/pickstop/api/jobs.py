@@ -220,11 +220,21 @@ def build_job(
                     raise error_of(msg)
             raise PickStopError(f"the build stopped (exit code {child.proc.poll()})")
         finally:
-            child.stop()
-            runner.disown(job_id)
-            after(db_id, runner.cancelled(job_id))
+            _cleanup(lambda: (child.stop(), runner.disown(job_id),
+                              after(db_id, runner.cancelled(job_id))))  # fmt: skip
 
     return run
+
+
+def _cleanup(fn: Callable[[], object]) -> None:
+    """Run ``fn`` (idempotent cleanup) to its end: a job's cancellation that lands inside it
+    (it is raised in the job's thread once, at any bytecode) runs it again, whole, and is
+    raised after."""
+    try:
+        fn()
+    except Cancelled:
+        fn()
+        raise
 
 
 def batch_job(parse: Callable[[Any], Any], plan: Callable[[Any, Any, str | None], Any]) -> JobKind:
