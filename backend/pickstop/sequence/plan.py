@@ -13,6 +13,9 @@
 5. The naive plan (one stop per tray) through the same route solver, for comparison.
 
 Anything impossible raises :class:`InfeasiblePlanError` naming the trays and numbers involved.
+A request (:class:`_Planning`) asks each step of a :class:`~pickstop.sequence.steps.PlanSteps`:
+:class:`StopPlanner` (cached, reused across edits) or, in :func:`plan_from_scratch`,
+:class:`~pickstop.sequence.pure.PureSteps` (the algorithm alone).
 """
 
 from __future__ import annotations
