@@ -142,7 +142,8 @@ def test_no_import_cycles():
 
 def test_the_cycle_finder_finds_cycles(monkeypatch):
     monkeypatch.setitem(GRAPH, "pickstop.sequence.plan_model", {"pickstop.sequence.plan"})
-    assert ["pickstop.sequence.plan", "pickstop.sequence.plan_model"] in _cycles()
+    pair = {"pickstop.sequence.plan", "pickstop.sequence.plan_model"}
+    assert any(pair <= set(cycle) for cycle in _cycles())
 
 
 @pytest.mark.parametrize("package", CORE)

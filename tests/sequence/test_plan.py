@@ -383,7 +383,7 @@ def test_a_stop_check_is_reused_until_something_near_its_tray_changes(
     """A stop's exact check depends on its tray's region and the objects the arm can meet
     from there (regions/offgrid.check_key): moving a pillar near trays 1 and 2 checks their
     stops anew and leaves tray 4's as they were."""
-    import pickstop.sequence.plan as plan_module
+    import pickstop.sequence.pure as pure_module
     from pickstop.regions.pipeline import arm_radius
 
     pillar = {"id": "pillar", "geometry": {"shape": "cylinder", "radius": 0.1, "height": 2.0},
@@ -398,13 +398,13 @@ def test_a_stop_check_is_reused_until_something_near_its_tray_changes(
     assert near == {"tray_1": True, "tray_4": False}
     stop_planner.plan(scene, PlanOptions(samples=0))
     checked: list[str] = []
-    real = plan_module.feasible_near
+    real = pure_module.feasible_near
 
     def counted(kit, scene, region, *a, **k):
         checked.append(region.tray_id)
         return real(kit, scene, region, *a, **k)
 
-    monkeypatch.setattr(plan_module, "feasible_near", counted)
+    monkeypatch.setattr(pure_module, "feasible_near", counted)
     pillar["pose"]["y"] = 2.5
     moved = parse_scene(paper_doc)
     plan = stop_planner.plan(moved, PlanOptions(samples=0))

@@ -55,6 +55,11 @@ class Interrupted(Exception):
 
 # axis-aligned (lo, hi) bounds [m] of solids, each with whether the solid is that box
 Bounds = list[tuple[np.ndarray, np.ndarray, bool]]
+# what a kit builds from its robot and database alone, shared by a scratch kit
+_BUILT = frozenset(
+    ["robot", "db", "solver", "arm", "self_spheres", "exact_self", "exact_arm", "hand",
+     "reach_xy", "cache_dir"]
+)  # fmt: skip
 MEMO_SIZE = 4096  # open-hand spaces and object bounds kept, each
 OWN_VERDICTS = 512  # parts whose grasps judged against their own tray are kept (~0.1 MB each)
 
@@ -123,6 +128,21 @@ class RegionKit:
         self.exact_self = ExactSelfCollision(self.robot, disabled)
         self.exact_arm = ExactArm(self.robot, self.arm)
         self.reach_xy = self.db.reach_xy
+
+    def scratch(self) -> RegionKit:
+        """A kit of the same robot and database sharing what is built from them alone (the
+        solver, the sphere covers, the exact checks, the hand), every memo of scenes empty and
+        none of a subclass's caches: what it computes depends on its arguments alone."""
+        out = object.__new__(RegionKit)
+        for f in dataclasses.fields(RegionKit):
+            if f.name in _BUILT:
+                value = getattr(self, f.name)
+            elif f.default_factory is not dataclasses.MISSING:
+                value = f.default_factory()
+            else:
+                value = f.default
+            setattr(out, f.name, value)
+        return out
 
     def checkpoint(self) -> None:
         """Raise :class:`Interrupted` if the computation under way is to give way. Called

@@ -91,10 +91,12 @@ def base_cells(
 
 
 def compute_tray_region(
-    planner: RegionKit, scene: Scene, tray: Tray, yaw: float, key: str = ""
+    planner: RegionKit, scene: Scene, tray: Tray, yaw: float, key: str = "", reuse: bool = True
 ) -> TrayRegion:
-    """The region of ``tray`` at base ``yaw`` [rad] from scratch (see the module); ``key``
-    is stored with it (:func:`pickstop.regions.validity.own_key`)."""
+    """The region of ``tray`` at base ``yaw`` [rad] (see the module); ``key`` is stored with
+    it (:func:`pickstop.regions.validity.own_key`). ``reuse``: take refinements and cell
+    answers from the kit's memo of the tray (:mod:`pickstop.regions.reuse`) and keep this
+    computation's there; false: nothing remembered is read or written (from scratch)."""
     t0 = time.perf_counter()
     robot = planner.robot
     grid = CellGrid.of(scene)
@@ -120,8 +122,9 @@ def compute_tray_region(
     if why is not None:
         return empty(why)
     world, targets, alive = _arm_targets(
-        planner, scene, tray, yaw, base, grasp_sets, (solids, boxes, R_base_world, grid, env)
-    )
+        planner, scene, tray, yaw, base, grasp_sets, (solids, boxes, R_base_world, grid, env),
+        reuse,
+    )  # fmt: skip
     counts["served"] = len(alive)
     alive, witness, grasp_of, failed = _solve_parts(
         planner, world, targets, base, alive, len(part_ids), counts
@@ -169,12 +172,17 @@ def _arm_targets(
     base: BaseCells,
     grasp_sets: list[GraspSet],
     near: tuple[list[Solid], BoxArrays, np.ndarray, CellGrid, Envelope],
+    reuse: bool = True,
 ) -> tuple[ArmWorld, list[Targets], np.ndarray]:
     """The arm's world, each part's targets from the base cells, and the cells the database
     serves for every part (indices into ``base``); the others are left to the growth.
     ``near``: the solids near the tray (exact and as arrays), R_base_world, the grid, the
-    hands' envelope."""
+    hands' envelope. ``reuse``: through the kit's memo of the tray (else none)."""
     solids, boxes, R_base_world, grid, env = near
+    if not reuse:
+        world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance, (tray.pose.x, tray.pose.y))
+        targets = [Targets.of(gs, base.centres, R_base_world) for gs in grasp_sets]
+        return world, targets, np.flatnonzero(solve.served(planner.db, targets))
     anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
     memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
     around = memo.around(Surroundings.of(solids, tray))

@@ -13,6 +13,9 @@
 5. The naive plan (one stop per tray) through the same route solver, for comparison.
 
 Anything impossible raises :class:`InfeasiblePlanError` naming the trays and numbers involved.
+A request (:class:`_Planning`) asks each step of a :class:`~pickstop.sequence.steps.PlanSteps`:
+:class:`StopPlanner` (cached, reused across edits) or, in :func:`plan_from_scratch`,
+:class:`~pickstop.sequence.pure.PureSteps` (the algorithm alone).
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any, Literal
 
 import numpy as np
@@ -35,36 +38,31 @@ from shapely.geometry import Point, Polygon
 from pickstop.caching import Cache
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.footprint import (
-    BodyPieces,
-    FloorSolids,
-    body_pieces,
-    floor_outline,
-    sweep_blocked,
     upper_body,
 )
-from pickstop.regions.kit import Interrupted
-from pickstop.regions.offgrid import check_key, feasible_near
+from pickstop.regions.kit import Interrupted, RegionKit
+from pickstop.regions.offgrid import check_key
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene, gripper_notes
 from pickstop.scene.positioning import ErrorDist, of_scene
-from pickstop.sequence import expected
+from pickstop.sequence import expected, pure
 from pickstop.sequence import plan_model as pm
 from pickstop.sequence.cover import InfeasiblePlanError, Selection, select_stops
-from pickstop.sequence.estimate import feasible_subcells, kernel, subset_estimates
 from pickstop.sequence.failure import FailureCosts, failure_time, stop_failures
-from pickstop.sequence.intersections import Intersection, inscribed_circle, intersections
-from pickstop.sequence.placement import MIN_GAIN, best_point, clearance
+from pickstop.sequence.intersections import Intersection, inscribed_circle
+from pickstop.sequence.placement import clearance
 from pickstop.sequence.refine import Refinement
-from pickstop.sequence.route import Docking, FloorMap, Paths, shortest_paths
+from pickstop.sequence.route import Paths
 from pickstop.sequence.rules import Rule, cut_off, judge
-from pickstop.sequence.success import Kind, Rate, combined, monte_carlo_at
+from pickstop.sequence.steps import Floor, PlanSteps
+from pickstop.sequence.success import Kind, Rate, combined
 from pickstop.sequence.timing import TimeBreakdown, leg_time, pieces_time, plan_time, rest_pieces
 
 HEADINGS = 8  # headings tried (every 45 deg) to say where a tray no stop serves is reachable
 HEADING_HINT_TRAYS = 3  # such trays tried, at most (each a region per heading)
 MAX_VERIFY_ROUNDS = 8  # selection rounds while chosen stops fail their checks
-DUPLICATE = 1e-3  # [m] candidates of the same trays this close are one
 PREFETCH_BANDS = 24  # sigma bands planned ahead in the background after a plan
+_digest = pure.digest
 
 
 def hand_notes(robot: Any) -> list[str]:
@@ -75,28 +73,6 @@ def hand_notes(robot: Any) -> list[str]:
             "standing in for the hand links, not the links' own collision geometry"
         ]
     return []
-
-
-def _digest(obj: Any) -> str:
-    return hashlib.sha256(repr(obj).encode()).hexdigest()[:20]
-
-
-DOCK_REACH = 3.0  # longest docking leg searched, in bounding radii of the base body
-
-
-@dataclass(frozen=True)
-class _Floor:
-    fmap: FloorMap
-    outlines: list[tuple[str, Polygon]]  # obstacle id -> floor outline
-    world: FloorSolids  # every solid reaching below the body's top, for docking legs
-    body: BodyPieces
-    reach: float  # [m] longest docking leg
-    omnidirectional: bool  # the base may dock sideways (else only along its heading)
-    key: str  # what the floor is (bounds, body reach, blocking solids, drive), by value
-
-    def docking(self) -> Docking:
-        return Docking(lambda a, b, yaw: sweep_blocked(self.body, self.world, a, b, yaw),
-                       self.reach, self.omnidirectional)  # fmt: skip
 
 
 class StopPlanner:
@@ -153,18 +129,7 @@ class StopPlanner:
         hit = self._candidates.get(key)
         if hit is not None:
             return list(hit)
-        out: list[Intersection] = []
-        for yaw in sorted({y for _, y in regions}):
-            polys = {t: r.polygon for (t, y), r in regions.items() if y == yaw}
-            for c in intersections(polys, yaw, circle=self._circle):
-                if not any(
-                    o.trays == c.trays
-                    and o.yaw == c.yaw
-                    and math.dist(o.centre, c.centre) < DUPLICATE
-                    for o in out
-                ):
-                    out.append(c)
-        return list(self._candidates.put(key, tuple(out)))
+        return list(self._candidates.put(key, tuple(pure.candidates(regions, self._circle))))
 
     def _circle(self, poly: Polygon) -> tuple[tuple[float, float], float]:
         """The largest inscribed circle of an intersection component, kept by its exact
@@ -174,7 +139,7 @@ class StopPlanner:
         hit = self._circles.get(key)
         return hit if hit is not None else self._circles.put(key, inscribed_circle(poly))
 
-    def floor(self, scene: Scene, world: str | None = None) -> _Floor:
+    def floor(self, scene: Scene, world: str | None = None) -> Floor:
         """Where the base may drive: the floor minus obstacles inflated by the footprint.
 
         world: the scene's :func:`world_key`, if known; the floor is a function of it (the
@@ -185,58 +150,22 @@ class StopPlanner:
             return hit
         return self._world_floors.put(world, self._floor(scene))
 
-    def _floor(self, scene: Scene) -> _Floor:
-        # Driving, the base turns: whatever reaches below the top of the base body (footprint
-        # and base-fixed links) blocks it, grown by the body's farthest horizontal reach.
-        body = upper_body(self.regions.robot)
-        solids = [s for s in self.regions.solids_of(scene) if s.aabb()[0][2] < body.top]
-        every = solids
-        outlines = [(s.owner, Polygon(floor_outline(s))) for s in solids]
-        # An outline within another's (a tray on its table) blocks nothing more: moving it
-        # leaves the floor map as it was.
-        polys = [o for _, o in outlines]
-        inner, outer = shapely.STRtree(polys).query(polys, predicate="within")
-        covered = {
-            int(i)
-            for i, j in zip(inner.tolist(), outer.tolist(), strict=True)
-            if i != j and (j < i or not polys[i].equals(polys[j]))
-        }
-        keep = [k for k in range(len(solids)) if k not in covered]
-        solids, outlines = [solids[k] for k in keep], [outlines[k] for k in keep]
-
-        def solids_key(ss: list[Any]) -> tuple[Any, ...]:
-            return tuple((s.owner, s.T_world_solid.tobytes(), s.half.tobytes()) for s in ss)
-
-        robot = self.regions.robot
-        key = (scene.floor.model_dump_json(), robot.robot_hash, body.radius, solids_key(solids))
-        # Docking legs sweep the body's pieces at their own heights: an outline inside another
-        # may still meet a piece the outer solid's heights miss, so they see every solid.
-        full = (key, solids_key(every))
-        hit = self._floors.get(full)
+    def _floor(self, scene: Scene) -> Floor:
+        spec = pure.floor_spec(self.regions, scene)
+        hit = self._floors.get(spec.full)
         if hit is not None:
             return hit
-        fmap = self._fmaps.get(key)
-        if fmap is None:
-            fmap = self._fmaps.put(
-                key,
-                FloorMap.build(
-                    (*scene.floor.min, *scene.floor.max), [o for _, o in outlines], body.radius
-                ),
-            )
-        world = FloorSolids.of(scene, every)
-        omni = robot.config.footprint.drive == "omnidirectional"
-        floor = _Floor(fmap, outlines, world, body_pieces(robot), DOCK_REACH * body.radius, omni,
-                       _digest((full, omni)))  # fmt: skip
-        return self._floors.put(full, floor)
+        fmap = self._fmaps.get_or_make(spec.key, lambda: pure.floor_map(scene, spec))
+        return self._floors.put(spec.full, pure.floor(self.regions, scene, spec, fmap))
 
-    def paths(self, floor: _Floor, points: np.ndarray, yaws: np.ndarray) -> Paths:
+    def paths(self, floor: Floor, points: np.ndarray, yaws: np.ndarray) -> Paths:
         """Shortest paths between ``points: (Q, 2)`` [m] held at ``yaws: (Q,)`` [rad] where
         the base's bounding circle does not fit (cached)."""
         key = (floor.key, points.tobytes(), yaws.tobytes())
         hit = self._paths.get(key)
         if hit is not None:
             return hit
-        return self._paths.put(key, shortest_paths(floor.fmap, points, yaws, floor.docking()))
+        return self._paths.put(key, pure.paths(floor, points, yaws))
 
     def check_key(
         self, scene: Scene, region: TrayRegion, xy: tuple[float, float], world: str | None = None
@@ -259,10 +188,7 @@ class StopPlanner:
         key = self.check_key(scene, region, xy) if key is None else key
         hit = self._checks.get(key)
         if hit is None:
-            ok, th, g = feasible_near(
-                self.regions, scene, region, np.array([xy]), region.yaw, seeds_first=True
-            )
-            hit = self._checks.put(key, (bool(ok[0]), th[0], g[0]))
+            hit = self._checks.put(key, pure.check(self.regions, scene, region, xy))
         return hit
 
     def witnesses(
@@ -274,23 +200,7 @@ class StopPlanner:
         key = self.check_key(scene, region, xy, world)
         if key in self._witnesses:
             return self._witnesses.get(key)
-        ok, th, g = self.check(scene, region, xy, key)
-        ws = None
-        if ok:
-            tray = scene.tray(region.tray_id)
-            grasps = self.regions.grasps(scene, tray)
-            hand = self.regions.hand.joints
-            ws = [
-                pm.Witness(
-                    tray_id=tray.id,
-                    part_id=p.id,
-                    grasp_index=int(g[k]),
-                    theta=th[k].tolist(),
-                    hand=hand,
-                    T_part_tcp=grasps[k].Ts_part_tcp[int(g[k])].round(9).tolist(),
-                )
-                for k, p in enumerate(tray.parts)
-            ]
+        ws = pure.witnesses(self.regions, scene, region, self.check(scene, region, xy, key))
         return self._witnesses.put(key, ws)
 
     def success(
@@ -312,18 +222,7 @@ class StopPlanner:
         hit = self._rates.get(key)
         if hit is not None:
             return hit
-
-        def evaluate(pts: np.ndarray, yaw_: float) -> np.ndarray:
-            ok = np.ones(len(pts), bool)
-            for r in regions:
-                idx = np.flatnonzero(ok)
-                if not len(idx):
-                    break
-                ok[idx] = feasible_near(self.regions, scene, r, pts[idx], yaw_)[0]
-            return ok
-
-        rng = np.random.default_rng([seed, int.from_bytes(_digest((trays, xy)).encode()[:4])])
-        rate = monte_carlo_at(evaluate, xy, yaw, dist, samples, rng)
+        rate = pure.success(self.regions, scene, regions, xy, sigma, samples, seed)
         return self._rates.put(key, rate)
 
     def estimates(
@@ -342,21 +241,13 @@ class StopPlanner:
         (heading ``yaw``) serving each set of the regions' trays, under the isotropic
         ``kind`` and ``sigma`` or the stop's own model ``dist``, refined exactly near the
         regions' boundaries (:meth:`refine`) unless ``exact`` is false (cached)."""
-        trays = tuple(r.tray_id for r in regions)
         key = (world_key, tuple(r.digest for r in regions), xy, sigma, kind, dist, yaw, exact)
         hit = self._estimates.get(key)
         if hit is not None:
             return dict(hit)
-        sets = expected.tray_sets(trays)
-        if sigma <= 0 and (dist is None or dist.legacy):  # it lands where it aims
-            return dict(self._estimates.put(key, dict.fromkeys(sets, 1.0)))
-        k = kernel(kind, sigma, regions[0].grid, xy, dist, yaw)
-        known: dict[str, np.ndarray] = {}
-        if exact:
-            self.refine(scene, world_key, [(regions, xy)], sigma, kind, dist, yaw)
-            known = {r.tray_id: self.refinement(world_key, r).exact for r in regions}
-        feasible = {r.tray_id: feasible_subcells(r, k, known.get(r.tray_id)) for r in regions}
-        return dict(self._estimates.put(key, subset_estimates(k, feasible, sets)))
+        found = pure.estimates(self.regions, scene, regions, xy, (sigma, kind, dist, yaw), exact,
+                               lambda r: self.refinement(world_key, r))  # fmt: skip
+        return dict(self._estimates.put(key, found))
 
     def placement(
         self,
@@ -378,15 +269,12 @@ class StopPlanner:
                hashlib.sha1(shapely.to_wkb(cand.polygon)).digest(), sigma, kind, dist)  # fmt: skip
         if key in self._placements:
             return self._placements.get(key)  # type: ignore[no-any-return]
-        grid, yaw = regions[0].grid, cand.yaw
-        found = best_point(regions, cand.polygon, cand.centre,
-                           lambda xy: kernel(kind, sigma, grid, xy, dist, yaw))  # fmt: skip
-        out = None
-        if found is not None and math.dist(found[0], cand.centre) > 1e-9:
-            every = frozenset(r.tray_id for r in regions)
-            est = {xy: self.estimates(scene, world_key, regions, xy, sigma, kind, dist, yaw)[every]
-                   for xy in (cand.centre, found[0])}  # fmt: skip
-            out = found[0] if est[found[0]] >= est[cand.centre] + MIN_GAIN else None
+        every = frozenset(r.tray_id for r in regions)
+
+        def estimate(xy: tuple[float, float]) -> float:
+            return self.estimates(scene, world_key, regions, xy, sigma, kind, dist, cand.yaw)[every]
+
+        out = pure.placement(regions, cand, sigma, kind, dist, estimate)
         return self._placements.put(key, out)  # type: ignore[no-any-return]
 
     def refinement(self, world_key: str, region: TrayRegion) -> Refinement:
@@ -409,18 +297,8 @@ class StopPlanner:
         ``stops`` (each: its trays' regions and its position; landing by ``kind`` and
         ``sigma``, or by ``dist`` at heading ``yaw``) need it
         (:mod:`~pickstop.sequence.refine`); returns the tests run."""
-        if sigma <= 0 and (dist is None or dist.legacy):
-            return 0
-        todo: dict[str, Refinement] = {}
-        for regions, xy in stops:
-            k = kernel(kind, sigma, regions[0].grid, xy, dist, yaw)
-            for r in regions:
-                todo.setdefault(r.digest, self.refinement(world_key, r)).want(k)
-
-        def evaluate(region: TrayRegion, xy: np.ndarray) -> np.ndarray:
-            return feasible_near(self.regions, scene, region, xy, region.yaw, seeds_first=True)[0]
-
-        return sum(ref.run(evaluate) for ref in todo.values())
+        return pure.refine(self.regions, scene, stops, sigma, kind, dist, yaw,
+                           lambda r: self.refinement(world_key, r))  # fmt: skip
 
     def prefetch_checks(
         self, scene: Scene, lock: Any = None, stale: Callable[[], bool] = lambda: False
@@ -595,6 +473,16 @@ class StopPlanner:
         return _Planning(self, scene, opts, preview=True).run()
 
 
+def plan_from_scratch(
+    kit: RegionKit, scene: Scene, options: pm.PlanOptions | None = None
+) -> pm.Plan:
+    """The plan of ``scene`` by the algorithm alone (:class:`~pickstop.sequence.pure.PureSteps`:
+    regions, candidates, floor, checks and estimates computed from their inputs, nothing kept
+    or reused); :class:`StopPlanner` gives the same plan faster. ``kit``: the robot and
+    database's (only what is built from them is used, none of its memos)."""
+    return _Planning(pure.PureSteps(kit), scene, options or pm.PlanOptions()).run()
+
+
 def route_points(scene: Scene, cands: list[Intersection]) -> np.ndarray:
     """``(2 + n, 2)`` floor points [m]: the start, the goal, then each candidate's centre."""
     ends = [[scene.start.x, scene.start.y], [scene.goal.x, scene.goal.y]]
@@ -678,14 +566,15 @@ class _Planning:
 
     def __init__(
         self,
-        sp: StopPlanner,
+        sp: PlanSteps,
         scene: Scene,
         opts: pm.PlanOptions,
         preview: bool = False,
         unlock: Any = None,
     ) -> None:
-        """unlock: the planner's lock, held by the caller, to release while a stop selection
-        is solved (:meth:`StopPlanner.prefetch_selections`)."""
+        """sp: the steps (:class:`~pickstop.sequence.steps.PlanSteps`: from scratch or
+        cached). unlock: the planner's lock, held by the caller, to release while a stop
+        selection is solved (:meth:`StopPlanner.prefetch_selections`)."""
         self.sp, self.scene, self.opts = sp, scene, opts
         self.preview = preview
         self.unlock = unlock
@@ -708,7 +597,7 @@ class _Planning:
         self.regions: dict[tuple[str, float], TrayRegion] = {}
         self.circle: dict[int, Intersection] = {}  # placed candidate -> as the circle has it
         self.circle_rates: dict[int, Rate] = {}  # placed and chosen -> Monte Carlo at the circle
-        self.floor: _Floor | None = None
+        self.floor: Floor | None = None
         self.placed_back: Paths | None = None  # paths after a placed stop went back (see run)
 
     def _clock(self, name: str, t0: float) -> float:
@@ -850,7 +739,7 @@ class _Planning:
         return (f"; the base reaches {said}: let the plan choose the heading with "
                 f"base_yaw.candidates {[round(y, 4) for y in every]} [rad]")  # fmt: skip
 
-    def _check_endpoints(self, floor: _Floor, paths: Paths) -> None:
+    def _check_endpoints(self, floor: Floor, paths: Paths) -> None:
         radius = upper_body(self.sp.regions.robot).radius
         for k, name in enumerate(("start", "goal")):
             p = getattr(self.scene, name)
