@@ -1,5 +1,5 @@
 """The region planner (regions/planner.py): verified witnesses through its facade, the regions
-of recent layouts it keeps, forgetting them."""
+of recent layouts it keeps, serial and parallel alike, forgetting them."""
 
 from __future__ import annotations
 
@@ -47,6 +47,22 @@ def test_a_layout_edited_away_from_and_back_keeps_its_regions(planner, paper_doc
     finally:
         del planner._compute
     assert computed == [] and all(again[p] is before[p] for p in before)
+
+
+def test_parallel_regions_equal_serial(planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    planner.forget()
+    serial = planner.regions(scene, workers=1)
+    planner.forget()  # nor the layout's regions: the workers compute every one
+    try:
+        parallel = planner.regions(scene, workers=2)
+    finally:
+        planner.close()
+    assert serial.keys() == parallel.keys()
+    for k in serial:
+        np.testing.assert_array_equal(serial[k].mask, parallel[k].mask)
+        np.testing.assert_allclose(serial[k].thetas, parallel[k].thetas)
+        assert parallel[k] is not serial[k]  # computed by a worker, not taken from a memo
 
 
 def test_forget_drops_every_kept_region(planner, paper_doc):

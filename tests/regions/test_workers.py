@@ -188,22 +188,6 @@ def test_a_helpers_error_reaches_the_caller(fresh, paper_doc, monkeypatch):
     assert two._workers.pids[0] == pid
 
 
-def test_parallel_regions_equal_serial(planner, paper_doc):
-    scene = parse_scene(paper_doc)
-    planner.forget()
-    serial = planner.regions(scene, workers=1)
-    planner.forget()  # nor the layout's regions: the workers compute every one
-    try:
-        parallel = planner.regions(scene, workers=2)
-    finally:
-        planner.close()
-    assert serial.keys() == parallel.keys()
-    for k in serial:
-        np.testing.assert_array_equal(serial[k].mask, parallel[k].mask)
-        np.testing.assert_allclose(serial[k].thetas, parallel[k].thetas)
-        assert parallel[k] is not serial[k]  # computed by a worker, not taken from a memo
-
-
 def test_region_workers_want_a_process(planner):
     from pickstop.regions.workers import RegionWorkers
 
