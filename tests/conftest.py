@@ -5,8 +5,11 @@ from __future__ import annotations
 import json
 import os
 import warnings
+from functools import partial
 
 import pytest
+
+from tests.once import built_once, own_copy
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
@@ -39,24 +42,33 @@ def pr2():
     return load(PR2_CONFIG)
 
 
-@pytest.fixture(scope="session")
-def region_db(tmp_path_factory, tiago):
+def _build_region_db(tiago, folder):
     from pickstop.reach.build import BuildParams
     from pickstop.regions.planner import RegionPlanner
     from pickstop.settings import cache_dir
     from pickstop.store.reach_build import build
     from pickstop.store.reach_catalog import open_database
 
-    """A 2M-sample TIAGo database for region tests: (data folder, database)."""
-    folder = tmp_path_factory.mktemp("regiondata")
     row = build(
         tiago, BuildParams(samples=2_000_000, chunk_size=250_000, seed=11), folder, workers=2
     )
-    db = open_database(folder, tiago, row["id"])
     # A planner built here compiles the numba kernels into their on-disk cache (once per
     # checkout), before the services and workers the tests start load them from it.
-    RegionPlanner(tiago, db, cache_dir=cache_dir(folder)).close()
-    return folder, db
+    RegionPlanner(
+        tiago, open_database(folder, tiago, row["id"]), cache_dir=cache_dir(folder)
+    ).close()
+    return row
+
+
+@pytest.fixture(scope="session")
+def region_db(tmp_path_factory, tiago):
+    """A 2M-sample TIAGo database for region tests: (data folder, database). Built once per run
+    (tests/once.py); this worker's own copy of the data folder, which its tests may write to."""
+    from pickstop.store.reach_catalog import open_database
+
+    shared, row = built_once(tmp_path_factory, "regiondata", partial(_build_region_db, tiago))
+    folder = own_copy(tmp_path_factory, shared, "regiondata")
+    return folder, open_database(folder, tiago, row["id"])
 
 
 @pytest.fixture(scope="session")

@@ -4,15 +4,19 @@ import pytest
 
 from pickstop.reach.build import BuildParams
 from pickstop.store.reach_build import build
+from tests.once import built_once, own_copy
+
+SMALL = BuildParams(samples=300_000, chunk_size=50_000, seed=7)
 
 
 @pytest.fixture(scope="session")
 def small_db(tmp_path_factory, tiago):
-    """A 300k-sample TIAGo database in its own data folder: (folder, catalog row, params)."""
-    folder = tmp_path_factory.mktemp("reachdata")
-    params = BuildParams(samples=300_000, chunk_size=50_000, seed=7)
-    row = build(tiago, params, folder, workers=2)
-    return folder, row, params
+    """A 300k-sample TIAGo database in its own data folder: (folder, catalog row, params). Built
+    once per run (tests/once.py); this worker's own copy of the data folder."""
+    shared, row = built_once(
+        tmp_path_factory, "reachdata", lambda folder: build(tiago, SMALL, folder, workers=2)
+    )
+    return own_copy(tmp_path_factory, shared, "reachdata"), row, SMALL
 
 
 @pytest.fixture(scope="session")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import coal
 import numpy as np
@@ -168,3 +169,34 @@ def test_blocked_positions_are_those_where_the_body_touches(tiago, seed):
         T = solids[1].T_world_solid.copy()
         T[:2, 3] += rng.uniform(-0.3, 0.3, 2)
         solids[1] = Solid.box(T, 2 * solids[1].half, "s1")
+
+
+def test_a_mesh_obstacle_from_a_relative_path_blocks_base_cells(planner, tmp_path):
+    import json as _json
+
+    from pickstop.scene.load import load_scene
+    from tests.scene.test_scene_model import write_box_stl
+
+    doc = _json.loads(
+        (Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.json").read_text()
+    )
+    (tmp_path / "scene.json").write_text(_json.dumps(doc))
+    before = planner.tray_region(load_scene(tmp_path / "scene.json"), "tray_4")
+    write_box_stl(tmp_path / "pillar.stl", 0.3, 0.3, 1.5)
+    doc["obstacles"].append({"id": "pillar", "geometry": {"shape": "mesh", "path": "pillar.stl"},
+                             "pose": {"x": 3.6, "y": 0.8}})  # fmt: skip
+    (tmp_path / "scene.json").write_text(_json.dumps(doc))
+    after = planner.tray_region(load_scene(tmp_path / "scene.json"), "tray_4")
+    assert 0 < len(after.cells) < len(before.cells)
+    centres = after.grid.centres(after.cells[:, 1], after.cells[:, 0])
+    # The footprint (TIAGo's derived outline) stays clear of the pillar at every cell (2 mm:
+    # the buffer's polygon).
+    import shapely
+    from shapely import affinity
+
+    pillar = shapely.box(3.45 + 2e-3, 0.65 + 2e-3, 3.75 - 2e-3, 0.95 - 2e-3)
+    outline = affinity.rotate(
+        shapely.Polygon(planner.robot.footprint.polygon), after.yaw, origin=(0, 0), use_radians=True
+    )
+    for x, y in centres:
+        assert not affinity.translate(outline, x, y).intersects(pillar)

@@ -186,3 +186,10 @@ def test_a_helpers_error_reaches_the_caller(fresh, paper_doc, monkeypatch):
     with pytest.raises(ValueError, match=r"no region for tray_\d here"):
         two.regions(parse_scene(paper_doc))
     assert two._workers.pids[0] == pid
+
+
+def test_region_workers_want_a_process(planner):
+    from pickstop.regions.workers import RegionWorkers
+
+    with pytest.raises(ValueError, match="processes must be at least 1, got 0"):
+        RegionWorkers(planner, 0)

@@ -158,16 +158,6 @@ def test_unknown_robot_is_reported_by_resolving():
         resolve_robot(scene.robot.ref)
 
 
-def test_missing_and_broken_files(tmp_path):
-    from pickstop.errors import InputError
-
-    with pytest.raises(InputError, match="not found"):
-        load_scene(tmp_path / "none.json")
-    (tmp_path / "bad.json").write_text("{")
-    with pytest.raises(InputError, match="not valid JSON"):
-        load_scene(tmp_path / "bad.json")
-
-
 def write_box_stl(path, sx, sy, sz):
     """An ASCII STL box centred on x, y with its bottom at z = 0."""
     import itertools
@@ -188,39 +178,3 @@ def write_box_stl(path, sx, sy, sz):
             lines.append("  endloop\n endfacet")
     lines.append("endsolid box")
     path.write_text("\n".join(lines) + "\n")
-
-
-def test_relative_mesh_paths_start_at_the_scene_file(tmp_path):
-    from pickstop.scene.load import load_scene
-
-    (tmp_path / "meshes").mkdir()
-    write_box_stl(tmp_path / "meshes" / "pillar.stl", 0.3, 0.3, 1.5)
-    doc = json.loads((EXAMPLES / "paper_experiment.json").read_text())
-    mesh = {"shape": "mesh", "path": "meshes/pillar.stl"}
-    doc["obstacles"].append({"id": "pillar", "geometry": mesh, "pose": {"x": 2.5, "y": 0.0}})
-    (tmp_path / "scene.json").write_text(json.dumps(doc))
-    scene = load_scene(tmp_path / "scene.json")
-    mesh = next(o for o in scene.obstacles if o.id == "pillar").geometry
-    assert mesh.path == str((tmp_path / "meshes" / "pillar.stl").resolve())
-    doc["obstacles"][-1]["geometry"]["path"] = "meshes/missing.stl"
-    (tmp_path / "scene.json").write_text(json.dumps(doc))
-    with pytest.raises(SceneError) as e:
-        load_scene(tmp_path / "scene.json")
-    assert e.value.problems == [
-        ("obstacles.2.geometry.path", "mesh file 'meshes/missing.stl' not found")
-    ]
-
-
-def test_checked_scenes_remember_a_geometry_and_check_a_new_one():
-    from pickstop.scene.checks import CheckedScenes
-
-    checked = CheckedScenes(size=4)
-    scene = parse_scene(PAPER, check=checked)
-    assert checked(scene.model_copy(update={"sigma": 0.2})) == []  # the same geometry
-    bad = copy.deepcopy(PAPER)
-    bad["trays"][1]["pose"]["x"] = bad["trays"][0]["pose"]["x"]  # into its neighbour
-    for _ in range(2):  # checked, then remembered: refused the same way both times
-        with pytest.raises(SceneError) as e:
-            parse_scene(bad, check=checked)
-        assert any("intersects" in m for _, m in e.value.problems)
-    assert len(checked._checked) == 2

@@ -11,8 +11,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pickstop.scene.load import parse_scene
 from pickstop.sequence import cover
 from pickstop.sequence.cover import InfeasiblePlanError, select_stops
+from pickstop.sequence.plan_model import PlanOptions
 
 
 def _route(cost, order):
@@ -208,3 +210,23 @@ def test_fixed_count_and_groups_match_brute_force(inst, k, data, enumeration):
     sel = select_stops(trays_of, required, cost, **kw)
     _check(sel, (k, expected), trays_of, required)
     assert len({groups[c] for c in sel.order}) == k
+
+
+def test_larger_sigma_never_needs_fewer_stops(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    counts = []
+    for sigma in (0.0, 0.05, 0.1, 0.15):
+        try:
+            counts.append(
+                stop_planner.plan(scene, PlanOptions(sigma=sigma, samples=0)).totals.stops
+            )
+        except InfeasiblePlanError:
+            counts.append(math.inf)
+    assert counts == sorted(counts)
+
+
+def test_time_objective_is_no_slower(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    by_stops = stop_planner.plan(scene, PlanOptions(samples=0))
+    by_time = stop_planner.plan(scene, PlanOptions(samples=0, objective="time"))
+    assert by_time.totals.time.total <= by_stops.totals.time.total + 1e-6

@@ -4,15 +4,20 @@ the trays among them and every visiting order, by enumeration and by CP-SAT."""
 from __future__ import annotations
 
 import itertools
+import json
+import math
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pickstop.scene.load import parse_scene
 from pickstop.sequence import expected
 from pickstop.sequence.cover import InfeasiblePlanError, select_stops
 from pickstop.sequence.failure import FailureCosts, failure_time
+from pickstop.sequence.plan_model import PlanOptions
+from tests.sequence.conftest import EXAMPLES
 
 COSTS = FailureCosts(15.0, 2, 300.0)
 STOP = 8.0
@@ -137,3 +142,44 @@ def test_held_karp_finds_the_shortest_visiting_order(k, monkeypatch):
         for o in (order, held):
             assert sorted(o[1:-1]) == sorted(v + 2 for v in s)
             assert sum(c[a, b] for a, b in itertools.pairwise(o)) == want
+
+
+@pytest.mark.parametrize("name", ["paper_experiment", "five_trays", "factory_cell", "rack_cell"])
+def test_expected_time_plan_is_never_worse_in_expected_time(stop_planner, name):
+    """On the same candidates (the same rule, nothing rejected differently), no objective's
+    plan has a lower expected time than the expected-time objective's; its trade-off holds a
+    row for its own number of stops, with its expected time, and none lower."""
+    scene = parse_scene(json.loads((EXAMPLES / f"{name}.json").read_text()))
+    compared = 0
+    for rule in ("sigma", "success"):
+        plans = {}
+        for objective in ("stops", "time", "expected-time"):
+            try:
+                plans[objective] = stop_planner.plan(
+                    scene, PlanOptions(rule=rule, objective=objective, samples=0)
+                )
+            except InfeasiblePlanError:
+                continue
+        if "expected-time" not in plans:
+            assert not plans
+            continue
+        best = plans.pop("expected-time")
+        t = best.totals.time
+        assert t.expected == pytest.approx(t.total + t.failures)
+        assert all(s.failures.source == "estimate" for s in best.stops)
+        rows = {r.stops: r for r in best.tradeoff}
+        mine = rows[len(best.stops)]
+        assert mine.chosen and sum(r.chosen for r in rows.values()) == 1
+        assert mine.expected_time == pytest.approx(t.expected, abs=1e-2)
+        assert mine.success == pytest.approx(math.prod(s.estimated_success for s in best.stops))
+        assert all(r.expected_time >= mine.expected_time - 1e-2 for r in rows.values())
+        assert all(r.expected_time >= r.time for r in rows.values())
+        for other in plans.values():
+            if [c.status == "rejected" for c in other.candidates] != [
+                c.status == "rejected" for c in best.candidates
+            ]:
+                continue  # a stop failed its exact check in one of them: other candidates
+            assert t.expected <= other.totals.time.expected + 1e-2
+            assert rows[len(other.stops)].expected_time <= other.totals.time.expected + 1e-2
+            compared += 1
+    assert compared >= 2

@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pickstop.scene.load import parse_scene
 from pickstop.scene.model import FailureModel
 from pickstop.sequence.failure import (
     FailureCosts,
@@ -16,6 +17,7 @@ from pickstop.sequence.failure import (
     operator_probability,
     stop_failures,
 )
+from pickstop.sequence.plan_model import PlanOptions
 
 
 def simulate(p: float, costs: FailureCosts, runs: int, rng: np.random.Generator):
@@ -74,3 +76,36 @@ def test_vectorised_over_rates_and_monotone():
 def test_costs_of_the_scene_model_defaults():
     costs = FailureCosts.of(FailureModel())
     assert costs == FailureCosts(15.0, 2, 300.0)
+
+
+def test_plan_reports_expected_time_with_failures_beside_the_predicted(paper_plan):
+    from pickstop.sequence.failure import FailureCosts, failure_time
+
+    scene, plan = paper_plan
+    costs = FailureCosts.of(scene.failure)
+    assert plan.parameters.failure == scene.failure
+    t = plan.totals.time
+    extra = 0.0
+    for s in plan.stops:
+        f = s.failures
+        assert f is not None and f.source == "monte_carlo" and f.success == s.success.rate
+        assert f.time == pytest.approx(float(failure_time(s.success.rate, costs)))
+        extra += f.time
+    assert t.failures == pytest.approx(extra) and t.expected == pytest.approx(t.total + extra)
+    assert t.expected >= t.total
+    assert plan.totals.retries == pytest.approx(sum(s.failures.retries for s in plan.stops))
+
+
+def test_a_dearer_failure_model_raises_only_the_expected_time(stop_planner, paper_doc):
+    free = {"relocalise_time": 0, "redock_time": 0, "operator_time": 0}
+    dear = {"relocalise_time": 20, "redock_time": 40, "retries": 1, "operator_time": 900}
+    plans = [
+        stop_planner.plan(parse_scene({**paper_doc, "failure": f}), PlanOptions(samples=300))
+        for f in (free, dear)
+    ]
+    assert plans[0].totals.time.total == plans[1].totals.time.total
+    assert plans[0].totals.time.expected == pytest.approx(plans[0].totals.time.total)
+    assert plans[1].totals.time.expected == pytest.approx(
+        plans[1].totals.time.total
+        + sum(60 * (1 - s.success.rate) + 900 * (1 - s.success.rate) ** 2 for s in plans[1].stops)
+    )

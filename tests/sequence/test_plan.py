@@ -6,34 +6,15 @@ import copy
 import json
 import math
 import re
-from pathlib import Path
 
 import pytest
-import shapely
 
 from pickstop.scene.load import parse_scene
 from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.plan import StopPlanner
-from pickstop.sequence.plan_model import Plan, PlanOptions
+from pickstop.sequence.plan_model import PlanOptions
+from tests.sequence.conftest import EXAMPLES
 from tests.utils import assert_stop_verified, count_regions
-
-EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
-
-
-@pytest.fixture(scope="module")
-def stop_planner(planner):
-    return StopPlanner(planner)
-
-
-@pytest.fixture()
-def paper_doc():
-    return json.loads((EXAMPLES / "paper_experiment.json").read_text())
-
-
-@pytest.fixture(scope="module")
-def paper_plan(stop_planner):
-    scene = parse_scene(json.loads((EXAMPLES / "paper_experiment.json").read_text()))
-    return scene, stop_planner.plan(scene, PlanOptions(samples=300))
 
 
 def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planner):
@@ -75,95 +56,11 @@ def test_rack_cell_plans_every_level_from_verified_stops(stop_planner, planner):
         assert s.success is not None and s.success.rate > 0.5
 
 
-def test_route_joins_start_stops_goal_and_times_add_up(paper_plan):
-    scene, plan = paper_plan
-    assert plan.route[0] == pytest.approx((scene.start.x, scene.start.y))
-    assert plan.route[-1] == pytest.approx((scene.goal.x, scene.goal.y))
-    assert [leg.start for leg in plan.legs] == [
-        "start",
-        *(f"stop {k}" for k in range(len(plan.stops))),
-    ]
-    for leg, s in zip(plan.legs, plan.stops, strict=False):
-        assert leg.polyline[-1] == pytest.approx((s.x, s.y))
-    length = sum(math.dist(a, b) for a, b in zip(plan.route, plan.route[1:], strict=False))
-    assert length == pytest.approx(plan.totals.route_length, rel=1e-9)
-    t = plan.totals.time
-    m = scene.motion
-    n_parts = sum(len(scene.tray(x).parts) for x in scene.task_trays)
-    assert t.stops == pytest.approx(len(plan.stops) * m.stop_time)
-    assert t.picks == pytest.approx(n_parts * m.pick_time)
-    assert t.total == pytest.approx(t.travel + t.stops + t.picks)
-    assert plan.naive.saving_time == pytest.approx(plan.naive.time.total - t.total)
-    assert plan.naive.saving_stops == len(plan.naive.stops) - len(plan.stops)
-
-
-def test_plan_document_round_trips(paper_plan):
-    _, plan = paper_plan
-    doc = json.loads(json.dumps(plan.model_dump(mode="json")))
-    assert Plan.model_validate(doc) == plan
-    assert doc["format"] == "pickstop.plan" and doc["database"]
-
-
-def test_candidates_carry_status_and_reasons(stop_planner, paper_doc):
-    scene = parse_scene(paper_doc)
-    plan = stop_planner.plan(scene, PlanOptions(sigma=0.09, samples=0))
-    chosen = {s.candidate for s in plan.stops}
-    for c in plan.candidates:
-        assert (c.status == "chosen") == (c.index in chosen)
-        if c.inscribed_radius < 0.09:
-            assert c.status == "rejected" and "below sigma 0.090" in c.reason
-        poly = shapely.Polygon(c.polygon[0], c.polygon[1:])
-        assert poly.contains(shapely.Point(c.x, c.y))
-
-
 def test_sigma_change_reuses_regions_and_candidates(stop_planner, paper_doc):
     scene = parse_scene(paper_doc)
     stop_planner.plan(scene, PlanOptions(samples=0))
     again = stop_planner.plan(scene, PlanOptions(sigma=0.05, samples=0))
     assert again.timings.regions < 0.2 and again.parameters.sigma == 0.05
-
-
-def test_larger_sigma_never_needs_fewer_stops(stop_planner, paper_doc):
-    scene = parse_scene(paper_doc)
-    counts = []
-    for sigma in (0.0, 0.05, 0.1, 0.15):
-        try:
-            counts.append(
-                stop_planner.plan(scene, PlanOptions(sigma=sigma, samples=0)).totals.stops
-            )
-        except InfeasiblePlanError:
-            counts.append(math.inf)
-    assert counts == sorted(counts)
-
-
-def test_success_rule_stops_meet_the_target_or_explain(stop_planner, paper_doc):
-    scene = parse_scene(paper_doc)
-    try:
-        plan = stop_planner.plan(scene, PlanOptions(rule="success", target=0.9, samples=400))
-    except InfeasiblePlanError as e:
-        assert "target success 90%" in e.message
-        return
-    for s in plan.stops:
-        assert s.success is not None and s.success.rate >= 0.9
-    for c in plan.candidates:
-        if c.status == "rejected" and c.reason and "predicted" in c.reason:
-            assert c.predicted_success < 0.9
-
-
-def test_bounded_error_with_the_paper_rule_always_succeeds(stop_planner, paper_doc):
-    paper_doc["error_model"] = {"kind": "bounded"}
-    paper_doc["sigma"] = 0.05
-    plan = stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=300))
-    # A disc of radius sigma inside a region of verified cells: misses can only come from
-    # the gaps between cell centres, which the exact test at each sample judges.
-    assert all(s.success.rate >= 0.97 for s in plan.stops)
-
-
-def test_time_objective_is_no_slower(stop_planner, paper_doc):
-    scene = parse_scene(paper_doc)
-    by_stops = stop_planner.plan(scene, PlanOptions(samples=0))
-    by_time = stop_planner.plan(scene, PlanOptions(samples=0, objective="time"))
-    assert by_time.totals.time.total <= by_stops.totals.time.total + 1e-6
 
 
 # -- impossible requests: an explanation naming trays and numbers, never a partial plan ------
@@ -411,102 +308,6 @@ def test_a_stop_check_is_reused_until_something_near_its_tray_changes(
     assert "tray_4" not in checked and "tray_1" in checked
     for stop in plan.stops:
         assert_stop_verified(planner, moved, stop)
-
-
-def test_a_stations_own_error_model_gives_its_stop_its_success_rate(
-    stop_planner, paper_plan, paper_doc
-):
-    """A tray group whose base lands 0.5 m behind its stop (tightly; away from the table):
-    that stop's Monte Carlo uses it and falls; every other stop keeps its rate, drawn as
-    before."""
-    _, plain = paper_plan
-    group = plain.stops[0].trays
-    paper_doc["error_model"] = {
-        **paper_doc.get("error_model", {}),
-        "stations": [{"name": "backs-off", "trays": group, "mean": [-0.5, 0.0],
-                      "covariance": [[1e-6, 0.0], [0.0, 1e-6]]}],
-    }  # fmt: skip
-    plan = stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=300))
-    assert [s.trays for s in plan.stops] == [s.trays for s in plain.stops]
-    for s, p in zip(plan.stops, plain.stops, strict=True):
-        if s.trays == group:
-            assert s.error_model == "backs-off" and s.success.rate < 0.05 < p.success.rate
-        else:
-            assert s.error_model is None and s.success == p.success
-
-
-def test_plan_reports_expected_time_with_failures_beside_the_predicted(paper_plan):
-    from pickstop.sequence.failure import FailureCosts, failure_time
-
-    scene, plan = paper_plan
-    costs = FailureCosts.of(scene.failure)
-    assert plan.parameters.failure == scene.failure
-    t = plan.totals.time
-    extra = 0.0
-    for s in plan.stops:
-        f = s.failures
-        assert f is not None and f.source == "monte_carlo" and f.success == s.success.rate
-        assert f.time == pytest.approx(float(failure_time(s.success.rate, costs)))
-        extra += f.time
-    assert t.failures == pytest.approx(extra) and t.expected == pytest.approx(t.total + extra)
-    assert t.expected >= t.total
-    assert plan.totals.retries == pytest.approx(sum(s.failures.retries for s in plan.stops))
-
-
-def test_a_dearer_failure_model_raises_only_the_expected_time(stop_planner, paper_doc):
-    free = {"relocalise_time": 0, "redock_time": 0, "operator_time": 0}
-    dear = {"relocalise_time": 20, "redock_time": 40, "retries": 1, "operator_time": 900}
-    plans = [
-        stop_planner.plan(parse_scene({**paper_doc, "failure": f}), PlanOptions(samples=300))
-        for f in (free, dear)
-    ]
-    assert plans[0].totals.time.total == plans[1].totals.time.total
-    assert plans[0].totals.time.expected == pytest.approx(plans[0].totals.time.total)
-    assert plans[1].totals.time.expected == pytest.approx(
-        plans[1].totals.time.total
-        + sum(60 * (1 - s.success.rate) + 900 * (1 - s.success.rate) ** 2 for s in plans[1].stops)
-    )
-
-
-@pytest.mark.parametrize("name", ["paper_experiment", "five_trays", "factory_cell", "rack_cell"])
-def test_expected_time_plan_is_never_worse_in_expected_time(stop_planner, name):
-    """On the same candidates (the same rule, nothing rejected differently), no objective's
-    plan has a lower expected time than the expected-time objective's; its trade-off holds a
-    row for its own number of stops, with its expected time, and none lower."""
-    scene = parse_scene(json.loads((EXAMPLES / f"{name}.json").read_text()))
-    compared = 0
-    for rule in ("sigma", "success"):
-        plans = {}
-        for objective in ("stops", "time", "expected-time"):
-            try:
-                plans[objective] = stop_planner.plan(
-                    scene, PlanOptions(rule=rule, objective=objective, samples=0)
-                )
-            except InfeasiblePlanError:
-                continue
-        if "expected-time" not in plans:
-            assert not plans
-            continue
-        best = plans.pop("expected-time")
-        t = best.totals.time
-        assert t.expected == pytest.approx(t.total + t.failures)
-        assert all(s.failures.source == "estimate" for s in best.stops)
-        rows = {r.stops: r for r in best.tradeoff}
-        mine = rows[len(best.stops)]
-        assert mine.chosen and sum(r.chosen for r in rows.values()) == 1
-        assert mine.expected_time == pytest.approx(t.expected, abs=1e-2)
-        assert mine.success == pytest.approx(math.prod(s.estimated_success for s in best.stops))
-        assert all(r.expected_time >= mine.expected_time - 1e-2 for r in rows.values())
-        assert all(r.expected_time >= r.time for r in rows.values())
-        for other in plans.values():
-            if [c.status == "rejected" for c in other.candidates] != [
-                c.status == "rejected" for c in best.candidates
-            ]:
-                continue  # a stop failed its exact check in one of them: other candidates
-            assert t.expected <= other.totals.time.expected + 1e-2
-            assert rows[len(other.stops)].expected_time <= other.totals.time.expected + 1e-2
-            compared += 1
-    assert compared >= 2
 
 
 def test_a_tray_only_another_heading_reaches_is_refused_naming_it_and_planned_with_it(

@@ -320,3 +320,25 @@ def test_a_differential_base_docks_only_along_its_heading():
     # The same stop with an omnidirectional base slides out sideways.
     fmap, docking, radius = _setup(outline, [table, wall], omni=True)
     assert np.isfinite(shortest_paths(fmap, pts, yaws, docking).dist[0, 2])
+
+
+def test_route_joins_start_stops_goal_and_times_add_up(paper_plan):
+    scene, plan = paper_plan
+    assert plan.route[0] == pytest.approx((scene.start.x, scene.start.y))
+    assert plan.route[-1] == pytest.approx((scene.goal.x, scene.goal.y))
+    assert [leg.start for leg in plan.legs] == [
+        "start",
+        *(f"stop {k}" for k in range(len(plan.stops))),
+    ]
+    for leg, s in zip(plan.legs, plan.stops, strict=False):
+        assert leg.polyline[-1] == pytest.approx((s.x, s.y))
+    length = sum(math.dist(a, b) for a, b in zip(plan.route, plan.route[1:], strict=False))
+    assert length == pytest.approx(plan.totals.route_length, rel=1e-9)
+    t = plan.totals.time
+    m = scene.motion
+    n_parts = sum(len(scene.tray(x).parts) for x in scene.task_trays)
+    assert t.stops == pytest.approx(len(plan.stops) * m.stop_time)
+    assert t.picks == pytest.approx(n_parts * m.pick_time)
+    assert t.total == pytest.approx(t.travel + t.stops + t.picks)
+    assert plan.naive.saving_time == pytest.approx(plan.naive.time.total - t.total)
+    assert plan.naive.saving_stops == len(plan.naive.stops) - len(plan.stops)

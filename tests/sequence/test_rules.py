@@ -6,9 +6,13 @@ import dataclasses
 import math
 
 import pytest
+import shapely
 from shapely.geometry import box
 
+from pickstop.scene.load import parse_scene
+from pickstop.sequence.cover import InfeasiblePlanError
 from pickstop.sequence.intersections import intersections
+from pickstop.sequence.plan_model import PlanOptions
 from pickstop.sequence.rules import CUT_OFF, Rule, Verdict, cut_off, judge
 from pickstop.sequence.success import disc_probability
 
@@ -101,3 +105,29 @@ def test_an_isotropic_positioning_judges_as_the_rule_always_did():
         with_pos = dataclasses.replace(plain, positioning=Positioning(ErrorDist(kind, 0.12)))
         assert judge(plain, cands) == judge(with_pos, cands)
         assert plain.threshold == with_pos.threshold
+
+
+def test_candidates_carry_status_and_reasons(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    plan = stop_planner.plan(scene, PlanOptions(sigma=0.09, samples=0))
+    chosen = {s.candidate for s in plan.stops}
+    for c in plan.candidates:
+        assert (c.status == "chosen") == (c.index in chosen)
+        if c.inscribed_radius < 0.09:
+            assert c.status == "rejected" and "below sigma 0.090" in c.reason
+        poly = shapely.Polygon(c.polygon[0], c.polygon[1:])
+        assert poly.contains(shapely.Point(c.x, c.y))
+
+
+def test_success_rule_stops_meet_the_target_or_explain(stop_planner, paper_doc):
+    scene = parse_scene(paper_doc)
+    try:
+        plan = stop_planner.plan(scene, PlanOptions(rule="success", target=0.9, samples=400))
+    except InfeasiblePlanError as e:
+        assert "target success 90%" in e.message
+        return
+    for s in plan.stops:
+        assert s.success is not None and s.success.rate >= 0.9
+    for c in plan.candidates:
+        if c.status == "rejected" and c.reason and "predicted" in c.reason:
+            assert c.predicted_success < 0.9

@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from pickstop.scene.load import parse_scene
+from pickstop.sequence.plan_model import PlanOptions
 from pickstop.sequence.success import (
     YAW_LATTICE,
     Rate,
@@ -119,3 +121,34 @@ def test_a_sigma_too_small_to_square_still_gives_a_probability(sigma):
         assert disc_probability(kind, sigma, 0.1) == 1.0
         assert disc_probability(kind, sigma, 0.0) == 0.0
         assert math.isfinite(radius_for(kind, sigma, 0.95))
+
+
+def test_bounded_error_with_the_paper_rule_always_succeeds(stop_planner, paper_doc):
+    paper_doc["error_model"] = {"kind": "bounded"}
+    paper_doc["sigma"] = 0.05
+    plan = stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=300))
+    # A disc of radius sigma inside a region of verified cells: misses can only come from
+    # the gaps between cell centres, which the exact test at each sample judges.
+    assert all(s.success.rate >= 0.97 for s in plan.stops)
+
+
+def test_a_stations_own_error_model_gives_its_stop_its_success_rate(
+    stop_planner, paper_plan, paper_doc
+):
+    """A tray group whose base lands 0.5 m behind its stop (tightly; away from the table):
+    that stop's Monte Carlo uses it and falls; every other stop keeps its rate, drawn as
+    before."""
+    _, plain = paper_plan
+    group = plain.stops[0].trays
+    paper_doc["error_model"] = {
+        **paper_doc.get("error_model", {}),
+        "stations": [{"name": "backs-off", "trays": group, "mean": [-0.5, 0.0],
+                      "covariance": [[1e-6, 0.0], [0.0, 1e-6]]}],
+    }  # fmt: skip
+    plan = stop_planner.plan(parse_scene(paper_doc), PlanOptions(samples=300))
+    assert [s.trays for s in plan.stops] == [s.trays for s in plain.stops]
+    for s, p in zip(plan.stops, plain.stops, strict=True):
+        if s.trays == group:
+            assert s.error_model == "backs-off" and s.success.rate < 0.05 < p.success.rate
+        else:
+            assert s.error_model is None and s.success == p.success
