@@ -35,6 +35,8 @@ from pickstop.settings import hash_key
 from pickstop.stack import spawn_api
 
 KEY = "bench-key"
+AUTH = {"Authorization": f"Bearer {KEY}"}
+ROOT = Path(__file__).resolve().parents[1]
 CONFIG = """
 [checks.positive_data_acceptance]
 expected-statuses = ["2xx", "3xx", "401", "403", "404", "409", "429", "5xx", "412", "422"]
@@ -62,6 +64,23 @@ def data_folder(args: argparse.Namespace) -> Path:
     print(f"building a {args.samples:,}-sample TIAGo database in {folder} ...", flush=True)
     build(load("tiago"), BuildParams(samples=args.samples), folder, workers=2)
     return folder
+
+
+def known_ids(url: str) -> str:
+    """Parameters that name things that exist: a stored scene of the paper-like example, a
+    plan of it, the default database, the robot and one of its files, so that the fuzzer also
+    reaches the operations behind them (exports, reports, guidance) with ids that resolve."""
+    scene = json.loads((ROOT / "examples" / "scenes" / "paper_experiment.json").read_text())
+    with httpx.Client(base_url=f"{url}/api/v1", headers=AUTH, timeout=300) as c:
+        sid = c.post("/scenes", json=scene).raise_for_status().json()["id"]
+        body = {"scene_id": sid, "options": {"samples": 200}}
+        pid = c.post("/plans", json=body).raise_for_status().json()["id"]
+        db = c.get("/databases").raise_for_status().json()[0]["id"]
+        model = c.get("/robots/tiago/model").raise_for_status().json()
+    file_id = next(iter(model.get("files") or {"": None}), "")
+    ids = {"path.scene_id": sid, "path.plan_id": pid, "path.db_id": db, "path.name": "tiago",
+           "path.file_id": file_id, "query.scene_id": sid}  # fmt: skip
+    return "\n[parameters]\n" + "".join(f'"{k}" = "{v}"\n' for k, v in ids.items() if v)
 
 
 def poll_health(url: str, stop: threading.Event, lat: list[float], bad: list[str]) -> None:
@@ -110,6 +129,8 @@ def main() -> int:
     ap.add_argument("--data-dir", help="data folder with a TIAGo database, copied first")
     ap.add_argument("--samples", type=int, default=200_000, help="samples of a fresh build")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--known-ids", action="store_true",
+                    help="path ids of a stored scene, plan, database and robot file")  # fmt: skip
     ap.add_argument("--max-examples", type=int, default=100_000, help="per operation and phase")
     args = ap.parse_args()
     folder = data_folder(args)
@@ -118,11 +139,11 @@ def main() -> int:
         port = s.getsockname()[1]
     env = {**os.environ, "PICKSTOP_DATA_DIR": str(folder),
            "PICKSTOP_API_KEYS": json.dumps([hash_key(KEY)])}  # fmt: skip
-    (folder / "schemathesis.toml").write_text(CONFIG)
     log = (folder / "fuzz-serve.log").open("w")
     proc = spawn_api(port, env, log)
-    service = psutil.Process(proc.pid)
     url = f"http://127.0.0.1:{port}"
+    (folder / "schemathesis.toml").write_text(CONFIG + (known_ids(url) if args.known_ids else ""))
+    service = psutil.Process(proc.pid)
     events = folder / "events.ndjson"
     stop, lat, bad = threading.Event(), [], []
     poller = threading.Thread(target=poll_health, args=(url, stop, lat, bad))
