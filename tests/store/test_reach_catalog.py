@@ -80,6 +80,32 @@ def test_deleting_a_database_forgets_only_its_rows(cat):
     assert rc.delete_database(cat, "a") is False
 
 
+def test_a_database_a_live_build_names_is_not_deleted(cat):
+    from pickstop.errors import DatabaseBusyError
+
+    rc.insert_database(cat, _row("a", builder=rc.builder_tag()))  # this process: alive
+    rc.insert_database(cat, _row("b", builder="elsewhere-host-gone 999999", state="interrupted"))
+    with pytest.raises(DatabaseBusyError, match="being built"):
+        rc.delete_database(cat, "a")
+    assert rc.database_row(cat, "a") is not None
+    assert rc.delete_database(cat, "b") is True
+
+
+def test_a_build_claims_its_row_again_after_a_delete(cat):
+    """A delete that comes between a build's read of its row and its claim: the claim makes
+    the row again, so the build's shards have a row to belong to."""
+    row = _row("a", state="complete", completed="2026-01-02T00:00:00+00:00")
+    rc.insert_database(cat, row)
+    assert rc.delete_database(cat, "a") is True
+    rc.claim_build(cat, row)
+    again = rc.database_row(cat, "a")
+    assert again["state"] == "building" and again["builder"] == rc.builder_tag()
+    rc.record_shard(cat, "a", _shard(0, 10))  # no foreign key error
+    assert len(rc.shards(cat, "a")) == 1
+    with pytest.raises(Exception, match="being built"):
+        rc.delete_database(cat, "a")
+
+
 def _complete(db_id: str, completed: str, stored: int, **over):
     """A complete database row; default build parameters unless ``over`` changes them."""
     over = {"chunk_size": 250_000, "floor_clearance": 0.01, **over}

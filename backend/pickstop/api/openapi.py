@@ -194,8 +194,10 @@ def _operation(op: dict[str, Any], method: str, path: str, settings: Settings) -
                 # Required: without it the answer is 428 (RFC 6585), not a plain 422.
                 param["required"] = True
                 param["schema"] = {"type": "string", "minLength": 1}
-    if path.endswith("/plans") or path.endswith("/regions") or path.endswith("/batch"):
+    if path.endswith(("/plans", "/regions", "/batch", "/guidance")):
         codes[409], codes[504] = TEXT[409], TEXT[504]
+    if method == "delete" and "/databases/{" in path:
+        codes[409] = "the database is being built: cancel its build job first"
     if path.endswith("/errors/fit"):  # a stored scene written with its ETag
         codes[404], codes[412], codes[428] = TEXT[404], TEXT[412], TEXT[428]
     if path.endswith("/dispatch"):

@@ -74,7 +74,9 @@ def scrub(text: str) -> str:
     """``text`` without server folders: ``/srv/data/robots/x.urdf`` becomes ``robots/x.urdf``."""
     for root in _ROOTS:
         if root in text:
-            text = re.sub(re.escape(root) + r"/?", "", text)
+            text = re.sub(re.escape(root) + "/", "", text)  # a path under it: relative
+            # the folder itself (not a longer name it begins): named by what it is
+            text = re.sub(re.escape(root) + r"(?![\w/-]|\.\w)", "the server's folder", text)
     return text
 
 

@@ -135,14 +135,9 @@ class Service:
         """Delete a reachability database: its planners, its catalog rows and its files;
         False if there is none. One being built is refused (cancel its build first)."""
         cat = self.store.catalog
-        row = reach_catalog.database_row(cat, db_id)
-        if row is None:
+        if not reach_catalog.delete_database(cat, db_id):  # refused while being built
             return False
-        if row["state"] == "building" and reach_catalog.builder_alive(row.get("builder")):
-            raise DatabaseBusyError(f"database {db_id} is being built: cancel its build job "
-                                    "first")  # fmt: skip
         self.planners.drop_database(db_id)
-        reach_catalog.delete_database(cat, db_id)
         shutil.rmtree(self.data_dir / "reach" / db_id, ignore_errors=True)
         return True
 

@@ -63,6 +63,7 @@ def _register(catalog: Catalog, db_id: str, robot: RobotModel, params: BuildPara
         "joint_lower": json.dumps(robot.lower.tolist()),
         "joint_upper": json.dumps(robot.upper.tolist()),
         "state": "building",
+        "builder": rc.builder_tag(),  # named from the start: no delete comes between
         "created": _now(),
     }
     rc.insert_database(catalog, row)
@@ -130,10 +131,9 @@ def build(
         catalog.close()
         return row
     # Building (again): a shard that went missing or was altered is recomputed (the content is
-    # deterministic); the row names this process until the build ends, complete or not.
-    rc.update_database(
-        catalog, db_id, {"state": "building", "completed": None, "builder": rc.builder_tag()}
-    )
+    # deterministic); the row names this process until the build ends, complete or not (made
+    # again if a delete came since it was read).
+    rc.claim_build(catalog, row)
     todo = [c for c in range(params.n_chunks) if c not in done]
     if max_chunks is not None:
         todo = todo[:max_chunks]

@@ -15,6 +15,7 @@ from typing import Any
 
 from pickstop.errors import (
     CorruptShardError,
+    DatabaseBusyError,
     DatabaseError,
     DatabaseMismatchError,
     DatabaseNotFoundError,
@@ -67,6 +68,27 @@ def insert_database(catalog: Catalog, row: dict[str, Any]) -> None:
     catalog.insert("reach_databases", row)
 
 
+def claim_build(catalog: Catalog, row: dict[str, Any]) -> None:
+    """Name this process the builder of database ``row["id"]`` in one transaction: its row
+    set 'building' with this process's tag, or made again from ``row`` (state 'building') if
+    it is gone (deleted since it was read). A delete judges the builder in a transaction too,
+    so it either comes first (and the row is made again here) or is refused."""
+    fields = {"state": "building", "completed": None, "builder": builder_tag()}
+    with catalog.transaction() as conn:
+        if conn.execute("SELECT 1 FROM reach_databases WHERE id = ?", [row["id"]]).fetchone():
+            sets = ", ".join(f"{k} = :{k}" for k in fields)
+            conn.execute(
+                f"UPDATE reach_databases SET {sets} WHERE id = :_id", {**fields, "_id": row["id"]}
+            )
+        else:
+            new = {**row, **fields}
+            names = ", ".join(new)
+            conn.execute(
+                f"INSERT INTO reach_databases ({names}) VALUES ({', '.join(':' + k for k in new)})",
+                new,
+            )
+
+
 def update_database(catalog: Catalog, db_id: str, fields: dict[str, Any]) -> None:
     """Set columns ``fields`` of database ``db_id``."""
     sets = ", ".join(f"{k} = :{k}" for k in fields)
@@ -100,9 +122,15 @@ def shard_totals(catalog: Catalog, db_id: str) -> dict[str, int]:
 
 def delete_database(catalog: Catalog, db_id: str) -> bool:
     """Forget database ``db_id`` (its row, shards and index files) in one transaction; False
-    if the catalog has no such database. Its files are the caller's to remove."""
+    if the catalog has no such database. Its files are the caller's to remove. One a running
+    build names is refused (:class:`DatabaseBusyError`), judged in the same transaction as
+    the build's claim (:func:`claim_build`), so that no build writes into a deleted row."""
     with catalog.transaction() as conn:
-        found = conn.execute("SELECT 1 FROM reach_databases WHERE id = ?", [db_id]).fetchone()
+        found = conn.execute(
+            "SELECT state, builder FROM reach_databases WHERE id = ?", [db_id]
+        ).fetchone()
+        if found is not None and found[0] == "building" and builder_alive(found[1]):
+            raise DatabaseBusyError(f"database {db_id} is being built: cancel its build job first")
         if found is not None:
             conn.execute("DELETE FROM reach_shards WHERE db_id = ?", [db_id])
             conn.execute("DELETE FROM reach_arrays WHERE db_id = ?", [db_id])

@@ -123,3 +123,8 @@ def test_database_info_says_whether_the_screen_meets_its_bound():
     assert ok.screen_meets_bound is True and ok.screen_bound == 0.05
     assert over.screen_meets_bound is False and over.screen_false_rejection == 0.07
     assert DatabaseInfo.of({"id": "c"}).screen_meets_bound is None  # not measured
+
+
+def test_deleting_a_database_being_built_is_a_documented_409(client):
+    spec = client.get("/api/v1/openapi.json").json()["paths"]
+    assert "409" in spec["/api/v1/databases/{db_id}"]["delete"]["responses"]

@@ -24,3 +24,15 @@ def test_guidance_of_a_stored_and_an_inline_scene(client):
     problem(client.post("/api/v1/guidance", json={"scene": doc, "tray": "tray_2", "order": "a"},
                         headers=AUTH),
             422, "order")  # fmt: skip
+
+
+def test_guidance_of_an_unknown_database_is_a_documented_409_naming_no_folder(client):
+    sid = client.post("/api/v1/scenes", json=paper(), headers=AUTH).json()["id"]
+    r = client.get(f"/api/v1/scenes/{sid}/guidance",
+                   params={"tray": "tray_4", "database": "nope"})  # fmt: skip
+    assert r.status_code == 409, r.text
+    assert r.json()["detail"].endswith("in the server's folder"), r.json()["detail"]
+    spec = client.get("/api/v1/openapi.json").json()["paths"]
+    for path, method in (("/api/v1/scenes/{scene_id}/guidance", "get"),
+                         ("/api/v1/guidance", "post")):  # fmt: skip
+        assert "409" in spec[path][method]["responses"], path

@@ -196,3 +196,9 @@ def test_a_yaml_body_over_its_limit_is_413(client, api_settings):
     headers = {**AUTH, "Content-Type": "application/yaml"}
     big = YAML_CONFIG + "#" * api_settings.max_yaml_bytes
     problem(client.post("/api/v1/robots", content=big, headers=headers), 413, "body")
+
+
+def test_a_robot_file_is_documented_as_the_bytes_it_is(client):
+    spec = client.get("/api/v1/openapi.json").json()["paths"]
+    ok = spec["/api/v1/robots/{name}/files/{file_id}"]["get"]["responses"]["200"]
+    assert list(ok["content"]) == ["application/octet-stream"]

@@ -67,7 +67,13 @@ async def robot_model(service: ServiceDep, request: Request, name: RobotName) ->
     )
 
 
-@router.get("/robots/{name}/files/{file_id}", dependencies=[ReadKey])
+@router.get(
+    "/robots/{name}/files/{file_id}",
+    dependencies=[ReadKey],
+    response_class=FileResponse,
+    responses={200: {"description": "the mesh file's bytes", "content": {
+        "application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}}},
+)  # fmt: skip
 def robot_file(service: ServiceDep, name: RobotName, file_id: str) -> FileResponse:
     """One mesh of the robot's model (only files its own URDF references)."""
     path = robot_views.file_of(service.robots, name, file_id)
