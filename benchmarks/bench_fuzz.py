@@ -83,9 +83,14 @@ def known_ids(url: str) -> str:
     return "\n[parameters]\n" + "".join(f'"{k}" = "{v}"\n' for k, v in ids.items() if v)
 
 
-def poll_health(url: str, stop: threading.Event, lat: list[float], bad: list[str]) -> None:
+def poll_health(
+    url: str, stop: threading.Event, lat: list[float], bad: list[str], slow: list[tuple]
+) -> None:
+    """Poll ``/health`` every 50 ms: latencies into ``lat``, non-200 answers into ``bad``,
+    (start, seconds) of polls over 100 ms into ``slow``."""
     with httpx.Client(base_url=url, timeout=30) as h:
         while not stop.is_set():
+            start = time.time()
             t0 = time.perf_counter()
             try:
                 r = h.get("/api/v1/health")
@@ -94,7 +99,27 @@ def poll_health(url: str, stop: threading.Event, lat: list[float], bad: list[str
             except httpx.HTTPError as e:
                 bad.append(type(e).__name__)
             lat.append(time.perf_counter() - t0)
+            if lat[-1] > 0.1:
+                slow.append((start, lat[-1]))
             time.sleep(0.05)
+
+
+def in_flight(path: Path, slow: list[tuple]) -> list[str]:
+    """For each slow poll, the fuzzer's requests in flight while it waited (from the run's
+    ndjson events): method, path and their own time."""
+    spans = []
+    for line in path.read_text().splitlines():
+        scenario = json.loads(line).get("ScenarioFinished")
+        for it in ((scenario or {}).get("recorder") or {}).get("interactions", {}).values():
+            if it.get("timestamp") and it.get("response"):
+                end = it["timestamp"] + (it["response"].get("elapsed") or 0.0)
+                what = f"{it['request']['method']} {it['request']['uri'].split('/api/v1')[-1]}"
+                spans.append((it["timestamp"], end, what[:100]))
+    out = []
+    for start, took in slow:
+        hits = [f"{w} ({e - s:.2f} s)" for s, e, w in spans if s < start + took and e > start]
+        out.append(f"  {took * 1e3:.0f} ms: " + ("; ".join(hits[:3]) or "no fuzzed request"))
+    return out
 
 
 def read_events(path: Path) -> tuple[int, collections.Counter, collections.Counter]:
@@ -145,8 +170,8 @@ def main() -> int:
     (folder / "schemathesis.toml").write_text(CONFIG + (known_ids(url) if args.known_ids else ""))
     service = psutil.Process(proc.pid)
     events = folder / "events.ndjson"
-    stop, lat, bad = threading.Event(), [], []
-    poller = threading.Thread(target=poll_health, args=(url, stop, lat, bad))
+    stop, lat, bad, slow = threading.Event(), [], [], []
+    poller = threading.Thread(target=poll_health, args=(url, stop, lat, bad, slow))
     poller.start()
     t0 = time.monotonic()
     try:
@@ -178,9 +203,9 @@ def main() -> int:
     print("responses: " + ", ".join(f"{k} {v:,}" for k, v in sorted(statuses.items())))
     print("failed checks: " + (", ".join(f"{k} {v}" for k, v in failures.most_common())
                                or "none"))  # fmt: skip
-    slow = sum(t > 0.1 for t in lat)
     print(f"/health: {len(lat):,} polls, p50 {pct[0.5]:.1f} ms, p99 {pct[0.99]:.1f} ms, "
-          f"max {lat[-1] * 1e3:.1f} ms, over 100 ms: {slow}, not 200: {len(bad)}")  # fmt: skip
+          f"max {lat[-1] * 1e3:.1f} ms, over 100 ms: {len(slow)}, not 200: {len(bad)}")  # fmt: skip
+    print("\n".join(in_flight(events, slow)))
     print(f"service processes: {peak} children at the end, {len(left)} alive 1 s after stop")
     print(f"output and events: {folder}")
     return 0

@@ -235,3 +235,33 @@ def test_dropping_a_database_closes_its_planners(region_db):
     again = p.slot(robot)  # opened anew from the data folder
     assert again is not slot and again.regions.db.id == db.id
     p.close()
+
+
+def test_the_loaded_planners_are_read_while_the_pool_is_busy(region_db):
+    """Loading a robot or database and closing planners hold the pool's lock for seconds;
+    ``/health`` lists the loaded planners on the API's event loop, so that read never waits."""
+    import threading
+    import time
+
+    from pickstop.pool import PlannerPool
+    from pickstop.robot.config import resolve_robot
+
+    folder, db = region_db
+    p = PlannerPool(folder)
+    slot = p.slot(p.robot(*resolve_robot("tiago")))
+    held, release = threading.Event(), threading.Event()
+
+    def busy() -> None:
+        with p._lock:
+            held.set()
+            release.wait(10)
+
+    threading.Thread(target=busy, daemon=True).start()
+    assert held.wait(5)
+    t0 = time.perf_counter()
+    assert p.slots == [slot]
+    assert time.perf_counter() - t0 < 0.5
+    release.set()
+    p.drop_database(db.id)
+    assert p.slots == []
+    p.close()

@@ -127,6 +127,7 @@ class PlannerPool:
         self._databases: dict[tuple[str, str], ReachDatabase] = {}  # (robot hash, db id)
         self._defaults: dict[str, str] = {}  # robot hash -> the database used when none named
         self._slots: dict[tuple[str, str], PlannerSlot] = {}  # (robot hash, db id)
+        self._loaded: tuple[PlannerSlot, ...] = ()  # its values, replaced whole under the lock
         self._lock = threading.RLock()
         self.configs = ConfigFiles()  # robot config files, parsed once per text
 
@@ -173,6 +174,7 @@ class PlannerPool:
                     robot, db, cache_dir=cache_dir(self.data_dir), workers=self.region_processes
                 )
                 slot = self._slots[key] = PlannerSlot(rp)
+                self._loaded = tuple(self._slots.values())
             return slot
 
     def scene_slot(
@@ -218,14 +220,17 @@ class PlannerPool:
                 del self._databases[key]
             for robot_hash in [h for h, d in self._defaults.items() if d == db_id]:
                 del self._defaults[robot_hash]
-            for key in [k for k in self._slots if k[1] == db_id]:
-                self._slots.pop(key).close()
+            gone = [self._slots.pop(k) for k in [k for k in self._slots if k[1] == db_id]]
+            self._loaded = tuple(self._slots.values())
+            for slot in gone:
+                slot.close()
 
     @property
     def slots(self) -> list[PlannerSlot]:
-        """The planners loaded so far."""
-        with self._lock:
-            return list(self._slots.values())
+        """The planners loaded so far, read without the pool's lock: loading a robot or a
+        database and closing planners hold it for seconds, and ``/health`` reads this on the
+        API's event loop."""
+        return list(self._loaded)
 
     def close(self) -> None:
         """Stop the planners' worker processes; the pool may be used again after."""
