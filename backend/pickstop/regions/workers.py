@@ -242,9 +242,9 @@ def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> 
             except (EOFError, OSError):
                 break
             try:
-                known = set(kit.grasp_cache)
+                known = set(kit.grasp_memo)
                 out = [(p, _region(scene, *p)) for p in pairs]
-                grasps = {k: g for k, g in kit.grasp_cache.items() if k not in known}
+                grasps = {k: g for k, g in kit.grasp_memo.items() if k not in known}
                 conn.send((rid, "ok", (out, grasps)))
             except Interrupted:
                 conn.send((rid, "interrupted", None))
