@@ -377,11 +377,11 @@ def test_forget_drops_every_kept_region(planner, paper_doc):
         np.testing.assert_array_equal(fresh[k].thetas, first[k].thetas)
 
 
-def test_region_workers_want_a_process(planner):
-    from pickstop.regions.workers import RegionWorkers
+def test_region_processes_want_one_process_at_least(planner):
+    from pickstop.regions.processes import RegionProcesses
 
     with pytest.raises(ValueError, match="processes must be at least 1, got 0"):
-        RegionWorkers(planner, 0)
+        RegionProcesses(planner, 0)
 
 
 def test_touching_cells_merge_into_one_polygon():

@@ -211,7 +211,7 @@ class RegionKit:
         return scene_solids(scene, groups=self.object_solids(scene))
 
     def learn_grasps(self, entries: dict[str, GraspSet]) -> None:
-        """Keep grasps another process computed (:mod:`pickstop.regions.workers`), by the
+        """Keep grasps another process computed (:mod:`pickstop.regions.processes`), by the
         keys :meth:`grasps` finds them by."""
         for key, grasps in entries.items():
             self.grasp_memo.put(key, grasps)
