@@ -101,7 +101,7 @@ def _regions(planner, doc: dict) -> None:
         best, region = np.inf, None
         for _ in range(2):
             planner.cache.clear()
-            planner.grasp_cache.clear()
+            planner.grasp_memo.clear()
             t0 = time.perf_counter()
             region = planner.tray_region(scene, tray.id)
             best = min(best, time.perf_counter() - t0)

@@ -27,8 +27,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from pickstop.pool import PlannerPool
 from pickstop.regions.pipeline import compute_tray_region
 from pickstop.scene.load import parse_scene
-from pickstop.sequence.plan import StopPlanner, world_key
+from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
+from pickstop.sequence.request import world_key
 from pickstop.settings import data_dir
 
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"

@@ -54,7 +54,7 @@ SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
 def _fresh(planner: RegionPlanner) -> None:
     """Forget cached regions and grasps, so the next call computes everything."""
     planner.forget()
-    planner.grasp_cache.clear()
+    planner.grasp_memo.clear()
 
 
 def _cells_of(mask: np.ndarray, cells: np.ndarray) -> np.ndarray:

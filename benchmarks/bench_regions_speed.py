@@ -98,7 +98,7 @@ def main() -> None:
 
     cell = parse_scene(json.loads((SCENES / "factory_cell.json").read_text()))
     planner.forget()
-    planner.grasp_cache.clear()
+    planner.grasp_memo.clear()
     t = time.perf_counter()
     regs = planner.regions(cell)
     dt = time.perf_counter() - t

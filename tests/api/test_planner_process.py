@@ -41,7 +41,7 @@ def test_a_planner_process_that_dies_is_reported_and_replaced(api_settings):
         quick = {"scene": paper(), "options": {"samples": 0}, "store": False}
         assert c.post(PLANS, json=quick, headers=AUTH).status_code == 200
         first = service.planning.pid
-        helpers = _children(first)  # the planner's region helpers (regions/workers.py)
+        helpers = _children(first)  # the planner's region helpers (regions/processes.py)
         assert helpers, "the paper scene's regions were computed by one process"
         seed = time.time_ns() % 2**31  # nothing cached: a Monte Carlo of several seconds
         heavy = {"scene": paper(), "options": {"samples": 20000, "seed": seed}, "store": False}

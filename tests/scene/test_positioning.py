@@ -151,7 +151,7 @@ def _five() -> dict:
 
 
 def test_a_scene_with_station_models_and_its_unchanged_hash():
-    from pickstop.sequence.plan import scene_hash
+    from pickstop.sequence.request import scene_hash
 
     doc = _five()
     plain = parse_scene(doc)

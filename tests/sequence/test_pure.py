@@ -27,9 +27,10 @@ from pickstop.regions.pure import tray_region as pure_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import SceneError
 from pickstop.sequence.cover import InfeasiblePlanError
-from pickstop.sequence.plan import StopPlanner, _Planning, plan_from_scratch
+from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.sequence.pure import PureSteps
+from pickstop.sequence.request import PlanRequest, plan_from_scratch
 from tests.utils import assert_cells_verified
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
@@ -128,7 +129,7 @@ def _pure_plan(kit, scene, opts, regions):
     """The pure stop pipeline (:class:`PureSteps`) over ``regions``."""
     steps = PureSteps(kit)
     steps.regions = _Given(steps.regions, regions)
-    return _outcome(lambda: _Planning(steps, scene, opts).run())
+    return _outcome(lambda: PlanRequest(steps, scene, opts).run())
 
 
 def _outcome(make):

@@ -26,8 +26,8 @@ from pickstop.errors import PickStopError
 from pickstop.pool import PlannerPool, PlannerSlot
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence.mix import MixPlans, plan_mix
-from pickstop.sequence.plan import route_points, route_yaws
 from pickstop.sequence.plan_model import Plan, PlanOptions
+from pickstop.sequence.request import route_points, route_yaws
 from pickstop.sequence.rules import Rule, RuleName, cut_off, judge
 
 if TYPE_CHECKING:

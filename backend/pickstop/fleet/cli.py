@@ -32,7 +32,7 @@ def _scene(path: str | None, plan: pm.Plan | None = None) -> Any:
     if path is None:
         return None
     from pickstop.scene.load import load_scene
-    from pickstop.sequence.plan import scene_hash
+    from pickstop.sequence.request import scene_hash
 
     scene = load_scene(path)
     if plan is not None and scene_hash(scene) != plan.scene_hash:

@@ -89,7 +89,7 @@ class RegionKit:
     exact_arm: ExactArm = field(init=False)
     hand: HandShape = field(init=False)
     reach_xy: float = field(init=False)  # [m] the database's horizontal reach
-    grasp_cache: Cache[str, GraspSet] = field(
+    grasp_memo: Cache[str, GraspSet] = field(
         default_factory=lambda: Cache("kit.grasps", max_items=MEMO_SIZE)
     )
     reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
@@ -177,14 +177,14 @@ class RegionKit:
             space = self.hand_space(scene, tray, part)
             near = _reaching_in(others, space, at)
             full = hashlib.sha256("|".join([key, *sorted(near)]).encode()).hexdigest()
-            found = self.grasp_cache.get(full)
+            found = self.grasp_memo.get(full)
             if found is None:
                 own = self._own_verdicts.get_or_make(
                     own_key, lambda part=part: own_verdicts(scene, tray, part, self.hand)
                 )
                 if foreign is None:
                     foreign = other_solids(scene, tray, self.object_solids(scene))
-                found = self.grasp_cache.put(
+                found = self.grasp_memo.put(
                     full,
                     _moved_by(grasps_for_part(scene, tray, part, self.hand, own, foreign), -at),
                 )
@@ -211,10 +211,10 @@ class RegionKit:
         return scene_solids(scene, groups=self.object_solids(scene))
 
     def learn_grasps(self, entries: dict[str, GraspSet]) -> None:
-        """Keep grasps another process computed (:mod:`pickstop.regions.workers`), by the
+        """Keep grasps another process computed (:mod:`pickstop.regions.processes`), by the
         keys :meth:`grasps` finds them by."""
         for key, grasps in entries.items():
-            self.grasp_cache.put(key, grasps)
+            self.grasp_memo.put(key, grasps)
 
     def hand_space(self, scene: Scene, tray: Tray, part: Part) -> tuple[np.ndarray, np.ndarray]:
         """:func:`pickstop.scene.grasps.hand_space`, computed once per tray (wherever it

@@ -25,17 +25,15 @@ from pickstop.scene.model import Scene, Tray
 from pickstop.scene.world import Solid
 
 
-def _arm_world(
-    planner: RegionKit, scene: Scene, tray: Tray, yaw: float
-) -> tuple[ArmWorld, np.ndarray]:
+def _arm_world(kit: RegionKit, scene: Scene, tray: Tray, yaw: float) -> tuple[ArmWorld, np.ndarray]:
     """What the arm is checked against near ``tray`` at ``yaw`` [rad], and R_base_world."""
-    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
+    _, solids, boxes, R_base_world = tray_world(kit, scene, tray, yaw)
     env = Envelope.empty(scene.floor.min, scene.floor.max)  # a check records nothing
     return ArmWorld(boxes, solids, yaw, env, scene.floor_clearance), R_base_world
 
 
 def feasible_at(
-    planner: RegionKit, scene: Scene, tray_id: str, xy: np.ndarray, yaw: float
+    kit: RegionKit, scene: Scene, tray_id: str, xy: np.ndarray, yaw: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The region's test at arbitrary base poses ``xy: (M, 2)`` [m], ``yaw`` [rad].
 
@@ -46,17 +44,17 @@ def feasible_at(
     tray = scene.tray(tray_id)
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     M, P = len(xy), len(tray.parts)
-    thetas = np.zeros((M, P, planner.robot.dof))
+    thetas = np.zeros((M, P, kit.robot.dof))
     grasp = np.zeros((M, P), int)
-    alive = np.flatnonzero(footprint_free(scene, planner.robot, xy, yaw, planner.solids_of(scene)))
+    alive = np.flatnonzero(footprint_free(scene, kit.robot, xy, yaw, kit.solids_of(scene)))
     if not P:
         return np.zeros(M, bool), thetas, grasp
-    world, R_base_world = _arm_world(planner, scene, tray, yaw)
-    for k, gs in enumerate(planner.grasps(scene, tray)):
+    world, R_base_world = _arm_world(kit, scene, tray, yaw)
+    for k, gs in enumerate(kit.grasps(scene, tray)):
         if len(alive) == 0 or len(gs.Ts_world_tool) == 0:
             return np.zeros(M, bool), thetas, grasp
         found, th, gi = solve.solve_part(
-            planner, world, Targets.of(gs, xy[alive], R_base_world), xy[alive]
+            kit, world, Targets.of(gs, xy[alive], R_base_world), xy[alive]
         )
         alive = alive[found]
         thetas[alive, k] = th[found]
@@ -67,7 +65,7 @@ def feasible_at(
 
 
 def check_key(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     region: TrayRegion,
     xy: tuple[float, float],
@@ -82,10 +80,10 @@ def check_key(
     elsewhere leaves the checks of the other trays as they were. ``solids``: the scene's
     (:func:`~pickstop.scene.world.scene_solids`), if made already."""
     tray = scene.tray(region.tray_id)
-    solids = planner.solids_of(scene) if solids is None else solids
-    free = bool(footprint_free(scene, planner.robot, np.array([xy], float), yaw, solids)[0])
-    near = planner.objects_near(scene, tray, arm_radius(planner, tray))
-    own = own_key(planner, scene, tray, region.yaw)
+    solids = kit.solids_of(scene) if solids is None else solids
+    free = bool(footprint_free(scene, kit.robot, np.array([xy], float), yaw, solids)[0])
+    near = kit.objects_near(scene, tray, arm_radius(kit, tray))
+    own = own_key(kit, scene, tray, region.yaw)
     blob = "\0".join([own, region.digest, repr((xy, yaw, free)), *near])
     return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -95,7 +93,7 @@ SEED_ITERATIONS = 20
 
 
 def feasible_near(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     region: TrayRegion,
     xy: np.ndarray,
@@ -116,7 +114,7 @@ def feasible_near(
     """
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     tray = scene.tray(region.tray_id)
-    M, P, dof = len(xy), len(tray.parts), planner.robot.dof
+    M, P, dof = len(xy), len(tray.parts), kit.robot.dof
     ok = np.zeros(M, bool)
     thetas = np.zeros((M, P, dof))
     grasp = np.zeros((M, P), int)
@@ -128,15 +126,15 @@ def feasible_near(
     def by_database() -> None:
         idx = np.flatnonzero(~ok)
         if len(idx):
-            take(idx, feasible_at(planner, scene, region.tray_id, xy[idx], yaw))
+            take(idx, feasible_at(kit, scene, region.tray_id, xy[idx], yaw))
 
     def by_seeds() -> None:
         if not P or not len(region.cells) or abs(region.yaw - yaw) > 0.2:
             return
         idx = np.flatnonzero(~ok)
-        idx = idx[footprint_free(scene, planner.robot, xy[idx], yaw, planner.solids_of(scene))]
+        idx = idx[footprint_free(scene, kit.robot, xy[idx], yaw, kit.solids_of(scene))]
         if len(idx):
-            take(idx, _seeded_by_cells(planner, scene, region, xy[idx], yaw))
+            take(idx, _seeded_by_cells(kit, scene, region, xy[idx], yaw))
 
     for step in (by_seeds, by_database) if seeds_first else (by_database, by_seeds):
         step()
@@ -144,21 +142,21 @@ def feasible_near(
 
 
 def _seeded_by_cells(
-    planner: RegionKit, scene: Scene, region: TrayRegion, xy: np.ndarray, yaw: float
+    kit: RegionKit, scene: Scene, region: TrayRegion, xy: np.ndarray, yaw: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`feasible_near`'s seeded IK at base poses ``xy: (T, 2)`` whose footprint is
     free: ``ok (T,)``, witnesses ``(T, P, dof)``, grasps ``(T, P)``."""
     tray = scene.tray(region.tray_id)
-    world, R_base_world = _arm_world(planner, scene, tray, yaw)
+    world, R_base_world = _arm_world(kit, scene, tray, yaw)
     cells_xy = region.grid.centres(region.cells[:, 1], region.cells[:, 0])
     S = min(NEIGHBOUR_SEEDS, len(cells_xy))
     d2 = ((xy[:, None, :] - cells_xy[None]) ** 2).sum(-1)
     near = np.argsort(d2, axis=1)[:, :S]  # (T, S) nearest feasible cells
-    T, dof = len(xy), planner.robot.dof
+    T, dof = len(xy), kit.robot.dof
     alive = np.ones(T, bool)
     th_new = np.zeros((T, len(tray.parts), dof))
     g_new = np.zeros((T, len(tray.parts)), int)
-    for k, gs in enumerate(planner.grasps(scene, tray)):
+    for k, gs in enumerate(kit.grasps(scene, tray)):
         G = len(gs.Ts_world_tool)
         hit = np.zeros(T, bool)
         # The neighbours' own grasps first, then (from the two nearest) every other grasp,
@@ -172,7 +170,7 @@ def _seeded_by_cells(
             g = ((region.grasp_index[src, k][:, None] + shifts) % G).ravel()
             tg = Targets.of(gs, xy[owner], R_base_world)
             win, th = solve.seeded(
-                planner,
+                kit,
                 world,
                 np.repeat(region.thetas[src, k].reshape(-1, dof), len(shifts), axis=0),
                 tg.Rs_base_tool[g],

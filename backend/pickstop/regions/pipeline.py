@@ -48,13 +48,13 @@ class BaseCells:
         return np.stack([self.iy, self.ix], 1)
 
 
-def tray_reach(planner: RegionKit, tray: Tray) -> float:
+def tray_reach(kit: RegionKit, tray: Tray) -> float:
     """[m] How far from the tray's centre a base may stand and still reach into the tray."""
-    return planner.reach_xy + 0.5 * math.hypot(*tray.outer_size)
+    return kit.reach_xy + 0.5 * math.hypot(*tray.outer_size)
 
 
 def base_cells(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     tray: Tray,
     yaw: float,
@@ -65,7 +65,7 @@ def base_cells(
     the base at ``yaw`` [rad] fits. env: marked with the columns of the base at every cell in
     reach, the owners of overhangs that block one, and the free cells."""
     tc = np.array([tray.pose.x, tray.pose.y])
-    reach = tray_reach(planner, tray)
+    reach = tray_reach(kit, tray)
     lo = np.floor((tc - reach - [grid.x0, grid.y0]) / grid.res).astype(int)
     hi = np.ceil((tc + reach - [grid.x0, grid.y0]) / grid.res).astype(int)
     ix = np.arange(max(lo[0], 0), min(hi[0], grid.nx))
@@ -76,12 +76,12 @@ def base_cells(
     near = np.hypot(*(cen - tc).T) <= reach
     IX, IY, cen = IX[near], IY[near], cen[near]
     counts = {"in_reach": len(IX)}
-    fp = planner.robot.footprint
+    fp = kit.robot.footprint
     if env is not None:
         env.mark_columns(cen, fp.bounding_radius, fp.height)
     if len(IX) == 0:
         return BaseCells(IX, IY, cen, counts, out_of_reach(tray, reach))
-    free, overhangs = footprint_check(scene, planner.robot, cen, yaw, planner.solids_of(scene))
+    free, overhangs = footprint_check(scene, kit.robot, cen, yaw, kit.solids_of(scene))
     IX, IY, cen = IX[free], IY[free], cen[free]
     counts["footprint_free"] = len(IX)
     if env is not None:
@@ -91,18 +91,18 @@ def base_cells(
 
 
 def compute_tray_region(
-    planner: RegionKit, scene: Scene, tray: Tray, yaw: float, key: str = "", reuse: bool = True
+    kit: RegionKit, scene: Scene, tray: Tray, yaw: float, key: str = "", reuse: bool = True
 ) -> TrayRegion:
     """The region of ``tray`` at base ``yaw`` [rad] (see the module); ``key`` is stored with
     it (:func:`pickstop.regions.validity.own_key`). ``reuse``: take refinements and cell
     answers from the kit's memo of the tray (:mod:`pickstop.regions.reuse`) and keep this
     computation's there; false: nothing remembered is read or written (from scratch)."""
     t0 = time.perf_counter()
-    robot = planner.robot
+    robot = kit.robot
     grid = CellGrid.of(scene)
     counts = {"grid": grid.nx * grid.ny}
     part_ids = tuple(p.id for p in tray.parts)
-    env = _hand_envelope(planner, scene, tray)
+    env = _hand_envelope(kit, scene, tray)
 
     def empty(reason: str) -> TrayRegion:
         seconds = time.perf_counter() - t0
@@ -112,31 +112,31 @@ def compute_tray_region(
 
     if not tray.parts:
         return empty(no_parts(tray))
-    base = base_cells(planner, scene, tray, yaw, grid, env)
+    base = base_cells(kit, scene, tray, yaw, grid, env)
     counts.update(base.counts)
     if base.reason is not None:
         return empty(base.reason)
-    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
-    grasp_sets = planner.grasps(scene, tray)
-    why = ungraspable(planner, scene, tray, grasp_sets)
+    _, solids, boxes, R_base_world = tray_world(kit, scene, tray, yaw)
+    grasp_sets = kit.grasps(scene, tray)
+    why = ungraspable(kit, scene, tray, grasp_sets)
     if why is not None:
         return empty(why)
     world, targets, alive = _arm_targets(
-        planner, scene, tray, yaw, base, grasp_sets, (solids, boxes, R_base_world, grid, env),
+        kit, scene, tray, yaw, base, grasp_sets, (solids, boxes, R_base_world, grid, env),
         reuse,
     )  # fmt: skip
     counts["served"] = len(alive)
     alive, witness, grasp_of, failed = _solve_parts(
-        planner, world, targets, base, alive, len(part_ids), counts
+        kit, world, targets, base, alive, len(part_ids), counts
     )
     if failed is not None:
         return empty(no_cell_grasps(failed, tray, counts["footprint_free"]))
     IX, IY, cen = base.ix, base.iy, base.centres
     solved = np.zeros(len(IX), bool)
     solved[alive] = True
-    planner.checkpoint()
+    kit.checkpoint()
     counts["grown"] = solve.grow(
-        planner, world, targets, cen, np.stack([IY, IX], 1), solved, witness, grasp_of
+        kit, world, targets, cen, np.stack([IY, IX], 1), solved, witness, grasp_of
     )
     alive = np.flatnonzero(solved)
     counts["feasible"] = len(alive)
@@ -156,16 +156,16 @@ def compute_tray_region(
     )
 
 
-def _hand_envelope(planner: RegionKit, scene: Scene, tray: Tray) -> Envelope:
+def _hand_envelope(kit: RegionKit, scene: Scene, tray: Tray) -> Envelope:
     """The open hands at every candidate grasp: what reaches in there may change the grasps."""
     env = Envelope.empty(scene.floor.min, scene.floor.max)
     for part in tray.parts:
-        env.mark_box(*planner.hand_space(scene, tray, part))
+        env.mark_box(*kit.hand_space(scene, tray, part))
     return env
 
 
 def _arm_targets(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     tray: Tray,
     yaw: float,
@@ -182,9 +182,9 @@ def _arm_targets(
     if not reuse:
         world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance, (tray.pose.x, tray.pose.y))
         targets = [Targets.of(gs, base.centres, R_base_world) for gs in grasp_sets]
-        return world, targets, np.flatnonzero(solve.served(planner.db, targets))
+        return world, targets, np.flatnonzero(solve.served(kit.db, targets))
     anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
-    memo = planner.reuse.memo(reuse_key(planner, scene, tray, yaw, anchor, grasp_sets))
+    memo = kit.reuse.memo(reuse_key(kit, scene, tray, yaw, anchor, grasp_sets))
     around = memo.around(Surroundings.of(solids, tray))
     world = ArmWorld(
         boxes, solids, yaw, env, scene.floor_clearance, (tray.pose.x, tray.pose.y), around
@@ -192,13 +192,13 @@ def _arm_targets(
     keys = anchor.cell_keys(base.ix, base.iy)
     targets = [Targets.of(gs, base.centres, R_base_world, keys, memo) for gs in grasp_sets]
     alive = np.flatnonzero(
-        memo.served(keys, lambda idx: solve.served(planner.db, [t.take(idx) for t in targets]))
+        memo.served(keys, lambda idx: solve.served(kit.db, [t.take(idx) for t in targets]))
     )
     return world, targets, alive
 
 
 def _solve_parts(
-    planner: RegionKit,
+    kit: RegionKit,
     world: ArmWorld,
     targets: list[Targets],
     base: BaseCells,
@@ -210,11 +210,11 @@ def _solve_parts(
     solved for all, witnesses ``(cells, parts, dof)`` [rad or m], grasp indices ``(cells,
     parts)``, the part no cell serves or None). ``counts`` gains the cells left per part."""
     shape = (len(base.ix), n_parts)
-    witness = np.zeros((*shape, planner.robot.dof))
+    witness = np.zeros((*shape, kit.robot.dof))
     grasp_of = np.zeros(shape, int)
     for k, tg in enumerate(targets):
-        planner.checkpoint()
-        found, th, gi = solve.solve_part(planner, world, tg.take(alive), base.centres[alive])
+        kit.checkpoint()
+        found, th, gi = solve.solve_part(kit, world, tg.take(alive), base.centres[alive])
         alive = alive[found]
         witness[alive, k] = th[found]
         grasp_of[alive, k] = gi[found]
@@ -225,7 +225,7 @@ def _solve_parts(
 
 
 def reuse_key(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     tray: Tray,
     yaw: float,
@@ -243,29 +243,29 @@ def reuse_key(
         "yaw": yaw,
         "res": scene.base_grid.resolution,
         "floor_clearance": scene.floor_clearance,
-        "hand": planner.hand.key,
-        "robot": planner.robot.robot_hash,
-        "db": planner.db.id,
+        "hand": kit.hand.key,
+        "robot": kit.robot.robot_hash,
+        "db": kit.db.id,
         "algo": solve.VERSION,
         "grasps": grasps_digest(tray, grasp_sets),
     }
     return hashlib.sha256(json.dumps(blob, sort_keys=True, default=str).encode()).hexdigest()
 
 
-def arm_radius(planner: RegionKit, tray: Tray) -> float:
+def arm_radius(kit: RegionKit, tray: Tray) -> float:
     """[m] How far from the tray's centre, in the floor plane, a solid's bounding box may lie
     and still be met by the arm reaching into the tray from a base within reach: the solids
     its region and its off-grid checks look at (:func:`tray_world`)."""
-    return tray_reach(planner, tray) + planner.reach_xy + 0.2
+    return tray_reach(kit, tray) + kit.reach_xy + 0.2
 
 
 def tray_world(
-    planner: RegionKit, scene: Scene, tray: Tray, yaw: float
+    kit: RegionKit, scene: Scene, tray: Tray, yaw: float
 ) -> tuple[float, list[Solid], BoxArrays, np.ndarray]:
     """Reach radius around the tray [m], the solids near it (exact and as arrays), R_base_world."""
     tc = np.array([tray.pose.x, tray.pose.y])
-    solids = nearby(planner.solids_of(scene), tc, arm_radius(planner, tray))
-    return tray_reach(planner, tray), solids, BoxArrays.of(solids), frames.R_base_world(yaw)
+    solids = nearby(kit.solids_of(scene), tc, arm_radius(kit, tray))
+    return tray_reach(kit, tray), solids, BoxArrays.of(solids), frames.R_base_world(yaw)
 
 
 # -- why a region is empty: one wording for the pipeline and the reference solvers -------------
@@ -281,14 +281,12 @@ def no_room(tray: Tray) -> str:
     return f"no cell within reach of tray {tray.id!r} has room for the base footprint"
 
 
-def ungraspable(
-    planner: RegionKit, scene: Scene, tray: Tray, grasp_sets: list[GraspSet]
-) -> str | None:
+def ungraspable(kit: RegionKit, scene: Scene, tray: Tray, grasp_sets: list[GraspSet]) -> str | None:
     """Why the first part of ``tray`` without a grasp the open hand fits has none (None if
     every part has one)."""
     for gs in grasp_sets:
         if len(gs.Ts_world_tool) == 0:
-            low = _too_low(planner) if gs.too_low else ""
+            low = _too_low(kit) if gs.too_low else ""
             return (
                 f"part {gs.part_id!r} of tray {tray.id!r}: none of its {gs.rejected} grasps "
                 "fits the robot's open hand without touching the tray, a neighbour or a table, "
@@ -298,15 +296,15 @@ def ungraspable(
     return None
 
 
-def _too_low(planner: RegionKit) -> str:
+def _too_low(kit: RegionKit) -> str:
     """Why a part has no top-down grasp, and what in the robot config sets it."""
     import shlex
 
     from pickstop.reach.database import robot_arg
 
-    check = shlex.join(["pickstop", "robot", "check", robot_arg(planner.robot)])
+    check = shlex.join(["pickstop", "robot", "check", robot_arg(kit.robot)])
     return (
-        f"; no top-down grasp: the open hand reaches {planner.hand.reach:.3f} m past its grasp "
+        f"; no top-down grasp: the open hand reaches {kit.hand.reach:.3f} m past its grasp "
         "point, which would put it below the tray floor for a part this low; the robot "
         "config's hand.tool_offset places the grasp point (nearer the fingertips, the hand "
         f"reaches less past it): `{check}` shows the hand's reach and suggests an offset"

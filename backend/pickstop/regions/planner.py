@@ -4,7 +4,7 @@
 the last layouts, from the per-tray cache while :mod:`pickstop.regions.validity` says a region
 still holds, else computed by :mod:`pickstop.regions.pipeline` (with ``workers`` > 1, several
 at once, each tray at home in the planner's process or one of its forked helpers:
-:mod:`pickstop.regions.workers`). The last region of each tray is kept for previews
+:mod:`pickstop.regions.processes`). The last region of each tray is kept for previews
 (:mod:`pickstop.regions.carry`).
 """
 
@@ -17,6 +17,7 @@ from pickstop.regions.carry import LastRegions
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import compute_tray_region
+from pickstop.regions.processes import RegionProcesses
 from pickstop.regions.solve import warm_kernels
 from pickstop.regions.validity import (
     CacheEntry,
@@ -26,7 +27,6 @@ from pickstop.regions.validity import (
     snapshots,
     still_valid,
 )
-from pickstop.regions.workers import RegionWorkers
 from pickstop.scene.model import Scene
 
 LAYOUTS = 8  # the regions of this many layouts kept whole
@@ -47,7 +47,7 @@ class RegionPlanner(RegionKit):
         init=False, repr=False,
     )  # the regions of the last layouts  # fmt: skip
     _last: LastRegions = field(init=False, repr=False)
-    _workers: RegionWorkers | None = field(default=None, init=False, repr=False)
+    _processes: RegionProcesses | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -168,14 +168,14 @@ class RegionPlanner(RegionKit):
         if len(self.cache) > self.cache_size:
             self.cache.pop(next(iter(self.cache)))
 
-    def _pool(self, workers: int) -> RegionWorkers:
-        if self._workers is None or self._workers.processes != workers:
+    def _pool(self, workers: int) -> RegionProcesses:
+        if self._processes is None or self._processes.processes != workers:
             self.close()
-            self._workers = RegionWorkers(self, workers)
-        return self._workers
+            self._processes = RegionProcesses(self, workers)
+        return self._processes
 
     def close(self) -> None:
         """Stop the helper processes, if any (started again when next needed)."""
-        if self._workers is not None:
-            self._workers.close()
-            self._workers = None
+        if self._processes is not None:
+            self._processes.close()
+            self._processes = None

@@ -100,7 +100,7 @@ class ReachBound:
 class _Setup:
     """One tray's problem: candidate cells, grasps, the world the arm is checked against."""
 
-    planner: RegionKit
+    kit: RegionKit
     tray: Tray
     yaw: float
     cand: BaseCells
@@ -116,23 +116,23 @@ class _Setup:
 
 
 def _setup(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     tray: Tray,
     yaw: float,
     cand: BaseCells,
     grasps: list[GraspSet],
 ) -> _Setup:
-    _, solids, boxes, R_base_world = tray_world(planner, scene, tray, yaw)
+    _, solids, boxes, R_base_world = tray_world(kit, scene, tray, yaw)
     return _Setup(
-        planner,
+        kit,
         tray,
         yaw,
         cand,
         grasps,
         ArmWorld(boxes, solids, yaw, None, scene.floor_clearance),
         R_base_world,
-        ReachBound.of(planner.solver),
+        ReachBound.of(kit.solver),
         {"ik_problems": 0, "ik_converged": 0, "exact_checks": 0},
     )
 
@@ -156,7 +156,7 @@ def _solve_part(
     ``seeds(r, k, cells (Q, 2) (iy, ix), grasps (Q,), n) -> (Q, n, dof)``; every converged
     solution counts. ``prune``: skip targets outside the :class:`ReachBound`.
     """
-    solver = st.planner.solver
+    solver = st.kit.solver
     M, dof = len(cells), solver.chain.dof
     tg = st.targets(k, cells)
     R_t, p_t = tg.Rs_base_tool, tg.ps_base_tool
@@ -188,7 +188,7 @@ def _solve_part(
         # wins, a screen-free one before any coal has to clear.
         rows = ok[
             solve.verify(
-                st.planner,
+                st.kit,
                 st.world,
                 th[ok],
                 st.cand.centres[cells[pa[ok]]],
@@ -216,7 +216,7 @@ def pose_ok(solver: BatchSolver, thetas: np.ndarray, Rs: np.ndarray, ps: np.ndar
 
 
 def _region(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     tray_id: str,
     yaw: float | None,
@@ -230,10 +230,10 @@ def _region(
     tray = scene.tray(tray_id)
     yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
     grid = CellGrid.of(scene)
-    cand = base_cells(planner, scene, tray, yaw, grid)
+    cand = base_cells(kit, scene, tray, yaw, grid)
     counts = {"grid": grid.nx * grid.ny, **cand.counts}
     part_ids = tuple(p.id for p in tray.parts)
-    dof = planner.robot.dof
+    dof = kit.robot.dof
 
     def result(idx: np.ndarray, th: np.ndarray, gi: np.ndarray, reason: str | None) -> TrayRegion:
         counts["feasible"] = len(idx)
@@ -261,11 +261,11 @@ def _region(
     counts["evaluated"] = len(idx)
     if len(idx) == 0:
         return empty(f"none of the requested cells is a free cell within reach of {tray.id!r}")
-    grasps = planner.grasps(scene, tray)
-    why = ungraspable(planner, scene, tray, grasps)
+    grasps = kit.grasps(scene, tray)
+    why = ungraspable(kit, scene, tray, grasps)
     if why is not None:
         return empty(why)
-    st = _setup(planner, scene, tray, yaw, cand, grasps)
+    st = _setup(kit, scene, tray, yaw, cand, grasps)
     alive = idx
     witness = np.zeros((len(cand.ix), len(part_ids), dof))
     grasp_of = np.zeros((len(cand.ix), len(part_ids)), int)
@@ -283,7 +283,7 @@ def _region(
 
 # -- the two references ------------------------------------------------------------------------
 def baseline_region(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     tray_id: str,
     yaw: float | None = None,
@@ -301,18 +301,18 @@ def baseline_region(
     ``prune``: skip targets outside the :class:`ReachBound` (same answer, less time).
     """
     t0 = time.perf_counter()
-    solver = planner.solver
+    solver = kit.solver
     seed = 0.5 * (solver.lower + solver.upper) if seed_theta is None else np.asarray(seed_theta)
     assert seed.shape == (solver.chain.dof,), seed.shape
 
     def seeds(r: int, k: int, cells: np.ndarray, grasps: np.ndarray, n: int) -> np.ndarray:
         return np.broadcast_to(seed, (len(cells), n, len(seed)))
 
-    return _region(planner, scene, tray_id, yaw, (1,), seeds, max_iter, cells, t0, prune)
+    return _region(kit, scene, tray_id, yaw, (1,), seeds, max_iter, cells, t0, prune)
 
 
 def oracle_region(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     tray_id: str,
     yaw: float | None = None,
@@ -335,7 +335,7 @@ def oracle_region(
     totals = np.asarray(seeds, dtype=int)
     assert totals.ndim == 1 and len(totals) and np.all(np.diff(totals) > 0) and totals[0] > 0
     rounds = tuple(int(n) for n in np.diff(totals, prepend=0))
-    solver = planner.solver
+    solver = kit.solver
 
     def draw(r: int, k: int, cells: np.ndarray, grasps: np.ndarray, n: int) -> np.ndarray:
         out = np.empty((len(cells), n, solver.chain.dof))
@@ -344,7 +344,7 @@ def oracle_region(
             out[q] = rng.uniform(solver.lower, solver.upper, (n, solver.chain.dof))
         return out
 
-    return _region(planner, scene, tray_id, yaw, rounds, draw, max_iter, cells, t0)
+    return _region(kit, scene, tray_id, yaw, rounds, draw, max_iter, cells, t0)
 
 
 # -- checking a region -------------------------------------------------------------------------
@@ -362,10 +362,10 @@ class WitnessCheck:
         return self.pose_failures + self.arm_collisions + self.self_collisions
 
 
-def verify_witnesses(planner: RegionKit, scene: Scene, region: TrayRegion) -> WitnessCheck:
+def verify_witnesses(kit: RegionKit, scene: Scene, region: TrayRegion) -> WitnessCheck:
     """Re-check every witness of ``region`` exactly, against every solid of the scene."""
     tray = scene.tray(region.tray_id)
-    grasps = planner.grasps(scene, tray)
+    grasps = kit.grasps(scene, tray)
     K, P = region.grasp_index.shape
     if K == 0:
         return WitnessCheck(0, 0, 0, 0)
@@ -377,9 +377,9 @@ def verify_witnesses(planner: RegionKit, scene: Scene, region: TrayRegion) -> Wi
         Rs[:, k] = tg.Rs_base_tool[region.grasp_index[:, k]]
         ps[:, k] = tg.ps_base_tool[np.arange(K), region.grasp_index[:, k]]
     th = region.thetas.reshape(K * P, -1)
-    pose_bad = ~pose_ok(planner.solver, th, Rs.reshape(-1, 3, 3), ps.reshape(-1, 3))
-    own = planner.exact_self.colliding(th)
-    arm, solids = planner.exact_arm, scene_solids(scene)
+    pose_bad = ~pose_ok(kit.solver, th, Rs.reshape(-1, 3, 3), ps.reshape(-1, 3))
+    own = kit.exact_self.colliding(th)
+    arm, solids = kit.exact_arm, scene_solids(scene)
     env = np.array(
         [
             arm.colliding(
@@ -424,7 +424,7 @@ def dilate(mask: np.ndarray, width: int) -> np.ndarray:
 
 
 def comparison_cells(
-    planner: RegionKit,
+    kit: RegionKit,
     scene: Scene,
     region: TrayRegion,
     width: int = 2,
@@ -434,7 +434,7 @@ def comparison_cells(
     """The region's cells, every candidate within ``width`` cells of its boundary (outside it)
     and ``sample`` random other candidates (footprint-free, within reach)."""
     tray = scene.tray(region.tray_id)
-    cand = base_cells(planner, scene, tray, region.yaw, CellGrid.of(scene)).cells
+    cand = base_cells(kit, scene, tray, region.yaw, CellGrid.of(scene)).cells
     near = dilate(region.mask, width)[cand[:, 0], cand[:, 1]]
     inside = region.mask[cand[:, 0], cand[:, 1]]
     band = cand[near & ~inside]

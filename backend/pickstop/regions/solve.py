@@ -163,7 +163,7 @@ def served(db: ReachDatabase, targets: list[Targets]) -> np.ndarray:
 
 
 def solve_part(
-    planner: RegionKit, world: ArmWorld, tg: Targets, cen: np.ndarray
+    kit: RegionKit, world: ArmWorld, tg: Targets, cen: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For M cells: (found (M,), witness thetas (M, dof), grasp index (M,)).
 
@@ -171,14 +171,12 @@ def solve_part(
     solved ones, the target's vicinity (the 27 surrounding position voxels), as the paper
     queries it: an empty own voxel at the edge of the sampled set is the usual miss.
     """
-    found, th_out, g_out = _solve_cells(planner, world, tg, cen, False, MAX_ROUNDS)
+    found, th_out, g_out = _solve_cells(kit, world, tg, cen, False, MAX_ROUNDS)
     open_ = np.flatnonzero(~found)
     if found.any() and len(open_):
         sub = open_[_near_found(cen, found, VICINITY_DISTANCE)[open_]]
         if len(sub):
-            f2, th2, g2 = _solve_cells(
-                planner, world, tg.take(sub), cen[sub], True, VICINITY_ROUNDS
-            )
+            f2, th2, g2 = _solve_cells(kit, world, tg.take(sub), cen[sub], True, VICINITY_ROUNDS)
             found[sub[f2]] = True
             th_out[sub[f2]] = th2[f2]
             g_out[sub[f2]] = g2[f2]
@@ -186,7 +184,7 @@ def solve_part(
 
 
 def _solve_cells(
-    planner: RegionKit, world: ArmWorld, tg: Targets, cen: np.ndarray, vicinity: bool, rounds: int
+    kit: RegionKit, world: ArmWorld, tg: Targets, cen: np.ndarray, vicinity: bool, rounds: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_rounds` over the database's candidates (the own voxels, or the vicinity) of M
     cells, each solved on its own. Where the targets carry a memo, a cell's remembered answer
@@ -194,10 +192,10 @@ def _solve_cells(
     configurations it checked reach, and a remembered witness while it is free of what is new
     there (:meth:`~pickstop.regions.reuse.RefineMemo.recall`); the other cells are solved and
     their answers remembered."""
-    M, dof = len(cen), planner.solver.chain.dof
+    M, dof = len(cen), kit.solver.chain.dof
     memo, keys = tg.memo, tg.cell_keys
     if memo is None or keys is None or world.around is None:
-        return _rounds(planner, world, tg, cen, *_gather(planner.db, tg, vicinity), rounds)[:3]
+        return _rounds(kit, world, tg, cen, *_gather(kit.db, tg, vicinity), rounds)[:3]
     tag, part = ("vicinity" if vicinity else "db"), tg.grasps.part_id
 
     def checked(answers: CellAnswers, ids: np.ndarray) -> CheckedConfigs:
@@ -205,17 +203,17 @@ def _solve_cells(
         n_rows = [len(r) for r in answers.rows]
         n_ref = [len(r) for r in answers.refined]
         rows = np.concatenate(answers.rows) if len(answers) else np.zeros(0, np.int32)
-        th = np.concatenate([planner.db.thetas(rows).reshape(-1, dof), *answers.refined]).reshape(
+        th = np.concatenate([kit.db.thetas(rows).reshape(-1, dof), *answers.refined]).reshape(
             -1, dof
         )
         xy = answers.xy.reshape(-1, 2)
         xy = np.concatenate([np.repeat(xy, n_rows, axis=0), np.repeat(xy, n_ref, axis=0)])
         owner = np.concatenate([np.repeat(ids, n_rows), np.repeat(ids, n_ref)])
-        return CheckedConfigs(planner, th, xy, world.yaw, owner)
+        return CheckedConfigs(kit, th, xy, world.yaw, owner)
 
     def free_of(idx: np.ndarray, thetas: np.ndarray, solids: tuple[Solid, ...]) -> np.ndarray:
         xy = cen[idx] - np.asarray(world.tray_xy)
-        return free_of_newcomers(planner, world, thetas, xy, part, solids)
+        return free_of_newcomers(kit, world, thetas, xy, part, solids)
 
     ok, reused = memo.recall(tag, part, keys, world.around, checked, free_of)
     found, th_out, g_out = np.zeros(M, bool), np.zeros((M, dof)), np.zeros(M, int)
@@ -231,21 +229,21 @@ def _solve_cells(
     if len(todo):
         sub = tg.take(todo)
         f, th, g, screened, refined = _rounds(
-            planner, world, sub, cen[todo], *_gather(planner.db, sub, vicinity), rounds
+            kit, world, sub, cen[todo], *_gather(kit.db, sub, vicinity), rounds
         )
         found[todo], th_out[todo], g_out[todo] = f, th, g
         memo.remember(
             tag,
             part,
             keys[todo],
-            _answers(planner, world, cen[todo], f, th, g, screened, refined),
+            _answers(kit, world, cen[todo], f, th, g, screened, refined),
             world.around,
         )
     return found, th_out, g_out
 
 
 def free_of_newcomers(
-    planner: RegionKit,
+    kit: RegionKit,
     world: ArmWorld,
     thetas: np.ndarray,
     base_xy: np.ndarray,
@@ -264,12 +262,12 @@ def free_of_newcomers(
     hit = np.zeros(B, bool)
     for s in range(0, B, VERIFY_CHUNK):
         sl = slice(s, s + VERIFY_CHUNK)
-        _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(thetas[sl].T), frames=True)
+        _, _, frames = fk_soa(kit.solver.chain, np.ascontiguousarray(thetas[sl].T), frames=True)
         hit[sl] = screen_arm(
-            planner.arm, boxes, frames, base_xy[sl], world.yaw, world.env, target, None
+            kit.arm, boxes, frames, base_xy[sl], world.yaw, world.env, target, None
         )
     flagged = np.flatnonzero(hit)
-    checks = planner.exact_arm.checks(
+    checks = kit.exact_arm.checks(
         thetas[flagged], base_xy[flagged], world.yaw, list(solids), target, None, boxes
     )
     for i, j in enumerate(flagged.tolist()):
@@ -278,7 +276,7 @@ def free_of_newcomers(
 
 
 def _answers(
-    planner: RegionKit,
+    kit: RegionKit,
     world: ArmWorld,
     cen: np.ndarray,
     found: np.ndarray,
@@ -291,13 +289,13 @@ def _answers(
     ``screened`` and the joint values ``refined`` checked for it (``(cells, rows)`` and
     ``(cells, thetas)``) and the relative box that holds all their links."""
     assert world.around is not None
-    M, dof = len(cen), planner.solver.chain.dof
+    M, dof = len(cen), kit.solver.chain.dof
     xy = cen - np.asarray(world.tray_xy)
     s_cell, s_rows = screened
     r_cell, r_th = refined
-    th = np.concatenate([planner.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
+    th = np.concatenate([kit.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
     cell = np.concatenate([s_cell, r_cell]).astype(np.int64)
-    g_lo, g_hi = group_boxes_of(planner, th, xy[cell], world.yaw, cell, M)
+    g_lo, g_hi = group_boxes_of(kit, th, xy[cell], world.yaw, cell, M)
     lo, hi = g_lo.min(axis=1), g_hi.max(axis=1)
     rows_of = _per_cell(s_rows.astype(np.int32), s_cell, M)
     ref_of = _per_cell(r_th.reshape(-1, dof).astype(np.float32), r_cell, M)
@@ -338,25 +336,25 @@ class CheckedLinks:
 
     @classmethod
     def of(
-        cls, planner: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray
+        cls, kit: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray
     ) -> CheckedLinks:
         """``thetas: (C, dof)`` on bases at ``xy: (C, 2)``; ``owner: (C,)`` per configuration."""
-        C, J = len(thetas), len(planner.arm.joint_groups.joints)
-        lo, hi = group_boxes_of(planner, thetas, xy, yaw, np.arange(C), C)
+        C, J = len(thetas), len(kit.arm.joint_groups.joints)
+        lo, hi = group_boxes_of(kit, thetas, xy, yaw, np.arange(C), C)
         return cls(
             lo.reshape(-1, 3), hi.reshape(-1, 3), np.repeat(owner, J), np.tile(np.arange(J), C)
         )
 
 
 def group_boxes_of(
-    planner: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray, A: int
+    kit: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray, A: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(A, J, 3)`` twice: per owner ``a`` (``owner: (C,)`` in 0..A-1) and joint group, the box
     that holds the group's covering spheres, padded by :data:`AGREE_MARGIN`, over every
     configuration ``thetas: (C, dof)`` on its base ``xy: (C, 2)`` at ``yaw`` that ``a`` owns
     (inf and -inf where it owns none), compiled
     (:func:`~pickstop.regions.arm_kernel.group_boxes`)."""
-    chain, groups = planner.solver.chain, planner.arm.joint_groups
+    chain, groups = kit.solver.chain, kit.arm.joint_groups
     J = len(groups.joints)
     lo, hi = np.full((A, J, 3), np.inf), np.full((A, J, 3), -np.inf)
     if len(thetas):
@@ -387,7 +385,7 @@ class CheckedConfigs:
     C configurations ``thetas: (C, dof)`` on bases ``xy: (C, 2)`` (relative to the tray [m])
     at ``yaw``, each owned by the thing ``owner: (C,)`` (an id)."""
 
-    planner: RegionKit
+    kit: RegionKit
     thetas: np.ndarray
     xy: np.ndarray
     yaw: float
@@ -406,7 +404,7 @@ class CheckedConfigs:
         keep = reach[inv].any(1)
         if not keep.any():
             return ids[:0]
-        arm, chain = self.planner.arm, self.planner.solver.chain
+        arm, chain = self.kit.arm, self.kit.solver.chain
         groups = arm.joint_groups
         touched = np.zeros(len(ids), bool)
         cs = ChangeSet.of(changes)
@@ -498,7 +496,7 @@ def _gather(
 
 
 def _rounds(
-    planner: RegionKit,
+    kit: RegionKit,
     world: ArmWorld,
     tg: Targets,
     cen: np.ndarray,
@@ -518,7 +516,7 @@ def _rounds(
     Returns found ``(M,)``, witnesses ``(M, dof)``, grasps ``(M,)`` and what was checked
     against the scene: the database rows screened ``(cells, rows)`` and the refined joint
     values verified ``(cells, thetas)``."""
-    db, solver = planner.db, planner.solver
+    db, solver = kit.db, kit.solver
     M = len(cen)
     s_cells: list[np.ndarray] = []
     s_rows: list[np.ndarray] = []
@@ -531,7 +529,7 @@ def _rounds(
     th_out = np.zeros((M, solver.chain.dof))
     g_out = np.zeros(M, int)
     for attempt in range(rounds):
-        planner.checkpoint()
+        kit.checkpoint()
         open_cells = np.flatnonzero(~found & (screened < per_cell))
         pending = ~found[cell] & (state == 1)
         ready = np.zeros(M, bool)
@@ -548,7 +546,7 @@ def _rounds(
                 s_cells.append(cell[sel])
                 s_rows.append(rows[sel])
                 hit = screen_arm(
-                    planner.arm,
+                    kit.arm,
                     world.boxes,
                     frames,
                     cen[cell[sel]],
@@ -596,7 +594,7 @@ def _rounds(
             else (tg.memo, tg.cell_keys[cell[e[ok]]])
         )
         good = verify(
-            planner, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id,
+            kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id,
             cell_keys=memo,
         )  # fmt: skip
         acc, ths = e[ok[good]], thetas[ok[good]]
@@ -619,7 +617,7 @@ def _rounds(
 
 
 def verify(
-    planner: RegionKit,
+    kit: RegionKit,
     world: ArmWorld,
     thetas: np.ndarray,
     base_xy: np.ndarray,
@@ -640,7 +638,7 @@ def verify(
     a check remembered there is taken where the surroundings near its links are as they
     were, and new ones are kept.
     """
-    p = planner
+    p = kit
     B = len(thetas)
     env_hit = np.zeros(B, bool)
     self_hit = np.zeros(B, bool)
@@ -693,7 +691,7 @@ class _ExactChecks:
     """The exact arm checks of one :func:`verify` call that the targets' memo remembers
     (``known``: row -> collided), and the keeping of new ones."""
 
-    planner: RegionKit
+    kit: RegionKit
     world: ArmWorld
     thetas: np.ndarray
     base_xy: np.ndarray
@@ -705,7 +703,7 @@ class _ExactChecks:
     @classmethod
     def of(
         cls,
-        planner: RegionKit,
+        kit: RegionKit,
         world: ArmWorld,
         thetas: np.ndarray,
         base_xy: np.ndarray,
@@ -715,7 +713,7 @@ class _ExactChecks:
     ) -> _ExactChecks:
         """Rows ``rows`` (the screen flagged them against the scene) of ``thetas``;
         ``cell_keys``: the memo and each row's cell key (None: nothing is remembered)."""
-        out = cls(planner, world, thetas, base_xy, {}, {})
+        out = cls(kit, world, thetas, base_xy, {}, {})
         if cell_keys is None or world.around is None or not len(rows):
             return out
         memo, ck = cell_keys
@@ -728,7 +726,7 @@ class _ExactChecks:
             [out.keys[j] for j in order],
             world.around,
             lambda rows, ids: CheckedConfigs(
-                planner, thetas[np.array(order)[rows]].reshape(-1, dof), xy[rows], world.yaw, ids
+                kit, thetas[np.array(order)[rows]].reshape(-1, dof), xy[rows], world.yaw, ids
             ),
         )
         out.known = {j: g for j, g in zip(order, got, strict=True) if g is not None}
@@ -747,7 +745,7 @@ class _ExactChecks:
             return
         rows = np.array([j for j, _ in self.pending])
         xy = self.base_xy[rows] - np.asarray(self.world.tray_xy)
-        links = CheckedLinks.of(self.planner, self.thetas[rows], xy, self.world.yaw, rows)
+        links = CheckedLinks.of(self.kit, self.thetas[rows], xy, self.world.yaw, rows)
         n = len(rows)
         g_lo, g_hi = links.lo.reshape(n, -1, 3), links.hi.reshape(n, -1, 3)
         for i, (j, colliding) in enumerate(self.pending):
@@ -761,7 +759,7 @@ class _ExactChecks:
 
 
 def seeded(
-    planner: RegionKit,
+    kit: RegionKit,
     world: ArmWorld,
     seeds: np.ndarray,
     Rs_target: np.ndarray,
@@ -787,25 +785,25 @@ def seeded(
         return win, seeds
     if memo is None:
         res = refine_batch(
-            planner.solver, seeds, Rs_target, ps_target, max_iter=max_iter, give_up=give_up
+            kit.solver, seeds, Rs_target, ps_target, max_iter=max_iter, give_up=give_up
         )
         thetas, success = res.thetas, res.success
     else:
         thetas, success = memo[0].refine(
-            planner.solver, memo[1], seeds, Rs_target, ps_target, max_iter, give_up
+            kit.solver, memo[1], seeds, Rs_target, ps_target, max_iter, give_up
         )
     ok = np.flatnonzero(success)
     if len(ok):
         sub = targets if targets is None or isinstance(targets, str) else targets[ok]
         ck = None if memo is None else (memo[0], np.array([k[2] for k in memo[1]])[ok])
-        good = ok[verify(planner, world, thetas[ok], base_xy[ok], problem[ok], sub, cell_keys=ck)]
+        good = ok[verify(kit, world, thetas[ok], base_xy[ok], problem[ok], sub, cell_keys=ck)]
         _, first = np.unique(problem[good], return_index=True)
         win[problem[good[first]]] = good[first]
     return win, thetas
 
 
 def _grown_before(
-    planner: RegionKit,
+    kit: RegionKit,
     world: ArmWorld,
     targets: list[Targets],
     cen: np.ndarray,
@@ -837,13 +835,13 @@ def _grown_before(
     if not rows:
         return
     th = np.array(seeds)
-    reach = np.flatnonzero(reaches(planner.solver, th, np.array(Rs), np.array(ps)))
+    reach = np.flatnonzero(reaches(kit.solver, th, np.array(Rs), np.array(ps)))
     if not len(reach):
         return
     o_r = np.array(rows)[reach] // len(targets)
     good = reach[
         verify(
-            planner,
+            kit,
             world,
             th[reach],
             cen[open_[o_r]],
@@ -863,7 +861,7 @@ _NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 
 
 
 def grow(
-    planner: RegionKit,
+    kit: RegionKit,
     world: ArmWorld,
     targets: list[Targets],
     cen: np.ndarray,
@@ -895,7 +893,7 @@ def grow(
     fresh = found.copy()
     added = 0
     for _ in range(GROW_WAVES):
-        planner.checkpoint()
+        kit.checkpoint()
         has_fresh = ((nb >= 0) & fresh[np.maximum(nb, 0)]).any(1)
         open_ = np.flatnonzero(~found & has_fresh)
         if not len(open_):
@@ -907,7 +905,7 @@ def grow(
         got = np.zeros((n_open, P), bool)
         th_new = np.zeros((n_open, P, thetas.shape[2]))
         g_new = np.zeros((n_open, P), int)
-        _grown_before(planner, world, targets, cen, open_, got, th_new, g_new)
+        _grown_before(kit, world, targets, cen, open_, got, th_new, g_new)
         # The neighbours' own grasps first; then, where a part is still open, every other
         # grasp from the same seeds: a witness for one grasp often reaches another here (the
         # wrist turns) where its own grasp runs into a joint limit.
@@ -948,7 +946,7 @@ def grow(
                     ],
                 )
             win, ths = seeded(
-                planner,
+                kit,
                 world,
                 seeds,
                 R_t,

@@ -25,7 +25,7 @@ from pickstop.scene.model import Scene, Tray
 from pickstop.scene.world import BoxArrays, Groups, Solid, object_solids
 
 
-def own_key(planner: RegionKit, scene: Scene, tray: Tray, yaw: float) -> str:
+def own_key(kit: RegionKit, scene: Scene, tray: Tray, yaw: float) -> str:
     """What the region of ``tray`` depends on apart from the other objects."""
     blob = {
         "tray": tray.model_dump(),
@@ -34,9 +34,9 @@ def own_key(planner: RegionKit, scene: Scene, tray: Tray, yaw: float) -> str:
         "floor": scene.floor.model_dump(),
         "floor_clearance": scene.floor_clearance,
         "gripper": scene.gripper.model_dump(),
-        "hand": planner.hand.key,
-        "robot": planner.robot.robot_hash,
-        "db": planner.db.id,
+        "hand": kit.hand.key,
+        "robot": kit.robot.robot_hash,
+        "db": kit.db.id,
         "algo": solve.VERSION,
     }
     return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
@@ -76,7 +76,7 @@ def snapshot(scene: Scene, exclude: str, groups: Groups | None = None) -> Snapsh
     return snapshots(scene, [exclude], groups)[0]
 
 
-def witness_boxes(planner: RegionKit, region: TrayRegion) -> tuple[np.ndarray, np.ndarray]:
+def witness_boxes(kit: RegionKit, region: TrayRegion) -> tuple[np.ndarray, np.ndarray]:
     """``(K * P, 3)`` lo and hi: the world box around the covering spheres of each witness
     arm of ``region`` (cell by cell, part by part), padded as the screens' boxes are: a solid
     whose bounds miss it is not flagged by the screen, so the witness is free of it."""
@@ -85,20 +85,20 @@ def witness_boxes(planner: RegionKit, region: TrayRegion) -> tuple[np.ndarray, n
     K, P, dof = region.thetas.shape
     xy = np.repeat(region.grid.centres(region.cells[:, 1], region.cells[:, 0]), P, axis=0)
     th = region.thetas.reshape(K * P, dof)
-    links = CheckedLinks.of(planner, th, xy, region.yaw, np.arange(K * P))
+    links = CheckedLinks.of(kit, th, xy, region.yaw, np.arange(K * P))
     J = len(links.lo) // max(K * P, 1)
     return links.lo.reshape(K * P, J, 3).min(1), links.hi.reshape(K * P, J, 3).max(1)
 
 
-def _arm_boxes(planner: RegionKit, entry: CacheEntry) -> tuple[np.ndarray, np.ndarray]:
+def _arm_boxes(kit: RegionKit, entry: CacheEntry) -> tuple[np.ndarray, np.ndarray]:
     """The :func:`witness_boxes` of the entry's region, computed once."""
     if not entry.boxes:
-        entry.boxes.append(witness_boxes(planner, entry.region))
+        entry.boxes.append(witness_boxes(kit, entry.region))
     return entry.boxes[0]
 
 
 def witnesses_clear(
-    planner: RegionKit,
+    kit: RegionKit,
     region: TrayRegion,
     solids: list[Solid],
     arm_boxes: tuple[np.ndarray, np.ndarray] | None = None,
@@ -121,7 +121,7 @@ def witnesses_clear(
         near = np.flatnonzero(meets)
     else:
         lo, hi = s_lo.min(0), s_hi.max(0)
-        reach = planner.reach_xy + float(planner.arm.bound_r.max())
+        reach = kit.reach_xy + float(kit.arm.bound_r.max())
         near = np.flatnonzero(
             (xy[:, 0] > lo[0] - reach)
             & (xy[:, 0] < hi[0] + reach)
@@ -131,16 +131,16 @@ def witnesses_clear(
     if not len(near):
         return True
     th = region.thetas.reshape(K * P, dof)[near]
-    _, _, frames = fk_soa(planner.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    _, _, frames = fk_soa(kit.solver.chain, np.ascontiguousarray(th.T), frames=True)
     boxes = BoxArrays.of(solids)
-    flagged = np.flatnonzero(screen_arm(planner.arm, boxes, frames, xy[near], region.yaw))
-    checks = planner.exact_arm.checks(
+    flagged = np.flatnonzero(screen_arm(kit.arm, boxes, frames, xy[near], region.yaw))
+    checks = kit.exact_arm.checks(
         th[flagged], xy[near][flagged], region.yaw, solids, None, None, boxes
     )
     return not any(checks.colliding(i) for i in range(len(flagged)))
 
 
-def still_valid(planner: RegionKit, entry: CacheEntry, snap: Snapshot) -> bool:
+def still_valid(kit: RegionKit, entry: CacheEntry, snap: Snapshot) -> bool:
     """Is the cached region still the answer for the scene ``snap`` describes?"""
     env = entry.region.envelope
     if env is None:
@@ -157,10 +157,10 @@ def still_valid(planner: RegionKit, entry: CacheEntry, snap: Snapshot) -> bool:
             continue
         if any(env.touches(*s.aabb()) for s in new[1]):
             return False  # where it is, it may block a hand or the footprint
-        if blocked_by(planner.robot, new[1], env.free_xy, entry.region.yaw).any():
+        if blocked_by(kit.robot, new[1], env.free_xy, entry.region.yaw).any():
             return False  # where it is, it overhangs a free cell
-        boxes = _arm_boxes(planner, entry) if len(entry.region.cells) else None
-        if not witnesses_clear(planner, entry.region, new[1], boxes):
+        boxes = _arm_boxes(kit, entry) if len(entry.region.cells) else None
+        if not witnesses_clear(kit, entry.region, new[1], boxes):
             return False  # where it is, it collides with a witness arm
         entry.cleared.add(new[0])
     return True

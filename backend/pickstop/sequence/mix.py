@@ -17,8 +17,9 @@ from dataclasses import dataclass
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence import mix_model as mm
 from pickstop.sequence.cover import InfeasiblePlanError
-from pickstop.sequence.plan import StopPlanner, scene_hash
+from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import Plan, PlanOptions
+from pickstop.sequence.request import scene_hash
 
 
 @dataclass(frozen=True)

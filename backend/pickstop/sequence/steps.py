@@ -1,7 +1,7 @@
 """The steps a plan is made of, as one small interface.
 
-A planning request (:class:`pickstop.sequence.plan._Planning`) runs the pipeline's steps in
-order and asks these for each answer; it knows nothing of caches. Two implementations:
+A planning request (:class:`pickstop.sequence.request.PlanRequest`) runs the pipeline's steps
+in order and asks these for each answer; it knows nothing of caches. Two implementations:
 :class:`pickstop.sequence.pure.PureSteps` computes every answer from its inputs (the
 algorithm), :class:`pickstop.sequence.plan.StopPlanner` the same answers remembered, reused
 across edits and prepared in the background (the speed-ups).

@@ -1,4 +1,4 @@
-"""Regions computed by several processes, each tray at home in one (regions/workers.py): the
+"""Regions computed by several processes, each tray at home in one (regions/processes.py): the
 same regions as one process with the same history, homes kept across layouts, background work
 given way to in the helpers, a helper's error or death never losing a region."""
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pickstop.regions import kit as kit_mod
-from pickstop.regions import workers as workers_mod
+from pickstop.regions import processes as processes_mod
 from pickstop.regions.kit import Interrupted
 from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.load import parse_scene
@@ -47,10 +47,10 @@ def _moved(doc: dict, tray_id: str, dx: float, dy: float = 0.0) -> dict:
 
 def _helper_tray(planner: RegionPlanner, scene) -> str:
     """A task tray of ``scene`` at home in a helper."""
-    w = planner._workers
+    w = planner._processes
     assert w is not None
     yaw = scene.base_yaw.yaws[0]
-    at = {t: w.homes[workers_mod._home_key(scene, (t, yaw))] for t in scene.task_trays}
+    at = {t: w.homes[processes_mod._home_key(scene, (t, yaw))] for t in scene.task_trays}
     assert sorted(set(at.values())) == [0, 1], at  # the first plan shared them out
     return next(t for t, h in at.items() if h == 1)
 
@@ -129,34 +129,34 @@ def test_background_work_gives_way_in_the_helpers(fresh, paper_doc, monkeypatch,
     two.interrupt = None
     assert asked[-1] == (where == "computing")
     assert two._cached(scene, mover, yaw) is None  # nothing half done is kept
-    pid = two._workers.pids[0]
+    pid = two._processes.pids[0]
     r = two.regions(scene)[(mover, yaw)]
-    assert two._workers.pids[0] == pid
+    assert two._processes.pids[0] == pid
     assert r.reason is None and len(r.cells) > 20
     assert_cells_verified(two, scene, r, np.arange(0, len(r.cells), 41))
 
 
 def test_a_helper_that_dies_is_replaced(fresh, paper_doc, monkeypatch, caplog):
-    real = workers_mod._region
+    real = processes_mod._region
 
     def fragile(scene, tray_id, yaw):
         if scene.name == "dies":
             os._exit(9)
         return real(scene, tray_id, yaw)
 
-    monkeypatch.setattr(workers_mod, "_region", fragile)  # before the helper is forked
+    monkeypatch.setattr(processes_mod, "_region", fragile)  # before the helper is forked
     two = fresh(2)
     base = parse_scene(paper_doc)
     two.regions(base)
     mover = _helper_tray(two, base)
     yaw = base.base_yaw.yaws[0]
     # Dead while idle: found out on the next request and replaced.
-    pid = two._workers.pids[0]
+    pid = two._processes.pids[0]
     os.kill(pid, signal.SIGKILL)
-    two._workers._helpers[0].process.join(5)
+    two._processes._helpers[0].process.join(5)
     scene = parse_scene(_moved(paper_doc, mover, -0.05))
     r = two.regions(scene)[(mover, yaw)]
-    assert two._workers.pids[0] not in (None, pid)
+    assert two._processes.pids[0] not in (None, pid)
     assert r.reason is None and len(r.cells) > 20
     # Dead while computing: this process computes its share instead, and keeps it.
     doc = _moved(paper_doc, mover, 0.05)
@@ -167,29 +167,29 @@ def test_a_helper_that_dies_is_replaced(fresh, paper_doc, monkeypatch, caplog):
     assert "a region helper process ended" in caplog.text
     assert r.reason is None and len(r.cells) > 20
     assert_cells_verified(two, scene, r, np.arange(0, len(r.cells), 41))
-    assert two._workers.pids[0] is None
-    assert two._workers.homes[workers_mod._home_key(scene, (mover, yaw))] == 0
+    assert two._processes.pids[0] is None
+    assert two._processes.homes[processes_mod._home_key(scene, (mover, yaw))] == 0
 
 
 def test_a_helpers_error_reaches_the_caller(fresh, paper_doc, monkeypatch):
     def boom(scene, tray_id, yaw):
         raise ValueError(f"no region for {tray_id} here")
 
-    monkeypatch.setattr(workers_mod, "_region", boom)  # before the helper is forked
+    monkeypatch.setattr(processes_mod, "_region", boom)  # before the helper is forked
     two = fresh(2)
     with pytest.raises(ValueError, match=r"no region for tray_\d here"):
         two.regions(parse_scene(paper_doc))
     # The helper lives on, idle, and answers the next request at once (its copy of the
     # module still fails).
-    pid = two._workers.pids[0]
+    pid = two._processes.pids[0]
     assert pid is not None  # not given up on after its answer
     with pytest.raises(ValueError, match=r"no region for tray_\d here"):
         two.regions(parse_scene(paper_doc))
-    assert two._workers.pids[0] == pid
+    assert two._processes.pids[0] == pid
 
 
-def test_region_workers_want_a_process(planner):
-    from pickstop.regions.workers import RegionWorkers
+def test_region_processes_want_one_process_at_least(planner):
+    from pickstop.regions.processes import RegionProcesses
 
     with pytest.raises(ValueError, match="processes must be at least 1, got 0"):
-        RegionWorkers(planner, 0)
+        RegionProcesses(planner, 0)

@@ -54,7 +54,7 @@ class _Helper:
     conn: Connection
 
 
-class RegionWorkers:
+class RegionProcesses:
     """``processes`` processes computing regions with ``kit``: the caller's own and
     ``processes - 1`` helpers forked from it, each tray at home in one (see the module)."""
 
@@ -64,7 +64,7 @@ class RegionWorkers:
         self.kit = kit
         self.processes = processes
         # home key -> process (0: this one)
-        self.homes: Cache[str, int] = Cache("region_workers.homes", max_items=MAX_HOMES)
+        self.homes: Cache[str, int] = Cache("region_processes.homes", max_items=MAX_HOMES)
         self._ctx = multiprocessing.get_context("fork")
         self._stop = self._ctx.RawValue("b", 0)  # shared: 1 while helpers are to give way
         self._helpers: list[_Helper | None] = [None] * (processes - 1)
@@ -242,9 +242,9 @@ def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> 
             except (EOFError, OSError):
                 break
             try:
-                known = set(kit.grasp_cache)
+                known = set(kit.grasp_memo)
                 out = [(p, _region(scene, *p)) for p in pairs]
-                grasps = {k: g for k, g in kit.grasp_cache.items() if k not in known}
+                grasps = {k: g for k, g in kit.grasp_memo.items() if k not in known}
                 conn.send((rid, "ok", (out, grasps)))
             except Interrupted:
                 conn.send((rid, "interrupted", None))
@@ -258,6 +258,6 @@ def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> 
 
 def _region(scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
     kit = _KIT
-    assert kit is not None, "a region helper runs only in a RegionWorkers process"
+    assert kit is not None, "a region helper runs only in a RegionProcesses process"
     tray = scene.tray(tray_id)
     return compute_tray_region(kit, scene, tray, yaw, own_key(kit, scene, tray, yaw))
