@@ -39,7 +39,8 @@ AUTH = {"Authorization": f"Bearer {KEY}"}
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = """
 [checks.positive_data_acceptance]
-expected-statuses = ["2xx", "3xx", "401", "403", "404", "409", "429", "5xx", "412", "422"]
+expected-statuses = ["2xx", "3xx", "401", "403", "404", "409", "429", "5xx", "412", "422",
+                     "428"]
 
 [checks.missing_required_header]
 expected-statuses = ["400", "401", "403", "406", "415", "422", "428"]
