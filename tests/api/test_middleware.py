@@ -101,3 +101,18 @@ def test_head_is_answered_wherever_allow_lists_it(bare_settings):
         assert c.head("/api/v1/scenes").status_code == 200
         r = c.head("/api/v1/jobs/batch/cancel")  # POST only: no HEAD in Allow either
         assert r.status_code == 405 and "HEAD" not in r.headers["allow"]
+
+
+def test_a_server_folder_in_an_answer_is_named_not_shown():
+    from pickstop.api import problems
+    from pickstop.api.problems import scrub, server_roots
+
+    kept = list(problems._ROOTS)
+    server_roots("/srv/pickstop-data")
+    try:
+        assert scrub("no database in /srv/pickstop-data") == "no database in the server's folder"
+        assert scrub("in /srv/pickstop-data.") == "in the server's folder."
+        assert scrub("file /srv/pickstop-data/robots/x.urdf") == "file robots/x.urdf"
+        assert scrub("/srv/pickstop-data2/x") == "/srv/pickstop-data2/x"  # not under it
+    finally:
+        problems._ROOTS[:] = kept
