@@ -119,7 +119,9 @@ def in_flight(path: Path, slow: list[tuple]) -> list[str]:
     out = []
     for start, took in slow:
         hits = [f"{w} ({e - s:.2f} s)" for s, e, w in spans if s < start + took and e > start]
-        out.append(f"  {took * 1e3:.0f} ms: " + ("; ".join(hits[:3]) or "no fuzzed request"))
+        when = time.strftime("%H:%M:%S", time.localtime(start)) + f"{start % 1:.3f}"[1:]
+        out.append(f"  {when} {took * 1e3:.0f} ms: " + ("; ".join(hits[:3])
+                                                        or "no fuzzed request"))  # fmt: skip
     return out
 
 
