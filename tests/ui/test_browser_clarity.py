@@ -32,6 +32,10 @@ def test_a_rename_shows_in_the_3d_label_the_stop_labels_and_the_stops_list(pg, a
     # The text field's label names no input (viser's text field has its own id): its row's.
     name = pg.locator("xpath=//label[normalize-space(.)='name']/ancestor::div[.//input][1]"
                       "//input").first  # fmt: skip
+    # The selection's name reaches the page in a message of its own: typing before it came
+    # would be overwritten by it.
+    b.wait_for(lambda: name.input_value() == app._tray_name("tray_4") == "tray_4", 10,
+               "the selected tray's name on the page")  # fmt: skip
     name.fill("brackets B-12")
     b.wait_for(lambda: app._tray_ui["name"].value == "brackets B-12", 10, "the typed name")
     seq = app.state.seq
