@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -36,13 +38,10 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
     added = solve.grow(planner, world, targets, cen, ij, found, thetas, grasp)
     assert added == int(found.sum()) - (len(ij) - forgotten)
     assert added >= 0.9 * forgotten  # ring by ring, from both sides of the band
-    grown = type(region)(
-        **{
-            **region.__dict__,
-            "cells": ij[found],
-            "thetas": thetas[found],
-            "grasp_index": grasp[found],
-        }
+    # replace(), not the instance's __dict__: that holds cached properties (the digest) once
+    # another test has read them
+    grown = dataclasses.replace(
+        region, cells=ij[found], thetas=thetas[found], grasp_index=grasp[found]
     )
     check = verify_witnesses(planner, scene, grown)
     assert check.failures == 0 and check.witnesses == int(found.sum()) * len(tray.parts)
