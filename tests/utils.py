@@ -196,3 +196,14 @@ def discs(centres, radii):
         return (d <= rs[None]).any(axis=1)
 
     return inside
+
+
+def unlike_cells(scratch, region):
+    """Rows of ``region``'s cells that ``scratch`` lacks or solves with other witnesses."""
+    index = {(int(a), int(b)): k for k, (a, b) in enumerate(scratch.cells)}
+    out = []
+    for k, (a, b) in enumerate(region.cells.tolist()):
+        j = index.get((a, b))
+        if j is None or not np.allclose(scratch.thetas[j], region.thetas[k], rtol=0, atol=1e-9):
+            out.append(k)
+    return np.array(out, int)

@@ -13,7 +13,7 @@ from pickstop.regions.pipeline import compute_tray_region
 from pickstop.regions.reuse import ReuseCache, TrayAnchor
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import SceneError
-from tests.utils import assert_cells_verified
+from tests.utils import assert_cells_verified, unlike_cells
 
 
 def _moved(doc, tray_id, dx, dy):
@@ -76,20 +76,9 @@ def test_moved_tray_regions_match_from_scratch(planner, paper_doc, tray, di, dj,
         solved = _from_scratch(planner, scene, tid, grow=False)
         assert not (solved.mask & ~reused.mask).any(), f"{tid}: a solved cell is missing"
         assert (scratch.mask & ~reused.mask).sum() <= 0.03 * scratch.mask.sum() + 1
-        assert_cells_verified(planner, scene, reused, _unlike(scratch, reused))
+        assert_cells_verified(planner, scene, reused, unlike_cells(scratch, reused))
         if tid == tray:
             assert reused.counts["feasible"] == len(reused.cells)
-
-
-def _unlike(scratch, region):
-    """Rows of ``region``'s cells that ``scratch`` lacks or solves with other witnesses."""
-    index = {(int(a), int(b)): k for k, (a, b) in enumerate(scratch.cells)}
-    out = []
-    for k, (a, b) in enumerate(region.cells.tolist()):
-        j = index.get((a, b))
-        if j is None or not np.allclose(scratch.thetas[j], region.thetas[k], rtol=0, atol=1e-9):
-            out.append(k)
-    return np.array(out, int)
 
 
 def test_anchor_keys_follow_the_tray():
@@ -280,7 +269,7 @@ def test_remembered_answers_give_the_region_from_scratch(
     scratch = _from_scratch(planner, scene, region_of)
     solved = _from_scratch(planner, scene, region_of, grow=False)
     assert not (solved.mask & ~reused.mask).any()
-    unlike = _unlike(scratch, reused)
+    unlike = unlike_cells(scratch, reused)
     assert len(unlike) < 0.2 * len(reused.cells)  # mostly the very witnesses of scratch
     assert_cells_verified(planner, scene, reused, unlike)
 
@@ -304,7 +293,7 @@ def test_a_cell_grown_before_keeps_its_witness_where_it_verifies(planner, paper_
     solved = _from_scratch(planner, scene, "tray_4", grow=False)
     assert not (solved.mask & ~region.mask).any()
     assert_cells_verified(
-        planner, scene, region, _unlike(_from_scratch(planner, scene, "tray_4"), region)
+        planner, scene, region, unlike_cells(_from_scratch(planner, scene, "tray_4"), region)
     )
 
 
@@ -331,7 +320,7 @@ def test_answers_that_held_outlive_the_surroundings_they_were_computed_in(
     solved = _from_scratch(planner, scene, "tray_2", grow=False)
     assert not (solved.mask & ~region.mask).any()
     assert_cells_verified(
-        planner, scene, region, _unlike(_from_scratch(planner, scene, "tray_2"), region)
+        planner, scene, region, unlike_cells(_from_scratch(planner, scene, "tray_2"), region)
     )
 
 

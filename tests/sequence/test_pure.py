@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from unittest import mock
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, note, settings
 from hypothesis import strategies as st
@@ -31,7 +30,7 @@ from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.sequence.pure import PureSteps
 from pickstop.sequence.request import PlanRequest, plan_from_scratch
-from tests.utils import assert_cells_verified
+from tests.utils import assert_cells_verified, unlike_cells
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 SAMPLES = 16  # Monte Carlo samples per stop: enough to exercise it, cheap
@@ -158,17 +157,6 @@ def _same(a, b, path="plan"):
 
 
 # -- regions --------------------------------------------------------------------------------------
-def _unlike(scratch, region):
-    """Rows of ``region``'s cells that ``scratch`` lacks or solves with other witnesses."""
-    index = {(int(a), int(b)): k for k, (a, b) in enumerate(scratch.cells)}
-    out = []
-    for k, (a, b) in enumerate(region.cells.tolist()):
-        j = index.get((a, b))
-        if j is None or not np.allclose(scratch.thetas[j], region.thetas[k], rtol=0, atol=1e-9):
-            out.append(k)
-    return np.array(out, int)
-
-
 def _check_regions(planner, scene, scratch, wrapped) -> bool:
     """The wrapped regions hold every cell the database solves from scratch, and every cell
     scratch does not have as it is has exactly verified witnesses (the reuse across layouts:
@@ -182,7 +170,7 @@ def _check_regions(planner, scene, scratch, wrapped) -> bool:
                 solved = pure_tray_region(planner.scratch(), scene, t, yaw)
             assert not (solved.mask & ~w.mask).any(), f"{t}: a solved cell is missing"
             assert (s.mask & ~w.mask).sum() <= 0.03 * s.mask.sum() + 1
-        assert_cells_verified(planner, scene, w, _unlike(s, w))
+        assert_cells_verified(planner, scene, w, unlike_cells(s, w))
         equal.append(s.digest == w.digest)
         STATS["tray regions equal" if equal[-1] else "tray regions differ"] += 1
     STATS["layouts with equal regions" if all(equal) else "layouts with other regions"] += 1
