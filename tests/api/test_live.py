@@ -37,14 +37,17 @@ def _databases(url: str) -> dict[str, str]:
 
 @pytest.fixture(scope="module", autouse=True)
 def _fuzzed_builds_leave_nothing(live_api):
-    """Fuzzed build requests may start and complete small databases in the session's data
-    folder: cancel their jobs and delete them after this module, so that every later test
+    """Fuzzed requests may start jobs (builds, layout searches, batches) and builds may
+    complete small databases in the session's data folder: cancel the jobs and delete those
+    databases after this module, so that every later test
     finds the folder as it was (a small database built with the default parameters would
     otherwise become the default of services that pin none)."""
     before = set(_databases(live_api))
     yield
+    # Every fuzzed job is cancelled, not only builds: a layout search holds the robot's planners
+    # while it runs, and later tests' plans on this service would wait for it.
     for job in httpx.get(f"{live_api}/api/v1/jobs?limit=500", headers=AUTH, timeout=30).json():
-        if job["kind"] == "build" and job["state"] in ("queued", "running"):
+        if job["state"] in ("queued", "running"):
             httpx.post(f"{live_api}/api/v1/jobs/{job['id']}/cancel", headers=AUTH, timeout=60)
     end = time.monotonic() + 60
     while left := set(_databases(live_api)) - before:
