@@ -197,3 +197,58 @@ def test_what_the_ui_shares_with_the_core_is_pure(module):
     )  # fmt: skip
     allowed = {"numpy"} if module == "pickstop.frames" else set()
     assert set(out.stdout.split()) <= allowed, f"importing {module} loads {out.stdout.strip()}"
+
+
+# The algorithm from scratch (docs/architecture.md section 6) and the modules it must not
+# reach: the speed-ups' planners and caches across requests, processes and the service.
+PURE = ["pickstop.sequence.pure", "pickstop.regions.pure", "pickstop.sequence.request"]
+NOT_FROM_SCRATCH = (
+    "pickstop.api",
+    "pickstop.runtime",
+    "pickstop.store.records",
+    "pickstop.store.catalog",
+    "pickstop.pool",
+    "pickstop.distributed",
+    "pickstop.stack",
+    "pickstop.cli",
+    "pickstop.regions.planner",
+    "pickstop.regions.carry",
+    "pickstop.sequence.plan",
+    "pickstop.layout",
+)
+#: What the runtime lends the core: the cancellation token, which imports nothing else.
+RUNTIME_IN_CORE = ("pickstop.runtime.cancel",)
+
+
+def _reach(module: str) -> set[str]:
+    seen: set[str] = set()
+    todo = [module]
+    while todo:
+        for m in GRAPH.get(todo.pop(), ()):
+            if m not in seen:
+                seen.add(m)
+                todo.append(m)
+    return seen
+
+
+def _under(module: str, prefixes: tuple[str, ...]) -> bool:
+    return any(module == p or module.startswith(p + ".") for p in prefixes)
+
+
+@pytest.mark.parametrize("module", PURE)
+def test_the_algorithm_from_scratch_reaches_no_planner_process_or_service(module):
+    reached = {m for m in _reach(module) if _under(m, NOT_FROM_SCRATCH)}
+    assert reached <= set(RUNTIME_IN_CORE), f"{module} reaches {sorted(reached)}"
+
+
+def test_the_core_takes_only_the_token_from_the_runtime():
+    for m, targets in GRAPH.items():
+        if _under(m, tuple(CORE)) and m not in ("pickstop.pool", "pickstop.regions.planner"):
+            runtime = {t for t in targets if _under(t, ("pickstop.runtime",))}
+            assert runtime <= set(RUNTIME_IN_CORE), (m, runtime)
+    assert GRAPH["pickstop.runtime.cancel"] == set()
+
+
+def test_the_reach_finder_finds_what_it_should(monkeypatch):
+    monkeypatch.setitem(GRAPH, "pickstop.sequence.steps", {"pickstop.sequence.plan"})
+    assert "pickstop.sequence.plan" in _reach("pickstop.sequence.request")

@@ -114,7 +114,7 @@ class PlannerPool:
         default_databases: Mapping[str, str] | None = None,
     ) -> None:
         """region_processes: the planners' ``workers`` (processes computing a plan's regions
-        at once, :mod:`pickstop.regions.processes`); default_databases: robot name -> the
+        at once, :mod:`pickstop.runtime.region_processes`); default_databases: robot name -> the
         database its plans use when they name none (None: the settings')."""
         self.data_dir = Path(data_dir)
         self.region_processes = region_processes

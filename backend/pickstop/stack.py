@@ -151,13 +151,13 @@ def start(
     api_url = f"http://{host}:{port}"
     server: Any
     if settings.workers > 1:
-        from pickstop.api.workers import WorkerPool, wait_healthy
+        from pickstop.runtime.servers import WorkerPool, wait_healthy
 
         server = WorkerPool(sock, settings, log_level)
         sock.close()  # the workers hold it
         wait_healthy(api_url, server)
     else:
-        from pickstop.api.workers import SERVER_OPTIONS
+        from pickstop.runtime.servers import SERVER_OPTIONS
 
         config = uvicorn.Config(
             create_app(settings), host=host, port=port, log_level=log_level, **SERVER_OPTIONS

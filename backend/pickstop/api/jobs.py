@@ -4,9 +4,11 @@ Jobs are records in SQLite (queued, running, done, failed, cancelled, interrupte
 state survives a restart: a job cut off by one is marked interrupted when the next runner
 starts. One process of a worker pool runs the jobs; it takes those other processes queued from
 the records, and a cancel that reaches another process is passed on through the job's record.
-Every job has a deadline (``job_deadline``); a cancelled or late job is stopped where it is
-(:class:`pickstop.api.work.Work`). A build runs in a process group of its own
-(:mod:`pickstop.api.build_process`), ended with the job and with the runner; a cancelled
+Every job has a deadline (``job_deadline``); a job runs as the computation of a
+:class:`~pickstop.runtime.work.Work`, whose token (:mod:`pickstop.runtime.cancel`) a cancel,
+the deadline or the runner's close cancels, with that reason: the job stops at its next
+checkpoint, or where it is. A build runs in a process group of its own
+(:mod:`pickstop.runtime.build_process`), ended with the job and with the runner; a cancelled
 build leaves no database behind.
 """
 
@@ -20,10 +22,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from pickstop.api.build_process import BuildProcess, error_of
 from pickstop.api.registry import RobotRegistry
-from pickstop.api.work import Cancelled, Work
 from pickstop.errors import InputError, PickStopError
+from pickstop.runtime.build_process import BuildProcess, error_of
+from pickstop.runtime.cancel import Cancelled, Token, checkpoint
+from pickstop.runtime.work import Work
 from pickstop.settings import Settings
 from pickstop.store.records import ServiceStore
 
@@ -33,10 +36,6 @@ CANCEL_REQUESTED = "cancel requested"
 
 #: A kind of job: ``(runner, job id, params) -> result``.
 JobKind = Callable[["JobRunner", str, dict[str, Any]], dict[str, Any]]
-
-
-class JobCancelled(Exception):
-    pass
 
 
 class JobRunner:
@@ -52,7 +51,7 @@ class JobRunner:
         self.runs_jobs = start
         self.interrupted = store.interrupt_stale_jobs() if start else 0
         self._queue: queue.Queue[str | None] = queue.Queue()
-        self._cancel: set[str] = set()
+        self._tokens: dict[str, Token] = {}  # the jobs running in this process
         self._running: tuple[str, Work] | None = None
         self._running_lock = threading.Lock()
         self._children: dict[str, BuildProcess] = {}  # job id -> its build's process group
@@ -70,7 +69,7 @@ class JobRunner:
         self._queue.put(None)
         with self._running_lock:
             if self._running is not None:
-                self._running[1].stop()
+                self._running[1].stop("closing")
             children = list(self._children.values())
         for child in children:
             child.stop()
@@ -90,14 +89,19 @@ class JobRunner:
         self._queue.put(job["id"])
         return job
 
+    def token(self, job_id: str) -> Token:
+        """The token of a job running in this process outside the runner (a dispatch): a
+        cancel of the job cancels it."""
+        with self._running_lock:
+            if len(self._tokens) > 1024:  # long finished ones (a dispatch runs for minutes)
+                for k in [k for k, t in self._tokens.items() if t.cancelled][:512]:
+                    del self._tokens[k]
+            return self._tokens.setdefault(job_id, Token())
+
     def cancelled(self, job_id: str) -> bool:
         """Whether a cancel of the job reached this process."""
-        return job_id in self._cancel
-
-    def check_cancel(self, job_id: str) -> None:
-        """Raise :class:`JobCancelled` if the job was cancelled (a job's steps call this)."""
-        if job_id in self._cancel:
-            raise JobCancelled(job_id)
+        token = self._tokens.get(job_id)
+        return token is not None and token.reason == "cancelled"
 
     def cancel(self, job_id: str) -> dict[str, Any] | None:
         """Cancel a job: a queued one never starts; a running one is stopped where it is."""
@@ -107,12 +111,11 @@ class JobRunner:
         if job["state"] == "queued":
             self.store.set_job(job_id, state="cancelled", error="cancelled before it started")
         elif job["state"] == "running":
-            self._cancel.add(job_id)
             with self._running_lock:
-                here = self._running is not None and self._running[0] == job_id
-                if here:
-                    self._running[1].stop()  # type: ignore[index]
-            if not here:  # another worker process runs it: tell it through the record
+                token = self._tokens.get(job_id)
+            if token is not None:
+                token.cancel("cancelled")
+            else:  # another worker process runs it: tell it through the record
                 self.store.set_job(job_id, error=CANCEL_REQUESTED)
             for _ in range(100):  # the record says so once the work has unwound
                 job = self.store.job(job_id)
@@ -141,7 +144,8 @@ class JobRunner:
         work = Work()
         with self._running_lock:
             self._running = (job_id, work)
-        timer = threading.Timer(self.settings.job_deadline, work.stop)
+            self._tokens[job_id] = work.token
+        timer = threading.Timer(self.settings.job_deadline, work.stop, args=("deadline",))
         timer.daemon = True
         timer.start()
         finished = threading.Event()
@@ -154,10 +158,10 @@ class JobRunner:
                 raise PickStopError(f"this service runs no {job['kind']!r} jobs")
             result = work.run(kind, self, job_id, params)
             self.store.set_job(job_id, state="done", progress=1.0, result=result, error=None)
-        except (JobCancelled, Cancelled):
-            if job_id in self._cancel:
+        except Cancelled:
+            if work.token.reason == "cancelled":
                 self.store.set_job(job_id, state="cancelled", error="cancelled while running")
-            elif self._closing:
+            elif work.token.reason == "closing" or self._closing:
                 self.store.set_job(job_id, state="interrupted", error="the service stopped "
                                    "while it ran; submit it again to resume it")  # fmt: skip
             else:
@@ -173,15 +177,14 @@ class JobRunner:
             timer.cancel()
             with self._running_lock:
                 self._running = None
-            self._cancel.discard(job_id)
+                self._tokens.pop(job_id, None)
 
     def _watch(self, job_id: str, work: Work, finished: threading.Event) -> None:
         """Stop the running job when a cancel reached another worker process."""
         while not finished.wait(0.5):
             row = self.store.job(job_id)
             if row is not None and row["error"] == CANCEL_REQUESTED:
-                self._cancel.add(job_id)
-                work.stop()
+                work.stop("cancelled")
                 return
 
 
@@ -207,7 +210,7 @@ def build_job(
                 if "database" in msg:
                     db_id = msg["database"]
                 elif "progress" in msg:
-                    runner.check_cancel(job_id)
+                    checkpoint()
                     done, total = msg["progress"]
                     frac = done / total if total else 1.0
                     if frac - last >= 0.01 or done == total:
@@ -249,7 +252,7 @@ def batch_job(parse: Callable[[Any], Any], plan: Callable[[Any, Any, str | None]
         items = params["scenes"]
         results = []
         for k, item in enumerate(items):
-            runner.check_cancel(job_id)
+            checkpoint()
             scene_id, doc = item.get("scene_id"), item.get("scene")
             revision = None
             try:

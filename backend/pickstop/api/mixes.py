@@ -10,6 +10,7 @@ from typing import Any
 
 from pickstop.api.limits import Limits
 from pickstop.errors import InputError
+from pickstop.runtime.cancel import checkpoint
 from pickstop.scene.model import Order, Scene
 from pickstop.scene.orders import parse_orders, scene_orders
 from pickstop.sequence.mix import MixPlans, mix_document
@@ -84,7 +85,7 @@ def mix_job(
         options = PlanOptions(**params.get("options", {}))
         mix: MixPlans | None = None
         for start in range(0, len(orders), CHUNK):
-            runner.check_cancel(job_id)
+            checkpoint()
             part = plan_mix(scene, orders[start : start + CHUNK], options,
                             params.get("database"), orders if start == 0 else None)  # fmt: skip
             mix = part if mix is None else mix + part

@@ -1,10 +1,8 @@
 """Plans, previews and regions for requests, on the planners of the service's pool.
 
-Each planner's caches are not thread-safe: every use holds its slot's lock. After a plan, the
-plans of the neighbouring sigma bands and of the other objective are made in the background
-(their stop selections kept), then the other candidates' centres are verified, one at a time,
-so that the next change of sigma (the 3D planner's slider) finds its selection made and its
-stops checked.
+Each planner's caches are not thread-safe: every use holds its slot's lock, a request's ahead
+of the background work that :mod:`pickstop.runtime.plan_ahead` schedules after plans and
+previews.
 """
 
 from __future__ import annotations
@@ -12,9 +10,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-import threading
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import Executor
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +20,7 @@ import shapely
 from pickstop.api.registry import RobotRegistry
 from pickstop.errors import PickStopError
 from pickstop.pool import PlannerPool, PlannerSlot
+from pickstop.runtime.plan_ahead import PlanAhead
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence.mix import MixPlans, plan_mix
 from pickstop.sequence.plan_model import Plan, PlanOptions
@@ -35,38 +32,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("pickstop.api")
 
-QUIET = 0.1  # [s] without a new plan before the last one's are planned ahead
-# [s] without a newer request before a previewed layout's exact plan is made ahead: a drag
-# asks for previews several times a second; holding still for this long is a pause.
-HOLD = 0.25
-
-
-class _Yielding:
-    """A slot's lock as background work takes it: only while no request waits for it, so a
-    request waits at most for the one background step under way."""
-
-    def __init__(self, lock: Any, waiting: Any) -> None:
-        self.lock, self.waiting = lock, waiting
-
-    def acquire(self) -> bool:
-        while True:
-            while self.waiting():
-                time.sleep(0.002)
-            self.lock.acquire()
-            if not self.waiting():
-                return True
-            self.lock.release()
-
-    def release(self) -> None:
-        self.lock.release()
-
-    def __enter__(self) -> _Yielding:
-        self.acquire()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.release()
-
 
 class Planning:
     """The service's planning: a request's scene -> its robot's planners -> a plan."""
@@ -74,10 +39,7 @@ class Planning:
     def __init__(self, pool: PlannerPool, robots: RobotRegistry, background: Executor) -> None:
         self.pool = pool
         self.robots = robots
-        self.background = background
-        self._generation = 0  # plans made: a prefetch of an older one stops early
-        self._waiting = 0  # requests waiting for a slot's lock (background work gives way)
-        self._count = threading.Lock()
+        self.ahead = PlanAhead(background)
 
     def slot(self, scene: Scene, db_id: str | None = None) -> PlannerSlot:
         """The planners of the scene's robot (a preset or registered) over ``db_id``."""
@@ -95,38 +57,25 @@ class Planning:
         return [{"robot": s.regions.robot.name, "database": s.regions.db.id}
                 for s in self.pool.slots]  # fmt: skip
 
-    @contextlib.contextmanager
-    def _locked(self, slot: PlannerSlot) -> Iterator[None]:
+    def _locked(self, slot: PlannerSlot) -> contextlib.AbstractContextManager[None]:
         """Hold the slot's lock for a request, ahead of any background work waiting for it."""
-        with self._count:
-            self._waiting += 1
-        try:
-            slot.lock.acquire()
-        finally:
-            with self._count:
-                self._waiting -= 1
-        try:
-            yield
-        finally:
-            slot.lock.release()
+        return self.ahead.request(slot.lock)
 
     def plan(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
         slot = self.slot(scene, db_id)
         with self._locked(slot):
             plan = slot.planner.plan(scene, options)
-        self._generation += 1
-        self.background.submit(self._prefetch, slot, scene, options, self._generation)
+        self.ahead.after_plan(slot.planner, slot.lock, scene, options)
         return plan
 
     def preview(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> Plan:
         """An unverified plan to draw while the layout is edited (``StopPlanner.preview``);
-        once no request has come for :data:`HOLD` seconds, the layout's exact plan is made
-        in the background (:meth:`_plan_ahead`)."""
+        once no request has come for a moment, the layout's exact plan is made in the
+        background (:meth:`~pickstop.runtime.plan_ahead.PlanAhead.after_preview`)."""
         slot = self.slot(scene, db_id)
         with self._locked(slot):
             plan = slot.planner.preview(scene, options)
-        self._generation += 1
-        self.background.submit(self._plan_ahead, slot, scene, options, self._generation)
+        self.ahead.after_preview(slot.planner, slot.lock, scene, options)
         return plan
 
     def plan_mix(
@@ -207,61 +156,6 @@ class Planning:
     def preview_json(self, scene: Scene, options: PlanOptions, db_id: str | None = None) -> bytes:
         """:meth:`preview` as JSON (see :meth:`plan_json`)."""
         return self.preview(scene, options, db_id).model_dump_json().encode()
-
-    def _prefetch(
-        self, slot: PlannerSlot, scene: Scene, options: PlanOptions, generation: int
-    ) -> None:
-        """The plans of the neighbouring sigma bands and the other objective (what the 3D
-        planner's slider and switch ask next), then every candidate's centre check; begun
-        once no plan has been asked for in :data:`QUIET` seconds (a slider gesture's steps
-        are not slowed by work for the steps it has already left)."""
-
-        def work(lock: _Yielding, stale: Callable[[], bool]) -> None:
-            slot.planner.prefetch_selections(scene, options, lock, stale=stale)
-            slot.planner.prefetch_checks(scene, lock, stale=stale)
-
-        self._when_quiet(slot, generation, QUIET, work)
-
-    def _plan_ahead(
-        self, slot: PlannerSlot, scene: Scene, options: PlanOptions, generation: int
-    ) -> None:
-        """The exact plan of a previewed layout (``StopPlanner.plan_ahead``), begun once
-        nothing newer has been asked for in :data:`HOLD` seconds (the editor paused its
-        drag)."""
-        self._when_quiet(
-            slot,
-            generation,
-            HOLD,
-            lambda lock, stale: slot.planner.plan_ahead(scene, options, lock, stale=stale),
-        )
-
-    def _when_quiet(
-        self,
-        slot: PlannerSlot,
-        generation: int,
-        quiet: float,
-        work: Callable[[_Yielding, Callable[[], bool]], object],
-    ) -> None:
-        """``work(lock, stale)`` in the background once no request has come for ``quiet``
-        seconds since the one of ``generation``: under the slot's lock as background work
-        takes it (it gives way to any request), given up once ``stale()`` (a newer request
-        came). Never lets an error disturb a request: a layout without a plan is left for a
-        request to explain, anything else is logged."""
-
-        def stale() -> bool:
-            return self._generation != generation
-
-        end = time.monotonic() + quiet
-        while not stale() and time.monotonic() < end:
-            time.sleep(0.01)
-        if stale():
-            return
-        try:
-            work(_Yielding(slot.lock, lambda: self._waiting > 0), stale)
-        except PickStopError:
-            pass
-        except Exception:
-            log.exception("planning ahead failed")
 
     def regions(
         self,

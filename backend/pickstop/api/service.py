@@ -13,7 +13,7 @@
   a restart.
 
 CPU-heavy work (regions, plans) runs off the event loop: in a planner process
-(:mod:`pickstop.api.planner_process`, the default) or in the ``threads`` pool.
+(:mod:`pickstop.runtime.planner_process`, the default) or in the ``threads`` pool.
 """
 
 from __future__ import annotations
@@ -25,18 +25,18 @@ from pathlib import Path
 from typing import Any
 
 from pickstop.api import limits as lim
-from pickstop.api import planner_process
 from pickstop.api.jobs import JobRunner, batch_job, build_job
 from pickstop.api.layouts import layout_job, layout_params
 from pickstop.api.mixes import mix_job, request_orders
 from pickstop.api.plan_bodies import PlanBodies
 from pickstop.api.plan_proofs import PlanProofs
-from pickstop.api.planner_process import PlannerProcess
 from pickstop.api.planning import Planning
 from pickstop.api.registry import RobotRegistry
 from pickstop.api.scene_checks import SceneChecks
 from pickstop.errors import DatabaseBusyError, InputError
 from pickstop.pool import PlannerPool
+from pickstop.runtime import planner_process
+from pickstop.runtime.planner_process import PlannerProcess
 from pickstop.settings import Settings
 from pickstop.store import reach_catalog
 from pickstop.store.records import ServiceStore
@@ -170,7 +170,7 @@ class Service:
 
 
 def planner_child(fd: int) -> None:
-    """The planner process (api/planner_process.py): a service of its own, without jobs or
+    """The planner process (runtime/planner_process.py): a service of its own, without jobs or
     children, whose planning answers the parent's calls on the socket ``fd``."""
     settings = planner_process.child_settings().model_copy(update={"planner_processes": 0})
     service = Service(settings, job_runner=False)

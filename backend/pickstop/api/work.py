@@ -1,20 +1,15 @@
-"""Computations with a deadline that can be stopped: plans, regions, and the jobs' steps.
+"""A request's computation with a deadline, stopped when the deadline passes or the client
+leaves.
 
-The event loop never computes: it hands the work to a planner thread and waits, watching the
-deadline and the client. When either runs out, the thread is stopped where it is: a
-:class:`Cancelled` exception is raised inside it (``PyThreadState_SetAsyncExc``), which unwinds
-the planner's ``with lock:`` blocks like any other error, so its locks are released and the
-next request is served at once. The exception derives from ``BaseException`` so that the
-core's ``except Exception`` never swallows it. Python raises it at the thread's next bytecode,
-so a long single native call (one solver run) finishes first; the solver's own time limit
-bounds that.
+The event loop never computes: it hands the work to a planner thread (a
+:class:`~pickstop.runtime.work.Work`) and waits, watching the deadline and the client. When
+either runs out, the work's token is cancelled (:mod:`pickstop.runtime.cancel`) and the request
+answered 504 or 503.
 """
 
 from __future__ import annotations
 
 import asyncio
-import ctypes
-import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor
@@ -23,47 +18,10 @@ from typing import Any, TypeVar
 from starlette.requests import Request
 
 from pickstop.api.problems import Problem
+from pickstop.runtime.cancel import Cancelled
+from pickstop.runtime.work import Work
 
 T = TypeVar("T")
-
-
-class Cancelled(BaseException):
-    """Raised inside a computation that passed its deadline or whose client left."""
-
-
-class Work:
-    """One computation on a worker thread, stoppable from another thread."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._thread: int | None = None
-        self._stopped = False
-
-    def run(self, fn: Callable[..., T], *args: Any) -> T:
-        with self._lock:
-            if self._stopped:
-                raise Cancelled()
-            self._thread = threading.get_ident()
-        try:
-            return fn(*args)
-        finally:
-            with self._lock:
-                self._thread = None
-
-    def stop(self) -> None:
-        """Stop the computation (idempotent; a no-op once it has finished)."""
-        with self._lock:
-            if self._stopped:
-                return
-            self._stopped = True
-            if self._thread is not None:
-                ctypes.pythonapi.PyThreadState_SetAsyncExc(
-                    ctypes.c_ulong(self._thread), ctypes.py_object(Cancelled)
-                )
-
-    @property
-    def stopped(self) -> bool:
-        return self._stopped
 
 
 async def compute(
@@ -87,7 +45,7 @@ async def compute(
         while True:
             left = end - time.monotonic()
             if left <= 0:
-                work.stop()
+                work.stop("deadline")
                 raise Problem(504, "Deadline exceeded", f"the computation took longer than "
                               f"the request deadline of {deadline:g} s and was stopped; simplify "
                               "the request or submit it as a job", kind="deadline")  # fmt: skip
@@ -103,5 +61,5 @@ async def compute(
                 raise Problem(503, "Cancelled", "the client disconnected; the computation was "
                               "stopped", kind="cancelled")  # fmt: skip
     except asyncio.CancelledError:  # the server is shutting down, or the task was cancelled
-        work.stop()
+        work.stop("closing")
         raise

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from pickstop.robot.exact import ExactSelfCollision
 from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.robot.model import RobotModel
 from pickstop.robot.screen import SphereModel
+from pickstop.runtime.cancel import checkpoint
 from pickstop.scene.grasps import (
     GraspSet,
     OwnVerdicts,
@@ -46,12 +46,6 @@ from pickstop.scene.world import (
     shape_solid,
     tray_body_solids,
 )
-
-
-class Interrupted(Exception):
-    """Raised at a region computation's next :meth:`RegionKit.checkpoint` once its
-    ``interrupt`` says to give way (background work, when a request waits)."""
-
 
 # axis-aligned (lo, hi) bounds [m] of solids, each with whether the solid is that box
 Bounds = list[tuple[np.ndarray, np.ndarray, bool]]
@@ -94,8 +88,6 @@ class RegionKit:
     )
     reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
-    # Set while background work computes: true once it is to give way (see checkpoint).
-    interrupt: Callable[[], bool] | None = field(default=None, init=False, repr=False)
     _hand_spaces: Cache[str, tuple[np.ndarray, np.ndarray]] = field(
         default_factory=lambda: Cache("kit.hand_spaces", max_items=MEMO_SIZE),
         init=False, repr=False,
@@ -145,11 +137,11 @@ class RegionKit:
         return out
 
     def checkpoint(self) -> None:
-        """Raise :class:`Interrupted` if the computation under way is to give way. Called
-        between the steps of a region (parts, rounds, waves of growth), where every memo is
-        whole: what was done so far stays remembered for the next computation."""
-        if self.interrupt is not None and self.interrupt():
-            raise Interrupted()
+        """Raise :class:`~pickstop.runtime.cancel.Cancelled` if the computation under way is
+        to stop (its token: :func:`pickstop.runtime.cancel.checkpoint`). Called between the
+        steps of a region (parts, rounds, waves of growth), where every memo is whole: what
+        was done so far stays remembered for the next computation."""
+        checkpoint()
 
     def grasps(self, scene: Scene, tray: Tray) -> list[GraspSet]:
         """The grasps of every part of ``tray``, reused while nothing that reaches into the
@@ -211,7 +203,7 @@ class RegionKit:
         return scene_solids(scene, groups=self.object_solids(scene))
 
     def learn_grasps(self, entries: dict[str, GraspSet]) -> None:
-        """Keep grasps another process computed (:mod:`pickstop.regions.processes`), by the
+        """Keep grasps another process computed (:mod:`pickstop.runtime.region_processes`), by the
         keys :meth:`grasps` finds them by."""
         for key, grasps in entries.items():
             self.grasp_memo.put(key, grasps)

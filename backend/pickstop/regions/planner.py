@@ -4,7 +4,7 @@
 the last layouts, from the per-tray cache while :mod:`pickstop.regions.validity` says a region
 still holds, else computed by :mod:`pickstop.regions.pipeline` (with ``workers`` > 1, several
 at once, each tray at home in the planner's process or one of its forked helpers:
-:mod:`pickstop.regions.processes`). The last region of each tray is kept for previews
+:mod:`pickstop.runtime.region_processes`). The last region of each tray is kept for previews
 (:mod:`pickstop.regions.carry`).
 """
 
@@ -17,7 +17,6 @@ from pickstop.regions.carry import LastRegions
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import compute_tray_region
-from pickstop.regions.processes import RegionProcesses
 from pickstop.regions.solve import warm_kernels
 from pickstop.regions.validity import (
     CacheEntry,
@@ -27,6 +26,7 @@ from pickstop.regions.validity import (
     snapshots,
     still_valid,
 )
+from pickstop.runtime.region_processes import RegionProcesses
 from pickstop.scene.model import Scene
 
 LAYOUTS = 8  # the regions of this many layouts kept whole

@@ -26,9 +26,9 @@ from shapely.geometry import Polygon
 
 from pickstop.caching import Cache
 from pickstop.regions.cells import TrayRegion
-from pickstop.regions.kit import Interrupted
 from pickstop.regions.offgrid import check_key
 from pickstop.regions.planner import RegionPlanner
+from pickstop.runtime.cancel import Cancelled, giving_way
 from pickstop.scene.model import Scene
 from pickstop.scene.positioning import ErrorDist, of_scene
 from pickstop.sequence import plan_model as pm
@@ -415,14 +415,13 @@ class StopPlanner:
         ``waiting()``) or ``stale()``; then the plan as a request makes it, no Monte Carlo.
         Work given up is not lost: the memos keep what was done (each keyed by its inputs,
         so nothing is taken for a layout it does not hold for). Returns whether it finished."""
-        with lock:
-            self.regions.interrupt = lambda: stale() or lock.waiting()
+        with lock, giving_way(lambda: stale() or lock.waiting()) as token:
             try:
                 self.regions.regions(scene)
-            except Interrupted:
+            except Cancelled:
+                if token.reason != "give way":  # the computation around it was cancelled
+                    raise
                 return False
-            finally:
-                self.regions.interrupt = None
         if stale():
             return False
         with lock:

@@ -34,6 +34,7 @@ from shapely.geometry import Point
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.footprint import upper_body
 from pickstop.regions.kit import RegionKit
+from pickstop.runtime.cancel import checkpoint
 from pickstop.scene.model import Scene, gripper_notes
 from pickstop.scene.positioning import of_scene
 from pickstop.sequence import expected, pure
@@ -138,6 +139,9 @@ class PlanRequest:
         self.placed_back: Paths | None = None  # paths after a placed stop went back (see run)
 
     def _clock(self, name: str, t0: float) -> float:
+        """Count the step ``name`` begun at ``t0`` done; the plan stops here if its
+        computation is to (:func:`~pickstop.runtime.cancel.checkpoint`)."""
+        checkpoint()
         now = time.perf_counter()
         self.t[name] += now - t0
         return now

@@ -102,8 +102,9 @@ async def dispatch_plan(
         raise from_error(e) from None
     params = {"plan_id": plan_id, **body.model_dump(), "order_id": order_id}
     job = await run_in_threadpool(service.store.add_job, "dispatch", params)
+    token = service.jobs.token(job["id"])
     start_dispatch_job(service.store.set_job, job["id"], job_spec, broker,
-                       lambda: service.jobs.cancelled(job["id"]))  # fmt: skip
+                       lambda: token.cancelled)  # fmt: skip
     response.headers["Location"] = f"/api/v1/jobs/{job['id']}"
     return _job_record(await run_in_threadpool(service.store.job, job["id"]))
 

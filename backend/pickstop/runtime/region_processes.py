@@ -13,11 +13,12 @@ computed for them (the planner's checks of stops need them too).
 A region computed here is the one the planner's process would compute from the same memos:
 every cell it calls feasible carries a witness verified for the real geometry there.
 
-Background work gives way in the helpers as in the planner: once the planner's ``interrupt``
-says so, a shared flag tells every helper to stop at its next checkpoint
-(:meth:`~pickstop.regions.kit.RegionKit.checkpoint`), and :class:`Interrupted` is raised once
-they have. A helper that dies is replaced on the next call, and its share computed by the
-planner's process meanwhile.
+A request given up stops in the helpers as in the planner: once the token of the computation
+asking (:mod:`pickstop.runtime.cancel`) is cancelled, or the asking thread stops waiting for
+any other reason, a flag in shared memory cancels each helper's token, every helper stops at
+its next checkpoint (:meth:`~pickstop.regions.kit.RegionKit.checkpoint`), and
+:class:`~pickstop.runtime.cancel.Cancelled` is raised once they have. A helper that dies is
+replaced on the next call, and its share computed by the planner's process meanwhile.
 """
 
 from __future__ import annotations
@@ -33,14 +34,15 @@ from typing import Any
 from pickstop.caching import Cache
 from pickstop.errors import dump_error, load_error
 from pickstop.regions.cells import TrayRegion
-from pickstop.regions.kit import Interrupted, RegionKit
+from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import compute_tray_region
 from pickstop.regions.validity import own_key
+from pickstop.runtime.cancel import Cancelled, Token, current, scope
 from pickstop.scene.model import Scene
 
 log = logging.getLogger("pickstop.regions")
 
-POLL = 0.005  # [s] between looks at the planner's interrupt while helpers compute
+POLL = 0.005  # [s] between looks at the asking thread's token while helpers compute
 MAX_HOMES = 4096  # trays (by definition but for where they stand) whose homes are kept
 _KIT: RegionKit | None = None  # set in each helper process, never in the parent
 
@@ -74,8 +76,8 @@ class RegionProcesses:
         """The region of each ``(tray id, yaw)`` of ``scene``, in order: those at home here by
         ``compute(scene, tray id, yaw)``, the others by their helpers meanwhile.
 
-        Raises :class:`Interrupted` (after every helper stopped) if the kit's interrupt says
-        to give way."""
+        Raises :class:`~pickstop.runtime.cancel.Cancelled` (after every helper stopped) once
+        this thread's token is cancelled."""
         share = self._share(scene, pairs)
         out: dict[Pair, TrayRegion] = {}
         sent: dict[int, int] = {}  # helper index -> request id
@@ -95,8 +97,8 @@ class RegionProcesses:
                 del sent[h]  # answered
                 if kind == "error":
                     raise load_error(payload)
-                if kind == "interrupted":
-                    raise Interrupted()
+                if kind == "cancelled":
+                    raise Cancelled(current().reason or "cancelled")
                 if kind == "ended":  # the helper died: its share is computed here
                     for p, w in zip(pairs, share, strict=True):
                         if w == h + 1:
@@ -156,16 +158,16 @@ class RegionProcesses:
 
     def _receive(self, h: int, rid: int) -> tuple[str, Any]:
         """Helper ``h``'s answer to request ``rid``: ``("ok", (regions, grasps))``,
-        ``("error", pickled exception)``, ``("interrupted", None)``, or ``("ended", None)`` if
-        it died. Raises :class:`Interrupted` once the kit says to give way (the answer is
-        still to come then)."""
+        ``("error", pickled exception)``, ``("cancelled", None)``, or ``("ended", None)`` if
+        it died. Raises :class:`~pickstop.runtime.cancel.Cancelled` once this thread's token
+        is cancelled (the answer is still to come then)."""
         helper = self._helpers[h]
         assert helper is not None
+        token = current()
         while True:
             try:
                 if not helper.conn.poll(POLL):
-                    if self.kit.interrupt is not None and self.kit.interrupt():
-                        raise Interrupted()
+                    token.check()
                     continue
                 got_rid, kind, payload = helper.conn.recv()
             except (EOFError, OSError):
@@ -233,7 +235,6 @@ def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> 
     global _KIT
     parents.close()  # so that the planner's end closing reads as the end here
     _KIT = kit
-    kit.interrupt = lambda: bool(stop.value)
     code = 0
     try:
         while True:
@@ -243,11 +244,12 @@ def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> 
                 break
             try:
                 known = set(kit.grasp_memo)
-                out = [(p, _region(scene, *p)) for p in pairs]
+                with scope(Token(lambda: bool(stop.value), reason="cancelled")):
+                    out = [(p, _region(scene, *p)) for p in pairs]
                 grasps = {k: g for k, g in kit.grasp_memo.items() if k not in known}
                 conn.send((rid, "ok", (out, grasps)))
-            except Interrupted:
-                conn.send((rid, "interrupted", None))
+            except Cancelled:
+                conn.send((rid, "cancelled", None))
             except Exception as e:
                 conn.send((rid, "error", dump_error(e)))
     except (OSError, ValueError):

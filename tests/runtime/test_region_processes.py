@@ -1,6 +1,7 @@
-"""Regions computed by several processes, each tray at home in one (regions/processes.py): the
-same regions as one process with the same history, homes kept across layouts, background work
-given way to in the helpers, a helper's error or death never losing a region."""
+"""Regions computed by several processes, each tray at home in one
+(runtime/region_processes.py): the same regions as one process with the same history, homes
+kept across layouts, background work given way to in the helpers, a helper's error or death
+never losing a region."""
 
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ import numpy as np
 import pytest
 
 from pickstop.regions import kit as kit_mod
-from pickstop.regions import processes as processes_mod
-from pickstop.regions.kit import Interrupted
 from pickstop.regions.planner import RegionPlanner
+from pickstop.runtime import region_processes as processes_mod
+from pickstop.runtime.cancel import Cancelled, giving_way
 from pickstop.scene.load import parse_scene
 from tests.utils import assert_cells_verified, count_regions
 
@@ -123,10 +124,8 @@ def test_background_work_gives_way_in_the_helpers(fresh, paper_doc, monkeypatch,
         asked.append(inside[0])
         return (where == "computing") == inside[0] and len(asked) > 3
 
-    two.interrupt = interrupt
-    with pytest.raises(Interrupted):
+    with giving_way(interrupt), pytest.raises(Cancelled):
         two.regions(scene)
-    two.interrupt = None
     assert asked[-1] == (where == "computing")
     assert two._cached(scene, mover, yaw) is None  # nothing half done is kept
     pid = two._processes.pids[0]
@@ -189,7 +188,7 @@ def test_a_helpers_error_reaches_the_caller(fresh, paper_doc, monkeypatch):
 
 
 def test_region_processes_want_one_process_at_least(planner):
-    from pickstop.regions.processes import RegionProcesses
+    from pickstop.runtime.region_processes import RegionProcesses
 
     with pytest.raises(ValueError, match="processes must be at least 1, got 0"):
         RegionProcesses(planner, 0)

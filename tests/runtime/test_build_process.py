@@ -14,9 +14,9 @@ from fastapi.testclient import TestClient
 
 from pickstop.api.app import create_app
 from pickstop.settings import Settings, hash_key
+from tests.api.factories import wait_job
 
 from .conftest import AUTH, KEY
-from .factories import wait_job
 
 
 def _alive(procs: list[psutil.Process]) -> list[psutil.Process]:

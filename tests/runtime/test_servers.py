@@ -12,10 +12,10 @@ import pytest
 
 from pickstop.settings import hash_key
 from pickstop.stack import spawn_api
+from tests.api.factories import paper
 
 from ..conftest import free_port
 from .conftest import AUTH, KEY
-from .factories import paper
 
 
 @pytest.fixture(scope="module")

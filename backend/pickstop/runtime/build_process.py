@@ -3,7 +3,7 @@
 A build runs pools of worker processes (:func:`pickstop.reach.build.run_local`); stopped from
 another thread (a cancel, a deadline, the service shutting down), a pool can be cut off
 half-way and leave its workers idle and orphaned. The job runner therefore builds in a child
-process started in a session of its own (``python -m pickstop.api.build_process``): every
+process started in a session of its own (``python -m pickstop.runtime.build_process``): every
 process of the build (the child, its pools' workers, their resource tracker) is in that
 process group, and :meth:`BuildProcess.stop` ends them all at once (SIGTERM, then SIGKILL).
 The child also ends its group when its stdin closes, so a build never outlives the service
@@ -52,7 +52,7 @@ class BuildProcess:
         }
         env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "pickstop.api.build_process"],
+            [sys.executable, "-m", "pickstop.runtime.build_process"],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             start_new_session=True,  # its own process group: stop() ends every process in it

@@ -11,9 +11,9 @@ background centre checks. The reachability database is memory-mapped, so the chi
 API share its pages instead of holding two copies.
 
 Calls block the calling thread (one of the service's planner threads) and wait in short
-polls, so the :class:`~pickstop.api.work.Cancelled` that the deadline or a disconnect raises
-in that thread arrives within a poll; the call then tells the child, which stops the
-computation the same way (:class:`~pickstop.api.work.Work`), and waits for its word before
+polls, checking the thread's token (:mod:`pickstop.runtime.cancel`), so a deadline or a
+disconnect reaches it within a poll; the call then tells the child, which stops the
+computation the same way (:class:`~pickstop.runtime.work.Work`), and waits for its word before
 returning, so the next request is served at once. The child computes one request at a time,
 in order of arrival, as one planner lock did before. If the child dies, the calls waiting on
 it fail with a clear error and the next call starts a new child.
@@ -36,8 +36,9 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from multiprocessing.connection import Connection
 from typing import Any
 
-from pickstop.api.work import Cancelled, Work
 from pickstop.errors import UnavailableError, dump_error, load_error
+from pickstop.runtime.cancel import Cancelled, checkpoint
+from pickstop.runtime.work import Work
 from pickstop.settings import Settings
 
 log = logging.getLogger("pickstop.api")
@@ -175,7 +176,7 @@ class PlannerProcess:
                 try:
                     return fut.result(timeout=POLL)
                 except FutureTimeout:
-                    continue
+                    checkpoint()  # this thread's token: the request's deadline or client
         except Cancelled:
             self._stop(rid, fut)
             raise
@@ -350,6 +351,6 @@ def _serve(conn: Connection, service: Any) -> None:
             break
     with state:
         if current[1] is not None:
-            current[1].stop()
+            current[1].stop("closing")
     todo.put(None)
     worker.join(timeout=5)

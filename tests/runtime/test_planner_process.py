@@ -1,4 +1,4 @@
-"""Plans are computed in a child process (api/planner_process.py): the API process holds no
+"""Plans are computed in a child process (runtime/planner_process.py): the API process holds no
 planner, a child that dies is reported as 503 and replaced, and errors come back typed."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import time
 from fastapi.testclient import TestClient
 
 from pickstop.api.app import create_app
-from pickstop.api.planner_process import PlannerProcess
+from pickstop.runtime.planner_process import PlannerProcess
+from tests.api.factories import paper, problem
 
 from .conftest import AUTH
-from .factories import paper, problem
 
 PLANS = "/api/v1/plans"
 
@@ -41,7 +41,7 @@ def test_a_planner_process_that_dies_is_reported_and_replaced(api_settings):
         quick = {"scene": paper(), "options": {"samples": 0}, "store": False}
         assert c.post(PLANS, json=quick, headers=AUTH).status_code == 200
         first = service.planning.pid
-        helpers = _children(first)  # the planner's region helpers (regions/processes.py)
+        helpers = _children(first)  # the planner's region helpers (runtime/region_processes.py)
         assert helpers, "the paper scene's regions were computed by one process"
         seed = time.time_ns() % 2**31  # nothing cached: a Monte Carlo of several seconds
         heavy = {"scene": paper(), "options": {"samples": 20000, "seed": seed}, "store": False}
