@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -207,3 +208,21 @@ def unlike_cells(scratch, region):
         if j is None or not np.allclose(scratch.thetas[j], region.thetas[k], rtol=0, atol=1e-9):
             out.append(k)
     return np.array(out, int)
+
+
+def same_document(a, b, path: str = "plan") -> None:
+    """Assert that the JSON documents ``a`` and ``b`` are equal, floats to 1e-9 (a witness's
+    joints may differ in the last bits where grasps were carried with a moved tray rather than
+    made there, or on another machine's floating point)."""
+    if isinstance(a, float) and isinstance(b, float):
+        assert math.isclose(a, b, rel_tol=0, abs_tol=1e-9) or a == b, (path, a, b)
+    elif isinstance(a, dict) and isinstance(b, dict):
+        assert a.keys() == b.keys(), (path, set(a) ^ set(b))
+        for k in a:
+            same_document(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        assert len(a) == len(b), (path, len(a), len(b))
+        for k, (x, y) in enumerate(zip(a, b, strict=True)):
+            same_document(x, y, f"{path}[{k}]")
+    else:
+        assert a == b, (path, a, b)

@@ -31,6 +31,7 @@ from pickstop.sequence.plan_model import PlanOptions
 from pickstop.sequence.pure import PureSteps
 from pickstop.sequence.request import PlanRequest, plan_from_scratch
 from tests.utils import assert_cells_verified, unlike_cells
+from tests.utils import same_document as _same
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 SAMPLES = 16  # Monte Carlo samples per stop: enough to exercise it, cheap
@@ -137,23 +138,6 @@ def _outcome(make):
         return make().model_dump(exclude={"timings"})
     except InfeasiblePlanError as e:
         return (type(e).__name__, e.message)
-
-
-def _same(a, b, path="plan"):
-    """``a`` equals ``b``, floats to 1e-9 (a witness's joints may differ in the last bits
-    where grasps were carried with a moved tray rather than made there)."""
-    if isinstance(a, float) and isinstance(b, float):
-        assert math.isclose(a, b, rel_tol=0, abs_tol=1e-9) or a == b, (path, a, b)
-    elif isinstance(a, dict) and isinstance(b, dict):
-        assert a.keys() == b.keys(), (path, set(a) ^ set(b))
-        for k in a:
-            _same(a[k], b[k], f"{path}.{k}")
-    elif isinstance(a, list | tuple) and isinstance(b, list | tuple):
-        assert len(a) == len(b), (path, len(a), len(b))
-        for k, (x, y) in enumerate(zip(a, b, strict=True)):
-            _same(x, y, f"{path}[{k}]")
-    else:
-        assert a == b, (path, a, b)
 
 
 # -- regions --------------------------------------------------------------------------------------
