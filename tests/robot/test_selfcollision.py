@@ -199,6 +199,23 @@ def test_false_rejection_rate_below_5_percent(setups, name):
     assert fig["false_rejection"] < 0.05, fig
 
 
+def test_a_tightening_round_rescreens_the_same_trial(setups):
+    """A tightening round judges the first round's configurations by its finer screen and
+    keeps coal's verdicts on them: the trial equals one made from scratch for that screen."""
+    from pickstop.robot.exact import rescreened, screen_trial
+
+    robot, pairs, model, _ = setups["tiago"]
+    finer = SphereModel.from_robot(robot, pairs, step=0.008, link_excess={"arm_5_link": 0.001})
+    first = screen_trial(robot, pairs, model, 300, seed=3)
+    again = rescreened(robot, first, finer)
+    fresh = screen_trial(robot, pairs, finer, 300, seed=3)
+    np.testing.assert_array_equal(again.thetas, fresh.thetas)
+    np.testing.assert_array_equal(again.colliding, fresh.colliding)
+    np.testing.assert_array_equal(again.flagged, fresh.flagged)
+    assert (again.flagged != first.flagged).any()  # the finer screen judges some otherwise
+    assert again.figures() == fresh.figures()
+
+
 def test_sphere_cover_holds_every_point(tiago):
     """Points on meshes and inside solids (box, cylinder, sphere) lie in some sphere."""
     rng = np.random.default_rng(0)

@@ -71,19 +71,24 @@ def tightened_screen(
     in the falsely rejected ones get spheres half as far out and every distance grid a finer
     step (at most :data:`MAX_ROUNDS` rounds). ``quality["bound"]`` is the bound it was held
     to: a screen still above it says so (:func:`bound_missed`)."""
-    from pickstop.robot.exact import responsible_links, screen_trial
+    from pickstop.robot.exact import rescreened, responsible_links, screen_trial
     from pickstop.robot.selfcollision import SphereModel
 
     excess: dict[str, float] = {}
     rounds, grid = 0, 0.01
+    trial = None
     while True:
         what = "self-collision screen" + (f", tightening round {rounds}" if rounds else "")
         step(steps, f"{what}: covering the links")
         model = SphereModel.from_robot(robot, disabled, step=grid, link_excess=excess)
-        # One trial per round: its figures, and (if they fall short) the links to refine.
-        trial = screen_trial(
-            robot, disabled, model, QUALITY_SAMPLES, seed=7, steps=steps, what=what
-        )
+        # One trial per round on the same configurations: its figures, and (if they fall
+        # short) the links to refine. Coal's verdicts on them are made once.
+        if trial is None:
+            trial = screen_trial(
+                robot, disabled, model, QUALITY_SAMPLES, seed=7, steps=steps, what=what
+            )
+        else:
+            trial = rescreened(robot, trial, model)
         quality = trial.figures()
         quality["rounds"] = float(rounds)
         quality["bound"] = FALSE_REJECTION_BOUND

@@ -131,17 +131,29 @@ def screen_trial(
     """:func:`screen` and :class:`ExactSelfCollision` on ``n`` uniform random configurations
     (``steps``: told of the exact checks as they go, as ``what``)."""
     th = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (n, robot.dof))
-    chain = Chain.from_robot(robot)
-    flagged = np.empty(n, dtype=bool)
-    for s in range(0, n, BLOCK):
-        _, _, frames = fk_soa(chain, np.ascontiguousarray(th[s : s + BLOCK].T), frames=True)
-        flagged[s : s + BLOCK] = screen(sphere_model, frames)
     exact = ExactSelfCollision(robot, disabled)
     colliding = np.empty(n, dtype=bool)
     for s in range(0, n, 200):
         step(steps, f"{what}: exact checks with coal", s, n)
         colliding[s : s + 200] = exact.colliding(th[s : s + 200])
-    return ScreenTrial(th, flagged, colliding)
+    return ScreenTrial(th, _flags(robot, sphere_model, th), colliding)
+
+
+def rescreened(robot: RobotModel, trial: ScreenTrial, sphere_model: SphereModel) -> ScreenTrial:
+    """``trial``'s configurations judged by another screen of the same robot and disabled
+    pairs: coal's verdicts depend on the configurations alone and are kept, so the trial
+    equals :func:`screen_trial` of ``sphere_model`` with the same ``n`` and seed."""
+    return ScreenTrial(trial.thetas, _flags(robot, sphere_model, trial.thetas), trial.colliding)
+
+
+def _flags(robot: RobotModel, sphere_model: SphereModel, th: np.ndarray) -> np.ndarray:
+    """:func:`screen` of the ``(n, dof)`` configurations ``th``: ``(n,)`` bool, flagged."""
+    chain = Chain.from_robot(robot)
+    flagged = np.empty(len(th), dtype=bool)
+    for s in range(0, len(th), BLOCK):
+        _, _, frames = fk_soa(chain, np.ascontiguousarray(th[s : s + BLOCK].T), frames=True)
+        flagged[s : s + BLOCK] = screen(sphere_model, frames)
+    return flagged
 
 
 def false_rejection_rate(
