@@ -39,10 +39,10 @@ COUNTERS = {
 #: Caches of pure functions of a file's identity (path, time, size) and constants: what they
 #: hold cannot go stale and decides nothing a caller could pass differently.
 FILE_KEYED = {
-    ("pickstop.scene.supports", "_file_bounds"),  # a mesh file's bounding box
+    ("pickstop.scene.supports", "_BOUNDS"),  # a mesh file's bounding box
 }
 CONTAINER_CALLS = {"dict", "set", "list", "defaultdict", "OrderedDict", "deque", "Counter",
-                   "WeakValueDictionary", "WeakKeyDictionary", "ChainMap"}  # fmt: skip
+                   "WeakValueDictionary", "WeakKeyDictionary", "ChainMap", "Cache"}  # fmt: skip
 CACHE_DECORATORS = {"lru_cache", "cache", "cached"}
 
 
@@ -105,8 +105,9 @@ def test_the_scan_finds_module_caches(tmp_path):
         "import functools\nfrom collections import OrderedDict\n_MEMO: dict = {}\n"
         "_LRU = OrderedDict()\n@functools.lru_cache\ndef g(x): return x\n"
         "_SLOT = None\ndef h():\n    global _SLOT\n    _SLOT = 1\n"
+        "_KEPT: Cache[str, int] = Cache('kept', max_items=4)\n"
     )
-    assert {n for _, n, _ in module_state("m", f)} == {"_MEMO", "_LRU", "g", "_SLOT"}
+    assert {n for _, n, _ in module_state("m", f)} == {"_MEMO", "_LRU", "g", "_SLOT", "_KEPT"}
 
 
 def test_no_core_module_holds_a_module_level_cache():

@@ -848,17 +848,23 @@ def reaches(
     return (pos <= POS_TOL) & (ang <= ROT_TOL)
 
 
-class ReuseCache(OrderedDict[str, RefineMemo]):
-    """The memos of the last trays x yaws x grid phases planned (least recently used go)."""
+class ReuseCache(Cache[str, RefineMemo]):
+    """The memos of the last trays x yaws x grid phases planned: least recently used go first
+    while more than :data:`MAX_MEMOS` are kept or they hold more than :data:`MAX_BYTES`. The
+    memos grow in place as regions are computed, so each use weighs them again."""
+
+    def __init__(self) -> None:
+        super().__init__(
+            "regions.reuse",
+            max_items=MAX_MEMOS,
+            max_weight=MAX_BYTES,
+            weigh=RefineMemo.approx_bytes,
+        )
 
     def memo(self, key: str) -> RefineMemo:
+        """The memo of ``key`` (a new one if none is kept), the most recently used."""
         hit = self.get(key)
         if hit is None:
-            hit = self[key] = RefineMemo()
-        self.move_to_end(key)
-        # the least recently used go while too many are kept, or they hold too much
-        while len(self) > 1 and (
-            len(self) > MAX_MEMOS or sum(m.approx_bytes() for m in self.values()) > MAX_BYTES
-        ):
-            self.popitem(last=False)
+            hit = self.put(key, RefineMemo())
+        self.reweigh()
         return hit

@@ -12,7 +12,6 @@ height that rests it there and whether it is free (the planner's drag and "add a
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ import shapely.affinity
 from shapely.geometry import Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
+from pickstop.caching import Cache
 from pickstop.scene.model import Mesh, Obstacle, Pose, Scene, Tray
 from pickstop.scene.outline import (
     TOUCH,
@@ -91,17 +91,19 @@ class Placement:
 
 
 def _mesh_bounds(path: str, scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """The mesh file's local bounding box [m] at ``scale`` (cached while the file is the same)."""
+    """The mesh file's local bounding box [m] at ``scale``, kept while the file is the same:
+    keyed by the file's identity (its time and size), so a changed file is read again."""
     st = os.stat(path)
-    return _file_bounds(path, scale, st.st_mtime_ns, st.st_size)
+    key = (path, scale, st.st_mtime_ns, st.st_size)
+    return _BOUNDS.get_or_make(key, lambda: _file_bounds(path, scale))
 
 
-@functools.lru_cache(maxsize=256)
-def _file_bounds(
-    path: str, scale: float, mtime_ns: int, size: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_mesh_bounds` keyed by the file's identity (its time and size): a pure function
-    of its arguments, so a cache of it holds no state a changed file could make stale."""
+_BOUNDS: Cache[tuple[str, float, int, int], tuple[np.ndarray, np.ndarray]] = Cache(
+    "scene.mesh_bounds", max_items=256
+)
+
+
+def _file_bounds(path: str, scale: float) -> tuple[np.ndarray, np.ndarray]:
     import coal
 
     mesh = coal.MeshLoader().load(path, np.full(3, scale))
