@@ -42,11 +42,15 @@ def pr2_pairs(pr2):
 
 
 @pytest.fixture(scope="module")
-def setups(tiago, pr2, tiago_pairs, pr2_pairs):
-    """robot name -> (robot, disabled pairs, sphere model, exact checker), built once."""
+def setups(tiago, pr2):
+    """robot name -> (robot, disabled pairs, sphere model, exact checker): the robot's own
+    derived data, made once per run and shared through the run's cache."""
+    from pickstop.robot.artifacts import self_collision
+    from pickstop.settings import cache_dir
+
     out = {}
-    for name, robot, pairs in (("tiago", tiago, tiago_pairs), ("pr2", pr2, pr2_pairs)):
-        model = SphereModel.from_robot(robot, pairs)
+    for name, robot in (("tiago", tiago), ("pr2", pr2)):
+        pairs, model = self_collision(robot, cache_dir())
         out[name] = (robot, pairs, model, ExactSelfCollision(robot, pairs))
     return out
 
@@ -205,10 +209,10 @@ def test_a_tightening_round_rescreens_the_same_trial(setups):
     from pickstop.robot.exact import rescreened, screen_trial
 
     robot, pairs, model, _ = setups["tiago"]
-    finer = SphereModel.from_robot(robot, pairs, step=0.008, link_excess={"arm_5_link": 0.001})
-    first = screen_trial(robot, pairs, model, 300, seed=3)
+    finer = SphereModel.from_robot(robot, pairs, link_excess=dict.fromkeys(model.link_names, 0.005))
+    first = screen_trial(robot, pairs, model, 150, seed=3)
     again = rescreened(robot, first, finer)
-    fresh = screen_trial(robot, pairs, finer, 300, seed=3)
+    fresh = screen_trial(robot, pairs, finer, 150, seed=3)
     np.testing.assert_array_equal(again.thetas, fresh.thetas)
     np.testing.assert_array_equal(again.colliding, fresh.colliding)
     np.testing.assert_array_equal(again.flagged, fresh.flagged)
