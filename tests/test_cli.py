@@ -174,7 +174,7 @@ def _hint(err):
 def test_missing_database_hint_for_a_config_robot_runs_as_printed(tmp_path, capsys, monkeypatch):
     import shlex
 
-    import pickstop.cli
+    import pickstop.cli.reach
     from tests.robot.synthetic import write_dense_robot
 
     config = write_dense_robot(tmp_path / "robot", triangles=500, arm_mesh=False)
@@ -186,7 +186,7 @@ def test_missing_database_hint_for_a_config_robot_runs_as_printed(tmp_path, caps
     command = _hint(err)
     assert "--robot robot/dense_amr.yaml" in command and "dense_amr.yaml" in str(config)
     # Run as printed (the default sample count made small for a test).
-    monkeypatch.setattr(pickstop.cli, "DEFAULT_SAMPLES", 20_000)
+    monkeypatch.setattr(pickstop.cli.reach, "DEFAULT_SAMPLES", 20_000)
     code, out, err = _run(capsys, *shlex.split(command)[1:], "--quiet")
     assert code == 0, err
     assert json.loads(out)["state"] == "complete"
@@ -215,7 +215,7 @@ def test_robot_option_overrides_the_scenes_robot(tmp_path, capsys, monkeypatch):
 def test_ui_robot_option_registers_a_config_with_the_api(tmp_path):
     import httpx
 
-    from pickstop.cli import _api_robot
+    from pickstop.cli.service import _api_robot
     from pickstop_ui.client import PickStopClient
     from tests.robot.synthetic import write_dense_robot
 
