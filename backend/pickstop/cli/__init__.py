@@ -1,8 +1,8 @@
 """The ``pickstop`` command. Errors print one line on stderr and exit non-zero (2: bad input).
 
 One module per command group, each with its commands and their ``add_parser``: ``reach``,
-``robot``, ``plan`` (regions and plan), ``layout``, ``service`` (serve, ui, api-key), ``demo``;
-``common`` holds what several share.
+``robot``, ``plan`` (regions and plan), ``layout``, ``service`` (serve, ui, api-key), ``demo``,
+``fleet`` (export, dispatch, sim-vehicle, execute-sim); ``common`` holds what several share.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from pickstop.cli import demo, layout, plan, reach, robot, service
+from pickstop.cli import demo, fleet, layout, plan, reach, robot, service
 from pickstop.errors import PickStopError
 
 
@@ -32,9 +32,10 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_parser(sub)
     reach.add_parser(sub)
 
-    from pickstop.fleet.cli import add_commands as add_fleet_commands
+    from pickstop.fleet.fit_cli import add_commands as add_fit_commands
 
-    add_fleet_commands(sub)
+    add_fit_commands(sub)
+    fleet.add_parser(sub)
     return parser
 
 
