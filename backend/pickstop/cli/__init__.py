@@ -2,7 +2,8 @@
 
 One module per command group, each with its commands and their ``add_parser``: ``reach``,
 ``robot``, ``plan`` (regions and plan), ``layout``, ``service`` (serve, ui, api-key), ``demo``,
-``fleet`` (export, dispatch, sim-vehicle, execute-sim); ``common`` holds what several share.
+``errors`` (errors fit), ``fleet`` (export, dispatch, sim-vehicle, execute-sim); ``common``
+holds what several share.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from pickstop.cli import demo, fleet, layout, plan, reach, robot, service
+from pickstop.cli import demo, errors, fleet, layout, plan, reach, robot, service
 from pickstop.errors import PickStopError
 
 
@@ -31,10 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     service.add_parser(sub)
     robot.add_parser(sub)
     reach.add_parser(sub)
-
-    from pickstop.fleet.fit_cli import add_commands as add_fit_commands
-
-    add_fit_commands(sub)
+    errors.add_parser(sub)
     fleet.add_parser(sub)
     return parser
 
