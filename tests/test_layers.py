@@ -6,8 +6,9 @@
   (``pickstop.sequence.plan_model``), the frames module and the scene format's pure parts
   (its defaults and the tray body's boxes, so a wall is drawn where it is checked); robot
   geometry and everything else come over the REST API.
-- The backend never imports the UI, except the two places that wire the programs together
-  (the command line and the stack that starts the API and the planner side by side).
+- The backend never imports the UI, except where the programs are wired together: the
+  commands that run the planner (``pickstop ui``, ``pickstop demo``) and the stack that starts
+  the API and the planner side by side.
 - No two modules import each other, directly or round a longer cycle (imports inside
   functions and under ``TYPE_CHECKING`` count: a cycle is a cycle however it is hidden).
 """
@@ -15,6 +16,7 @@
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -43,7 +45,7 @@ UI_MAY_IMPORT = (
     "pickstop.scene.defaults",
     "pickstop.scene.tray_body",
 )
-WIRING = ("pickstop.cli", "pickstop.stack")
+WIRING = ("pickstop.cli.demo", "pickstop.cli.service", "pickstop.stack")
 
 
 def _modules() -> dict[str, Path]:
@@ -171,10 +173,29 @@ def test_the_ui_imports_only_the_plan_schema_of_the_backend():
             assert backend <= set(UI_MAY_IMPORT) | parents, (m, backend)
 
 
+def _ui_importers() -> set[str]:
+    """The backend modules that import the UI."""
+    return {
+        m
+        for m, targets in GRAPH.items()
+        if m.startswith("pickstop.") and any(t.startswith("pickstop_ui") for t in targets)
+    }
+
+
 def test_the_backend_imports_the_ui_only_where_the_programs_are_wired():
-    for m, targets in GRAPH.items():
-        if m.startswith("pickstop.") and any(t.startswith("pickstop_ui") for t in targets):
-            assert m in WIRING, m
+    importers = _ui_importers()
+    assert importers <= set(WIRING), f"import the UI: {sorted(importers - set(WIRING))}"
+    assert set(WIRING) <= importers, f"need not import it: {sorted(set(WIRING) - importers)}"
+
+
+@pytest.mark.parametrize(
+    "module", ["pickstop.regions.planner", "pickstop.cli", "pickstop.cli.plan"]
+)
+def test_the_ui_guard_finds_a_stray_import(monkeypatch, module):
+    """The core, the command line's package and its other modules may not import the UI."""
+    monkeypatch.setitem(GRAPH, module, GRAPH[module] | {"pickstop_ui.app"})
+    with pytest.raises(AssertionError, match=re.escape(f"import the UI: ['{module}']")):
+        test_the_backend_imports_the_ui_only_where_the_programs_are_wired()
 
 
 HEAVY = ("pydantic", "coal", "pinocchio", "sqlite3", "shapely", "numpy")

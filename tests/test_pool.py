@@ -157,7 +157,7 @@ def service(region_db, pool):
 
 
 def test_nothing_at_module_level_grows_when_planning(pool, tmp_path):
-    from pickstop.cli import _plan_one
+    from pickstop.cli.plan import _plan_one
     from pickstop.sequence.plan_model import PlanOptions
 
     doc = json.loads(SCENE.read_text())
@@ -176,7 +176,7 @@ def test_nothing_at_module_level_grows_when_planning(pool, tmp_path):
 
 
 def test_service_cli_and_dask_get_one_planner_per_robot_and_database(pool, service, region_db):
-    from pickstop.cli import _plan_one
+    from pickstop.cli.plan import _plan_one
     from pickstop.sequence.plan_model import PlanOptions
 
     _, db = region_db

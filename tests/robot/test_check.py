@@ -8,7 +8,8 @@ import json
 
 import pytest
 
-from pickstop.cli import STRICT_EXIT, main
+from pickstop.cli import main
+from pickstop.cli.robot import STRICT_EXIT
 from pickstop.robot.cache import COMPUTED
 from pickstop.robot.check import check_robot
 from pickstop.settings import cache_dir

@@ -327,10 +327,15 @@ def _order_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--db", help="database for --verify-yaw/--verify-xy (default: the plan's)")
 
 
-def add_commands(sub: Any) -> None:
-    from pickstop.fleet.fit_cli import add_commands as add_fit_commands
+def add_parser(sub: Any) -> None:
+    """Add the export, dispatch, sim-vehicle and execute-sim commands to ``sub``."""
+    _add_export(sub)
+    _add_dispatch(sub)
+    _add_sim_vehicle(sub)
+    _add_execute_sim(sub)
 
-    add_fit_commands(sub)
+
+def _add_export(sub: Any) -> None:
     ex = sub.add_parser(
         "export", help="a plan as a VDA 5050 order, a Nav2 goal or a LIF layout (stations)"
     )
@@ -343,6 +348,8 @@ def add_commands(sub: Any) -> None:
     _order_args(ex)
     ex.set_defaults(func=cmd_export)
 
+
+def _add_dispatch(sub: Any) -> None:
     dp = sub.add_parser("dispatch", help="send a plan's order to a vehicle over MQTT, follow it")
     dp.add_argument("plan")
     dp.add_argument("--broker", required=True, help="mqtt://HOST:PORT")
@@ -361,6 +368,8 @@ def add_commands(sub: Any) -> None:
     _order_args(dp)
     dp.set_defaults(func=cmd_dispatch)
 
+
+def _add_sim_vehicle(sub: Any) -> None:
     sv = sub.add_parser("sim-vehicle", help="a simulated VDA 5050 vehicle for a scene")
     sv.add_argument("--broker", required=True, help="mqtt://HOST:PORT")
     sv.add_argument("--scene", required=True, help="scene JSON file")
@@ -377,6 +386,8 @@ def add_commands(sub: Any) -> None:
     _vehicle_args(sv)
     sv.set_defaults(func=cmd_sim_vehicle)
 
+
+def _add_execute_sim(sub: Any) -> None:
     es = sub.add_parser("execute-sim", help="run a plan N times on a simulated vehicle")
     es.add_argument("plan")
     es.add_argument("--scene", required=True, help="the plan's scene file")

@@ -132,7 +132,8 @@ def _p(x: float | None) -> str:
     return "-" if x is None else f"{x:.1%}"
 
 
-def add_commands(sub: Any) -> None:
+def add_parser(sub: Any) -> None:
+    """Add the errors command (``errors fit``) to ``sub``."""
     er = sub.add_parser("errors", help="positioning error models learned from arrival logs")
     esub = er.add_subparsers(dest="errors_command", required=True)
     f = esub.add_parser("fit", help="fit per-station error models to an arrival log")
