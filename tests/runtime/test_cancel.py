@@ -12,12 +12,12 @@ from pickstop.runtime.cancel import (
     NEVER,
     Cancelled,
     Token,
+    Work,
     checkpoint,
     current,
     giving_way,
     scope,
 )
-from pickstop.runtime.work import Work
 
 
 def test_a_token_is_cancelled_once_with_its_first_reason():

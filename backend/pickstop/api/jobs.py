@@ -5,7 +5,7 @@ state survives a restart: a job cut off by one is marked interrupted when the ne
 starts. One process of a worker pool runs the jobs; it takes those other processes queued from
 the records, and a cancel that reaches another process is passed on through the job's record.
 Every job has a deadline (``job_deadline``); a job runs as the computation of a
-:class:`~pickstop.runtime.work.Work`, whose token (:mod:`pickstop.runtime.cancel`) a cancel,
+:class:`~pickstop.runtime.cancel.Work`, whose token (:mod:`pickstop.runtime.cancel`) a cancel,
 the deadline or the runner's close cancels, with that reason: the job stops at its next
 checkpoint, or where it is. A build runs in a process group of its own
 (:mod:`pickstop.runtime.build_process`), ended with the job and with the runner; a cancelled
@@ -25,8 +25,7 @@ from typing import Any
 from pickstop.api.registry import RobotRegistry
 from pickstop.errors import InputError, PickStopError
 from pickstop.runtime.build_process import BuildProcess, error_of
-from pickstop.runtime.cancel import Cancelled, Token, checkpoint
-from pickstop.runtime.work import Work
+from pickstop.runtime.cancel import Cancelled, Token, Work, checkpoint
 from pickstop.settings import Settings
 from pickstop.store.records import ServiceStore
 

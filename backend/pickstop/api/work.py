@@ -2,7 +2,7 @@
 leaves.
 
 The event loop never computes: it hands the work to a planner thread (a
-:class:`~pickstop.runtime.work.Work`) and waits, watching the deadline and the client. When
+:class:`~pickstop.runtime.cancel.Work`) and waits, watching the deadline and the client. When
 either runs out, the work's token is cancelled (:mod:`pickstop.runtime.cancel`) and the request
 answered 504 or 503.
 """
@@ -18,8 +18,7 @@ from typing import Any, TypeVar
 from starlette.requests import Request
 
 from pickstop.api.problems import Problem
-from pickstop.runtime.cancel import Cancelled
-from pickstop.runtime.work import Work
+from pickstop.runtime.cancel import Cancelled, Work
 
 T = TypeVar("T")
 

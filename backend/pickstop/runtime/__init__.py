@@ -1,8 +1,8 @@
 """How PickStop runs: one cancellation token per computation, the plan-ahead policy, and every
 process it starts.
 
-- :mod:`~pickstop.runtime.cancel`: the token and its checkpoints (the core takes only this).
-- :mod:`~pickstop.runtime.work`: a computation on a thread, stopped by its token.
+- :mod:`~pickstop.runtime.cancel`: the token, its checkpoints and ``Work``, a computation on a
+  thread stopped by its token (the core takes only this module).
 - :mod:`~pickstop.runtime.plan_ahead`: when the planner works ahead of the requests.
 - :mod:`~pickstop.runtime.planner_process`: the service's planner in a child process.
 - :mod:`~pickstop.runtime.region_processes`: region helpers forked from a planner.

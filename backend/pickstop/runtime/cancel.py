@@ -9,10 +9,13 @@ region, its refinement rounds and its waves of growth, between the steps of a pl
 the scenes of a batch, the orders of a mix and the progress reports of a build. There, a
 cancelled token raises :class:`Cancelled`.
 
-A token is also delivered where no checkpoint comes soon: :class:`~pickstop.runtime.work.Work`
-raises :class:`Cancelled` inside its thread when its token is cancelled, at the thread's next
-bytecode (after a long native call, a solver run, returns), and a region helper reads its
-token from memory shared with the planner. The token's ``reason`` says why (``"cancelled"``,
+A token is also delivered where no checkpoint comes soon: :class:`Work` runs a function on a
+thread as its token's computation and raises :class:`Cancelled` inside that thread when the
+token is cancelled (``PyThreadState_SetAsyncExc``), at the thread's next bytecode: after a long
+native call (a solver run, whose own time limit bounds it) returns. The exception unwinds the
+planner's ``with lock:`` blocks like any other error, so its locks are released and the next
+request is served at once. A region helper reads its token from memory shared with the
+planner. The token's ``reason`` says why (``"cancelled"``,
 ``"deadline"``, ``"closing"``, ``"give way"``), so the one who catches :class:`Cancelled`
 records the right outcome.
 
@@ -24,8 +27,12 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import ctypes
 import threading
 from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 
 class Cancelled(BaseException):
@@ -126,3 +133,42 @@ def giving_way(give_way: Callable[[], bool]) -> Iterator[Token]:
 def checkpoint() -> None:
     """Raise :class:`Cancelled` if the computation running in this thread is to stop."""
     _current.get().check()
+
+
+class Work:
+    """One computation on a worker thread, stoppable from another thread."""
+
+    def __init__(self) -> None:
+        self.token = Token()
+        self._lock = threading.Lock()
+        self._thread: int | None = None
+        self.token.on_cancel(self._interrupt)
+
+    def run(self, fn: Callable[..., T], *args: Any) -> T:
+        """``fn(*args)`` in this thread as the token's computation (:class:`Cancelled` at
+        once if it was stopped before it began)."""
+        with self._lock:
+            self.token.check()
+            self._thread = threading.get_ident()
+        try:
+            with scope(self.token):
+                return fn(*args)
+        finally:
+            with self._lock:
+                self._thread = None
+
+    def stop(self, reason: str = "cancelled") -> None:
+        """Stop the computation (idempotent: the first reason stays; a no-op once it has
+        finished)."""
+        self.token.cancel(reason)
+
+    def _interrupt(self) -> None:
+        with self._lock:
+            if self._thread is not None:
+                ctypes.pythonapi.PyThreadState_SetAsyncExc(
+                    ctypes.c_ulong(self._thread), ctypes.py_object(Cancelled)
+                )
+
+    @property
+    def stopped(self) -> bool:
+        return self.token.cancelled

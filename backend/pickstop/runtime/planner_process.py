@@ -13,7 +13,7 @@ API share its pages instead of holding two copies.
 Calls block the calling thread (one of the service's planner threads) and wait in short
 polls, checking the thread's token (:mod:`pickstop.runtime.cancel`), so a deadline or a
 disconnect reaches it within a poll; the call then tells the child, which stops the
-computation the same way (:class:`~pickstop.runtime.work.Work`), and waits for its word before
+computation the same way (:class:`~pickstop.runtime.cancel.Work`), and waits for its word before
 returning, so the next request is served at once. The child computes one request at a time,
 in order of arrival, as one planner lock did before. If the child dies, the calls waiting on
 it fail with a clear error and the next call starts a new child.
@@ -37,8 +37,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from pickstop.errors import UnavailableError, dump_error, load_error
-from pickstop.runtime.cancel import Cancelled, checkpoint
-from pickstop.runtime.work import Work
+from pickstop.runtime.cancel import Cancelled, Work, checkpoint
 from pickstop.settings import Settings
 
 log = logging.getLogger("pickstop.api")
