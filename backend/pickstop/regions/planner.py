@@ -18,7 +18,6 @@ from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import compute_tray_region
 from pickstop.regions.processes import RegionProcesses
-from pickstop.regions.solve import warm_kernels
 from pickstop.regions.validity import (
     CacheEntry,
     Snapshot,
@@ -27,6 +26,7 @@ from pickstop.regions.validity import (
     snapshots,
     still_valid,
 )
+from pickstop.regions.warmup import warm_kernels
 from pickstop.scene.model import Scene
 
 LAYOUTS = 8  # the regions of this many layouts kept whole
