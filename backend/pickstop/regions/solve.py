@@ -17,7 +17,7 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -185,7 +185,7 @@ def _solve_cells(
     M, dof = len(cen), kit.solver.chain.dof
     memo, keys = tg.memo, tg.cell_keys
     if memo is None or keys is None or world.around is None:
-        return _rounds(kit, world, tg, cen, *_gather(kit.db, tg, vicinity), rounds)[:3]
+        return _rounds(kit, world, tg, cen, _gather(kit.db, tg, vicinity), rounds)[:3]
     tag, part = ("vicinity" if vicinity else "db"), tg.grasps.part_id
 
     def checked(answers: CellAnswers, ids: np.ndarray) -> CheckedConfigs:
@@ -219,7 +219,7 @@ def _solve_cells(
     if len(todo):
         sub = tg.take(todo)
         f, th, g, screened, refined = _rounds(
-            kit, world, sub, cen[todo], *_gather(kit.db, sub, vicinity), rounds
+            kit, world, sub, cen[todo], _gather(kit.db, sub, vicinity), rounds
         )
         found[todo], th_out[todo], g_out[todo] = f, th, g
         memo.remember(
@@ -285,14 +285,20 @@ def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
     return near[key[:, 0], key[:, 1]]
 
 
-def _gather(
-    db: ReachDatabase, tg: Targets, vicinity: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Candidates of the targets, sorted by cell then score.
+@dataclass(frozen=True)
+class Candidates:
+    """The database's candidates of M cells' targets, sorted by cell then score."""
 
-    Returns rows, cell, grasp, target (cell * G + grasp), rank within the cell and the target
-    positions ``(M * G, 3)``.
-    """
+    rows: np.ndarray  # (R,) database rows
+    cell: np.ndarray  # (R,) the cell of each (index into the targets' cells)
+    grasp: np.ndarray  # (R,) its grasp
+    target: np.ndarray  # (R,) cell * G + grasp
+    rank: np.ndarray  # (R,) rank within its cell
+    ps: np.ndarray  # (M * G, 3) the target positions [m]
+
+
+def _gather(db: ReachDatabase, tg: Targets, vicinity: bool) -> Candidates:
+    """Candidates of the targets: their own voxels' or (``vicinity``) the 27 around them."""
     M, G = tg.ps_base_tool.shape[:2]
     ps, qs = tg.ps_base_tool.reshape(-1, 3), np.tile(tg.qs_base_tool, (M, 1))
     if vicinity:
@@ -315,7 +321,50 @@ def _gather(
     rows, cell, g, target = rows[order], cell[order], g[order], target[order]
     first = np.searchsorted(cell, np.arange(M))
     rank = np.arange(len(cell)) - first[cell]
-    return rows, cell, g, target, rank, ps
+    return Candidates(rows, cell, g, target, rank, ps)
+
+
+@dataclass(frozen=True)
+class _Search:
+    """Where :func:`_rounds` stands over M cells and R candidates (changed in place): each
+    candidate's state, how far each cell's candidates were screened, the answers so far, and
+    what was checked against the scene (per screen and refinement, the cells and the rows or
+    joint values)."""
+
+    state: np.ndarray  # (R,) int8: 0 unscreened, 1 free untried, 2 done, 3 flagged
+    screened: np.ndarray  # (M,) candidates screened per cell (by rank)
+    found: np.ndarray  # (M,) bool
+    thetas: np.ndarray  # (M, dof) witnesses
+    grasps: np.ndarray  # (M,) grasp indices
+    s_cells: list[np.ndarray] = field(default_factory=list)
+    s_rows: list[np.ndarray] = field(default_factory=list)
+    r_cells: list[np.ndarray] = field(default_factory=list)
+    r_ths: list[np.ndarray] = field(default_factory=list)
+
+    @classmethod
+    def start(cls, M: int, R: int, dof: int) -> _Search:
+        return cls(
+            np.zeros(R, np.int8),
+            np.zeros(M, np.int64),
+            np.zeros(M, bool),
+            np.zeros((M, dof)),
+            np.zeros(M, int),
+        )
+
+    def checked(
+        self, dof: int
+    ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """The database rows screened ``(cells, rows)`` and the refined joint values verified
+        ``(cells, thetas)``."""
+        rows = (
+            np.concatenate([np.zeros(0, int), *self.s_cells]),
+            np.concatenate([np.zeros(0, int), *self.s_rows]),
+        )
+        refined = (
+            np.concatenate([np.zeros(0, int), *self.r_cells]),
+            np.concatenate([np.zeros((0, dof)), *self.r_ths]),
+        )
+        return rows, refined
 
 
 def _rounds(
@@ -323,12 +372,7 @@ def _rounds(
     world: ArmWorld,
     tg: Targets,
     cen: np.ndarray,
-    rows: np.ndarray,
-    cell: np.ndarray,
-    g: np.ndarray,
-    target: np.ndarray,
-    rank: np.ndarray,
-    ps: np.ndarray,
+    cands: Candidates,
     rounds: int,
 ) -> tuple[
     np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]
@@ -339,104 +383,109 @@ def _rounds(
     Returns found ``(M,)``, witnesses ``(M, dof)``, grasps ``(M,)`` and what was checked
     against the scene: the database rows screened ``(cells, rows)`` and the refined joint
     values verified ``(cells, thetas)``."""
-    db, solver = kit.db, kit.solver
-    M = len(cen)
-    s_cells: list[np.ndarray] = []
-    s_rows: list[np.ndarray] = []
-    r_cells: list[np.ndarray] = []
-    r_ths: list[np.ndarray] = []
-    state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done, 3 flagged
-    screened = np.zeros(M, np.int64)
-    per_cell = np.bincount(cell, minlength=M)
-    found = np.zeros(M, bool)
-    th_out = np.zeros((M, solver.chain.dof))
-    g_out = np.zeros(M, int)
+    M, dof = len(cen), kit.solver.chain.dof
+    search = _Search.start(M, len(cands.rows), dof)
+    per_cell = np.bincount(cands.cell, minlength=M)
     for attempt in range(rounds):
         kit.checkpoint()
-        open_cells = np.flatnonzero(~found & (screened < per_cell))
-        pending = ~found[cell] & (state == 1)
-        ready = np.zeros(M, bool)
-        ready[cell[pending]] = True
-        need = open_cells[~ready[open_cells]]
-        if len(need):
-            sel = np.flatnonzero(
-                np.isin(cell, need) & (rank >= screened[cell]) & (rank < screened[cell] + WINDOW)
-            )
-            screened[need] += WINDOW
-            if len(sel):
-                th = db.thetas(rows[sel])
-                _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
-                s_cells.append(cell[sel])
-                s_rows.append(rows[sel])
-                hit = screen_arm(
-                    kit.arm,
-                    world.boxes,
-                    frames,
-                    cen[cell[sel]],
-                    world.yaw,
-                    world.env,
-                    tg.grasps.part_id,
-                    world.floor,
-                )
-                state[sel] = np.where(hit, 3, 1)
-        # Screen-free candidates first; a cell whose screened candidates are all flagged tries
-        # its best flagged ones (exactly checked by verify).
-        free = (state == 1) & ~found[cell]
-        has_free = np.zeros(M, bool)
-        has_free[cell[free]] = True
-        cand = np.flatnonzero(free | ((state == 3) & ~found[cell] & ~has_free[cell]))
-        if len(cand) == 0:
+        _screen_window(kit, world, tg, cen, cands, per_cell, search)
+        e = _to_refine(cands.cell, search, attempt)
+        if len(e) == 0:
             continue
-        # The best untried free candidates per cell (entries are sorted by cell then score):
-        # one in the first round, then more at once, so few rounds settle the hard cells.
-        width = min(1 << attempt, 4)
-        _, first, count = np.unique(cell[cand], return_index=True, return_counts=True)
-        pos = np.arange(len(cand)) - np.repeat(first, count)
-        e = cand[pos < width]
-        state[e] = 2
-        thetas, success = tg.refine(
-            solver,
-            "db",
-            cell[e],
-            g[e],
-            rows[e].tolist(),
-            db.thetas(rows[e]),
-            tg.Rs_base_tool[g[e]],
-            ps[target[e]],
-            REFINE_ITERATIONS,
-            REFINE_GIVE_UP,
-        )
-        ok = np.flatnonzero(success)
-        if len(ok) == 0:
-            continue
-        r_cells.append(cell[e[ok]])
-        r_ths.append(thetas[ok])
-        memo = (
-            None
-            if tg.memo is None or tg.cell_keys is None
-            else (tg.memo, tg.cell_keys[cell[e[ok]]])
-        )
-        good = verify(
-            kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id,
-            cell_keys=memo,
-        )  # fmt: skip
-        acc, ths = e[ok[good]], thetas[ok[good]]
-        # Several may succeed for a cell: keep its best-ranked (first) one.
-        _, keep = np.unique(cell[acc], return_index=True)
-        acc, ths = acc[keep], ths[keep]
-        found[cell[acc]] = True
-        th_out[cell[acc]] = ths
-        g_out[cell[acc]] = g[acc]
-    dof = solver.chain.dof
-    checked_rows = (
-        np.concatenate([np.zeros(0, int), *s_cells]),
-        np.concatenate([np.zeros(0, int), *s_rows]),
+        search.state[e] = 2
+        _refine_and_verify(kit, world, tg, cen, cands, e, search)
+    return search.found, search.thetas, search.grasps, *search.checked(dof)
+
+
+def _screen_window(
+    kit: RegionKit,
+    world: ArmWorld,
+    tg: Targets,
+    cen: np.ndarray,
+    cands: Candidates,
+    per_cell: np.ndarray,
+    search: _Search,
+) -> None:
+    """Screen the next :data:`WINDOW` candidates (by rank) of each open cell with no
+    screen-free candidate left to try, against the scene with the spheres; ``per_cell``:
+    ``(M,)`` each cell's candidates."""
+    cell, rank = cands.cell, cands.rank
+    found, state, screened = search.found, search.state, search.screened
+    open_cells = np.flatnonzero(~found & (screened < per_cell))
+    pending = ~found[cell] & (state == 1)
+    ready = np.zeros(len(found), bool)
+    ready[cell[pending]] = True
+    need = open_cells[~ready[open_cells]]
+    if not len(need):
+        return
+    sel = np.flatnonzero(
+        np.isin(cell, need) & (rank >= screened[cell]) & (rank < screened[cell] + WINDOW)
     )
-    checked_refined = (
-        np.concatenate([np.zeros(0, int), *r_cells]),
-        np.concatenate([np.zeros((0, dof)), *r_ths]),
+    screened[need] += WINDOW
+    if not len(sel):
+        return
+    th = kit.db.thetas(cands.rows[sel])
+    _, _, frames = fk_soa(kit.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    search.s_cells.append(cell[sel])
+    search.s_rows.append(cands.rows[sel])
+    hit = screen_arm(
+        kit.arm, world.boxes, frames, cen[cell[sel]], world.yaw, world.env, tg.grasps.part_id,
+        world.floor,
+    )  # fmt: skip
+    state[sel] = np.where(hit, 3, 1)
+
+
+def _to_refine(cell: np.ndarray, search: _Search, attempt: int) -> np.ndarray:
+    """The candidates to refine in round ``attempt`` (indices, by cell then score).
+
+    Screen-free candidates first; a cell whose screened candidates are all flagged tries its
+    best flagged ones (exactly checked by verify). The best untried per cell: one in the
+    first round, then more at once, so few rounds settle the hard cells."""
+    found, state = search.found, search.state
+    free = (state == 1) & ~found[cell]
+    has_free = np.zeros(len(found), bool)
+    has_free[cell[free]] = True
+    cand = np.flatnonzero(free | ((state == 3) & ~found[cell] & ~has_free[cell]))
+    if len(cand) == 0:
+        return cand
+    width = min(1 << attempt, 4)
+    _, first, count = np.unique(cell[cand], return_index=True, return_counts=True)
+    pos = np.arange(len(cand)) - np.repeat(first, count)
+    return cand[pos < width]
+
+
+def _refine_and_verify(
+    kit: RegionKit,
+    world: ArmWorld,
+    tg: Targets,
+    cen: np.ndarray,
+    cands: Candidates,
+    e: np.ndarray,
+    search: _Search,
+) -> None:
+    """Refine candidates ``e`` (indices) to exact IK solutions, verify those that converge,
+    and take each cell's best-ranked verified one as its witness."""
+    cell, g, rows = cands.cell, cands.grasp, cands.rows
+    thetas, success = tg.refine(
+        kit.solver, "db", cell[e], g[e], rows[e].tolist(), kit.db.thetas(rows[e]),
+        tg.Rs_base_tool[g[e]], cands.ps[cands.target[e]], REFINE_ITERATIONS, REFINE_GIVE_UP,
+    )  # fmt: skip
+    ok = np.flatnonzero(success)
+    if len(ok) == 0:
+        return
+    search.r_cells.append(cell[e[ok]])
+    search.r_ths.append(thetas[ok])
+    memo = None if tg.memo is None or tg.cell_keys is None else (tg.memo, tg.cell_keys[cell[e[ok]]])
+    good = verify(
+        kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id, cell_keys=memo
     )
-    return found, th_out, g_out, checked_rows, checked_refined
+    acc, ths = e[ok[good]], thetas[ok[good]]
+    # Several may succeed for a cell: keep its best-ranked (first) one.
+    _, keep = np.unique(cell[acc], return_index=True)
+    acc, ths = acc[keep], ths[keep]
+    search.found[cell[acc]] = True
+    search.thetas[cell[acc]] = ths
+    search.grasps[cell[acc]] = g[acc]
 
 
 def verify(
