@@ -18,6 +18,7 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -510,31 +511,17 @@ def verify(
     a check remembered there is taken where the surroundings near its links are as they
     were, and new ones are kept.
     """
-    p = kit
-    B = len(thetas)
-    env_hit = np.zeros(B, bool)
-    self_hit = np.zeros(B, bool)
-    for s in range(0, B, VERIFY_CHUNK):
-        sl = slice(s, s + VERIFY_CHUNK)
-        th = np.ascontiguousarray(thetas[sl].T)
-        _, _, frames = fk_soa(p.solver.chain, th, frames=True)
-        tg = targets if targets is None or isinstance(targets, str) else targets[sl]
-        env_hit[sl] = screen_arm(
-            p.arm, world.boxes, frames, base_xy[sl], world.yaw, world.env, tg, world.floor
-        )
-        self_hit[sl] = screen_self(p.self_spheres, frames)
+    env_hit, self_hit = _screens(kit, world, thetas, base_xy, targets)
     flagged = env_hit | self_hit
     good = ~flagged
     done = set() if owner is None else set(owner[good].tolist())
     rows = np.flatnonzero(flagged)
-
-    def target_of(j: int) -> str | None:
-        return targets if targets is None or isinstance(targets, str) else str(targets[j])
-
     env_rows = rows[env_hit[rows]]
-    checks = KnownChecks.of(p, world, thetas, base_xy, env_rows, target_of, cell_keys)
+    checks = KnownChecks.of(
+        kit, world, thetas, base_xy, env_rows, partial(_target_of, targets), cell_keys
+    )
     env_targets = targets if targets is None or isinstance(targets, str) else targets[env_rows]
-    arm_checks = p.exact_arm.checks(
+    arm_checks = kit.exact_arm.checks(
         thetas[env_rows], base_xy[env_rows], world.yaw, world.solids, env_targets, world.floor,
         world.boxes,
     )  # fmt: skip
@@ -545,7 +532,7 @@ def verify(
             continue
         if counts is not None:
             counts["exact_checks"] = counts.get("exact_checks", 0) + 1
-        bad = bool(self_hit[j] and p.exact_self.colliding(thetas[j][None])[0])
+        bad = bool(self_hit[j] and kit.exact_self.colliding(thetas[j][None])[0])
         if not bad and env_hit[j]:
             bad = checks.known.get(j)  # type: ignore[assignment]
             if bad is None:
@@ -556,6 +543,35 @@ def verify(
             done.add(o)
     checks.flush()
     return good
+
+
+def _screens(
+    kit: RegionKit,
+    world: ArmWorld,
+    thetas: np.ndarray,
+    base_xy: np.ndarray,
+    targets: np.ndarray | str | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`verify`'s sphere screens, :data:`VERIFY_CHUNK` rows at a time: ``(B,)`` flagged
+    against the scene and the floor, ``(B,)`` flagged against itself."""
+    B = len(thetas)
+    env_hit = np.zeros(B, bool)
+    self_hit = np.zeros(B, bool)
+    for s in range(0, B, VERIFY_CHUNK):
+        sl = slice(s, s + VERIFY_CHUNK)
+        th = np.ascontiguousarray(thetas[sl].T)
+        _, _, frames = fk_soa(kit.solver.chain, th, frames=True)
+        tg = targets if targets is None or isinstance(targets, str) else targets[sl]
+        env_hit[sl] = screen_arm(
+            kit.arm, world.boxes, frames, base_xy[sl], world.yaw, world.env, tg, world.floor
+        )
+        self_hit[sl] = screen_self(kit.self_spheres, frames)
+    return env_hit, self_hit
+
+
+def _target_of(targets: np.ndarray | str | None, j: int) -> str | None:
+    """The part row ``j`` grasps (``targets``: one for all, or per row)."""
+    return targets if targets is None or isinstance(targets, str) else str(targets[j])
 
 
 def seeded(
