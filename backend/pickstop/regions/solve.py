@@ -618,25 +618,121 @@ def seeded(
     return win, thetas
 
 
-def _grown_before(
+_NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 1], [-1, -1]])
+
+
+def grow(
     kit: RegionKit,
     world: ArmWorld,
     targets: list[Targets],
     cen: np.ndarray,
-    open_: np.ndarray,
-    got: np.ndarray,
-    th_new: np.ndarray,
-    g_new: np.ndarray,
+    ij: np.ndarray,
+    found: np.ndarray,
+    thetas: np.ndarray,
+    grasp: np.ndarray,
+) -> int:
+    """Grow the solved cells into their open neighbours, in place; returns how many were added.
+
+    ``cen: (M, 2)`` base positions [m] of grid cells ``ij: (M, 2)`` (iy, ix); ``found: (M,)``,
+    ``thetas: (M, P, dof)`` and ``grasp: (M, P)`` hold the solved cells. An open cell next to
+    a solved one is refined, every part at once, from the solved neighbours' witnesses
+    (4-neighbours first); it joins when every part verifies. Each wave retries only cells
+    next to cells the previous wave added.
+    """
+    if not found.any():
+        return 0
+    nb = _neighbour_rows(ij)
+    fresh = found.copy()
+    added = 0
+    for _ in range(GROW_WAVES):
+        kit.checkpoint()
+        wave = _Wave.next(nb, found, fresh, thetas, grasp)
+        if wave is None:
+            break
+        _grown_before(kit, world, targets, cen, wave)
+        # The neighbours' own grasps first; then, where a part is still open, every other
+        # grasp from the same seeds: a witness for one grasp often reaches another here (the
+        # wrist turns) where its own grasp runs into a joint limit.
+        for other in (False, True):
+            _seed_from_neighbours(kit, world, targets, cen, wave, other)
+        new = _join(targets, wave, found, thetas, grasp)
+        fresh = np.zeros_like(found)
+        fresh[new] = True
+        added += len(new)
+    return added
+
+
+def _neighbour_rows(ij: np.ndarray) -> np.ndarray:
+    """``(M, 8)`` the row of each of the 8 neighbours of grid cells ``ij: (M, 2)`` (iy, ix)
+    among them, -1 where it is not one of them (4-neighbours first)."""
+    lo = ij.min(0)
+    shape = ij.max(0) - lo + 3
+    index = np.full(tuple(shape), -1)
+    index[ij[:, 0] - lo[0] + 1, ij[:, 1] - lo[1] + 1] = np.arange(len(ij))
+    return index[
+        ij[:, None, 0] - lo[0] + 1 + _NEIGHBOURS[None, :, 0],
+        ij[:, None, 1] - lo[1] + 1 + _NEIGHBOURS[None, :, 1],
+    ]
+
+
+@dataclass(frozen=True)
+class _Wave:
+    """One wave of :func:`grow`: the O open cells next to cells the last wave added, the S
+    seeding pairs (an open cell and one of its first :data:`GROW_SEEDS` solved neighbours,
+    whose witnesses seed it), and what is solved of each open cell's P parts so far (changed
+    in place)."""
+
+    open_: np.ndarray  # (O,) rows of the open cells
+    o_loc: np.ndarray  # (S,) each pair's open cell (index into open_)
+    seed_th: np.ndarray  # (S, P, dof) each pair's neighbour's witnesses
+    seed_g: np.ndarray  # (S, P) and their grasps
+    got: np.ndarray  # (O, P) bool: the part is solved
+    th_new: np.ndarray  # (O, P, dof) its witness
+    g_new: np.ndarray  # (O, P) its grasp
+
+    @classmethod
+    def next(
+        cls,
+        nb: np.ndarray,
+        found: np.ndarray,
+        fresh: np.ndarray,
+        thetas: np.ndarray,
+        grasp: np.ndarray,
+    ) -> _Wave | None:
+        """The wave after the one that added ``fresh: (M,)`` (None: no open cell is next to
+        them); ``nb: (M, 8)`` the neighbours' rows, ``thetas: (M, P, dof)`` and
+        ``grasp: (M, P)`` the solved cells' witnesses."""
+        has_fresh = ((nb >= 0) & fresh[np.maximum(nb, 0)]).any(1)
+        open_ = np.flatnonzero(~found & has_fresh)
+        if not len(open_):
+            return None
+        sol = (nb[open_] >= 0) & found[np.maximum(nb[open_], 0)]  # (O, 8) solved neighbours
+        o_loc, k = np.nonzero(sol & (np.cumsum(sol, 1) <= GROW_SEEDS))
+        src = nb[open_[o_loc], k]  # the seeding neighbour of each pair
+        n_open, P, dof = len(open_), *thetas.shape[1:]
+        return cls(
+            open_,
+            o_loc,
+            thetas[src],
+            grasp[src],
+            np.zeros((n_open, P), bool),
+            np.zeros((n_open, P, dof)),
+            np.zeros((n_open, P), int),
+        )
+
+
+def _grown_before(
+    kit: RegionKit, world: ArmWorld, targets: list[Targets], cen: np.ndarray, wave: _Wave
 ) -> None:
-    """For :func:`grow`'s open cells ``open_`` (indices into ``cen``), in place: each part of
-    a cell grown before (at this offset from the tray, with the tray elsewhere or other things
-    around it) whose witness then still reaches its grasp's target and verifies here now is
-    solved with it (``got``, ``th_new``, ``g_new``: ``(O, P)`` rows of ``open_``), before any
+    """For the ``wave``'s open cells, in place: each part of a cell grown before (at this
+    offset from the tray, with the tray elsewhere or other things around it) whose witness
+    then still reaches its grasp's target and verifies here now is solved with it, before any
     seed is refined. A witness is one configuration to check where the seeds are many to
     refine, and the seeds themselves differ wherever a neighbour's witness does."""
     memo, keys = targets[0].memo, targets[0].cell_keys
     if memo is None or keys is None or not memo.grown:
         return
+    open_ = wave.open_
     rows, seeds, grasps, Rs, ps, parts = [], [], [], [], [], []
     for j, tg in enumerate(targets):
         for i, k in enumerate(keys[open_].tolist()):
@@ -668,132 +764,116 @@ def _grown_before(
     ]
     o, p = np.divmod(np.array(rows)[good], len(targets))
     memo.regrown += len(good)
-    got[o, p] = True
-    th_new[o, p] = th[good]
-    g_new[o, p] = np.array(grasps)[good]
+    wave.got[o, p] = True
+    wave.th_new[o, p] = th[good]
+    wave.g_new[o, p] = np.array(grasps)[good]
 
 
-_NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 1], [-1, -1]])
-
-
-def grow(
+def _seed_from_neighbours(
     kit: RegionKit,
     world: ArmWorld,
     targets: list[Targets],
     cen: np.ndarray,
-    ij: np.ndarray,
+    wave: _Wave,
+    other: bool,
+) -> None:
+    """Refine the ``wave``'s parts still open from the seeding neighbours' witnesses towards
+    the neighbour's own grasp, or (``other``) every other grasp of the part, and verify them;
+    the first verified row of each (cell, part) solves it, in place."""
+    P = len(targets)
+    rows = _seed_rows(targets, wave, other)
+    if rows is None:
+        return
+    pair, part, g = rows
+    cell = wave.open_[wave.o_loc[pair]]
+    R_t = np.empty((len(pair), 3, 3))
+    p_t = np.empty((len(pair), 3))
+    for p in range(P):
+        m = part == p
+        R_t[m] = targets[p].Rs_base_tool[g[m]]
+        p_t[m] = targets[p].ps_base_tool[cell[m], g[m]]
+    problem = wave.o_loc[pair] * P + part
+    part_ids = np.array([tg.grasps.part_id for tg in targets], dtype=object)
+    seeds = wave.seed_th[pair, part]
+    memo = _grow_memo(targets[0], part_ids, part, cell, g, seeds)
+    win, ths = seeded(
+        kit, world, seeds, R_t, p_t, cen[cell], problem, len(wave.open_) * P, GROW_ITERATIONS,
+        GROW_GIVE_UP, part_ids[part], memo,
+    )  # fmt: skip
+    solved = np.flatnonzero(win >= 0)
+    o, p_ = np.divmod(solved, P)
+    wave.got[o, p_] = True
+    wave.th_new[o, p_] = ths[win[solved]]
+    wave.g_new[o, p_] = g[win[solved]]
+
+
+def _seed_rows(
+    targets: list[Targets], wave: _Wave, other: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The rows to refine, grouped by problem (open cell, part): the seeding pair, the part
+    and the grasp of each (None: no part is open). A pair seeds each open part with its
+    neighbour's grasp, or (``other``) every other grasp of the part."""
+    P = len(targets)
+    G = np.array([len(tg.Rs_base_tool) for tg in targets])
+    rows_pair, rows_part, rows_grasp = [], [], []
+    for p in range(P):
+        pair = np.flatnonzero(~wave.got[wave.o_loc, p])
+        shift = np.arange(1, G[p]) if other else np.zeros(1, int)
+        if not len(pair) or not len(shift):
+            continue
+        rows_pair.append(np.repeat(pair, len(shift)))
+        rows_part.append(np.full(len(pair) * len(shift), p))
+        rows_grasp.append(((wave.seed_g[pair, p][:, None] + shift) % G[p]).ravel())
+    if not rows_pair:
+        return None
+    pair, part, g = map(np.concatenate, (rows_pair, rows_part, rows_grasp))
+    order = np.argsort(wave.o_loc[pair] * P + part, kind="stable")  # rows grouped by problem
+    return pair[order], part[order], g[order]
+
+
+def _grow_memo(
+    tg: Targets,
+    part_ids: np.ndarray,
+    part: np.ndarray,
+    cell: np.ndarray,
+    g: np.ndarray,
+    seeds: np.ndarray,
+) -> tuple[RefineMemo, list[Any]] | None:
+    """The targets' memo of refinements and each row's key (None: no memo): the part, the
+    cell's key, the grasp and the seed."""
+    keys = tg.cell_keys
+    if tg.memo is None or keys is None:
+        return None
+    ck = keys[cell].tolist()
+    return (
+        tg.memo,
+        [
+            ("grow", part_ids[pp], c, gg, sd.tobytes())
+            for pp, c, gg, sd in zip(part.tolist(), ck, g.tolist(), seeds, strict=True)
+        ],
+    )
+
+
+def _join(
+    targets: list[Targets],
+    wave: _Wave,
     found: np.ndarray,
     thetas: np.ndarray,
     grasp: np.ndarray,
-) -> int:
-    """Grow the solved cells into their open neighbours, in place; returns how many were added.
-
-    ``cen: (M, 2)`` base positions [m] of grid cells ``ij: (M, 2)`` (iy, ix); ``found: (M,)``,
-    ``thetas: (M, P, dof)`` and ``grasp: (M, P)`` hold the solved cells. An open cell next to
-    a solved one is refined, every part at once, from the solved neighbours' witnesses
-    (4-neighbours first); it joins when every part verifies. Each wave retries only cells
-    next to cells the previous wave added.
-    """
-    if not found.any():
-        return 0
-    lo = ij.min(0)
-    shape = ij.max(0) - lo + 3
-    index = np.full(tuple(shape), -1)
-    index[ij[:, 0] - lo[0] + 1, ij[:, 1] - lo[1] + 1] = np.arange(len(ij))
-    nb = index[
-        ij[:, None, 0] - lo[0] + 1 + _NEIGHBOURS[None, :, 0],
-        ij[:, None, 1] - lo[1] + 1 + _NEIGHBOURS[None, :, 1],
-    ]  # (M, 8) neighbour rows or -1
-    P = len(targets)
-    G = np.array([len(tg.Rs_base_tool) for tg in targets])
-    fresh = found.copy()
-    added = 0
-    for _ in range(GROW_WAVES):
-        kit.checkpoint()
-        has_fresh = ((nb >= 0) & fresh[np.maximum(nb, 0)]).any(1)
-        open_ = np.flatnonzero(~found & has_fresh)
-        if not len(open_):
-            break
-        sol = (nb[open_] >= 0) & found[np.maximum(nb[open_], 0)]  # (O, 8) solved neighbours
-        o_loc, k = np.nonzero(sol & (np.cumsum(sol, 1) <= GROW_SEEDS))
-        src = nb[open_[o_loc], k]  # the seeding neighbour of each pair
-        n_open = len(open_)
-        got = np.zeros((n_open, P), bool)
-        th_new = np.zeros((n_open, P, thetas.shape[2]))
-        g_new = np.zeros((n_open, P), int)
-        _grown_before(kit, world, targets, cen, open_, got, th_new, g_new)
-        # The neighbours' own grasps first; then, where a part is still open, every other
-        # grasp from the same seeds: a witness for one grasp often reaches another here (the
-        # wrist turns) where its own grasp runs into a joint limit.
-        for other in (False, True):
-            rows_pair, rows_part, rows_grasp = [], [], []
-            for p in range(P):
-                pair = np.flatnonzero(~got[o_loc, p])
-                shift = np.arange(1, G[p]) if other else np.zeros(1, int)
-                if not len(pair) or not len(shift):
-                    continue
-                rows_pair.append(np.repeat(pair, len(shift)))
-                rows_part.append(np.full(len(pair) * len(shift), p))
-                rows_grasp.append(((grasp[src[pair], p][:, None] + shift) % G[p]).ravel())
-            if not rows_pair:
-                continue
-            pair, part, g = map(np.concatenate, (rows_pair, rows_part, rows_grasp))
-            order = np.argsort(o_loc[pair] * P + part, kind="stable")  # rows grouped by problem
-            pair, part, g = pair[order], part[order], g[order]
-            cell = open_[o_loc[pair]]
-            R_t = np.empty((len(pair), 3, 3))
-            p_t = np.empty((len(pair), 3))
-            for p in range(P):
-                m = part == p
-                R_t[m] = targets[p].Rs_base_tool[g[m]]
-                p_t[m] = targets[p].ps_base_tool[cell[m], g[m]]
-            problem = o_loc[pair] * P + part
-            part_ids = np.array([tg.grasps.part_id for tg in targets], dtype=object)
-            seeds = thetas[src[pair], part]
-            memo = None
-            keys = targets[0].cell_keys
-            if targets[0].memo is not None and keys is not None:
-                ck = keys[cell].tolist()
-                memo = (
-                    targets[0].memo,
-                    [
-                        ("grow", part_ids[pp], c, gg, sd.tobytes())
-                        for pp, c, gg, sd in zip(part.tolist(), ck, g.tolist(), seeds, strict=True)
-                    ],
-                )
-            win, ths = seeded(
-                kit,
-                world,
-                seeds,
-                R_t,
-                p_t,
-                cen[cell],
-                problem,
-                n_open * P,
-                GROW_ITERATIONS,
-                GROW_GIVE_UP,
-                part_ids[part],
-                memo,
-            )
-            solved = np.flatnonzero(win >= 0)
-            o, p_ = np.divmod(solved, P)
-            got[o, p_] = True
-            th_new[o, p_] = ths[win[solved]]
-            g_new[o, p_] = g[win[solved]]
-        alive = got.all(1)
-        new = open_[alive]
-        found[new] = True
-        thetas[new] = th_new[alive]
-        grasp[new] = g_new[alive]
-        grown, keys = targets[0].memo, targets[0].cell_keys
-        if grown is not None and keys is not None and len(new):
-            grown.remember_grown(
-                [tg.grasps.part_id for tg in targets], keys[new], th_new[alive], g_new[alive]
-            )
-        fresh = np.zeros_like(found)
-        fresh[new] = True
-        added += len(new)
-    return added
+) -> np.ndarray:
+    """The ``wave``'s cells solved for every part join the region (``found``, ``thetas``,
+    ``grasp``, in place) and the targets' memo; returns their rows."""
+    alive = wave.got.all(1)
+    new = wave.open_[alive]
+    found[new] = True
+    thetas[new] = wave.th_new[alive]
+    grasp[new] = wave.g_new[alive]
+    memo, keys = targets[0].memo, targets[0].cell_keys
+    if memo is not None and keys is not None and len(new):
+        memo.remember_grown(
+            [tg.grasps.part_id for tg in targets], keys[new], wave.th_new[alive], wave.g_new[alive]
+        )
+    return new
 
 
 #: Changes whenever the algorithm's answer may change (part of a cached region's key).
