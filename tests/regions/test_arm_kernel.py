@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 
 from pickstop.frames import R_z
 from pickstop.regions.arm import ArmSpheres
+from pickstop.regions.checked import CheckedConfigs, group_boxes_of
 from pickstop.regions.reuse import Change, ChangeSet
-from pickstop.regions.solve import CheckedConfigs, group_boxes_of
 from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.kinematics import FEW, Chain, fk_soa
 from pickstop.scene.world import AGREE_MARGIN

@@ -131,29 +131,14 @@ def compute_tray_region(
     )
     if failed is not None:
         return empty(no_cell_grasps(failed, tray, counts["footprint_free"]))
-    IX, IY, cen = base.ix, base.iy, base.centres
-    solved = np.zeros(len(IX), bool)
-    solved[alive] = True
     kit.checkpoint()
-    counts["grown"] = solve.grow(
-        kit, world, targets, cen, np.stack([IY, IX], 1), solved, witness, grasp_of
-    )
-    alive = np.flatnonzero(solved)
+    alive, counts["grown"] = _grown(kit, world, targets, base, alive, witness, grasp_of)
     counts["feasible"] = len(alive)
+    cells = np.stack([base.iy[alive], base.ix[alive]], 1)
     return TrayRegion.of_cells(
-        tray.id,
-        yaw,
-        grid,
-        np.stack([IY[alive], IX[alive]], 1),
-        part_ids,
-        witness[alive],
-        grasp_of[alive],
-        counts,
-        None,
-        time.perf_counter() - t0,
-        key,
-        env,
-    )
+        tray.id, yaw, grid, cells, part_ids, witness[alive], grasp_of[alive], counts, None,
+        time.perf_counter() - t0, key, env,
+    )  # fmt: skip
 
 
 def _hand_envelope(kit: RegionKit, scene: Scene, tray: Tray) -> Envelope:
@@ -222,6 +207,27 @@ def _solve_parts(
         if len(alive) == 0:
             return alive, witness, grasp_of, tg.grasps.part_id
     return alive, witness, grasp_of, None
+
+
+def _grown(
+    kit: RegionKit,
+    world: ArmWorld,
+    targets: list[Targets],
+    base: BaseCells,
+    alive: np.ndarray,
+    witness: np.ndarray,
+    grasp_of: np.ndarray,
+) -> tuple[np.ndarray, int]:
+    """The cells solved for every part (``alive``, indices into ``base``) grown into their
+    open neighbours (:func:`~pickstop.regions.solve.grow`; ``witness``, ``grasp_of`` in
+    place): (the region's cells, how many were grown)."""
+    solved = np.zeros(len(base.ix), bool)
+    solved[alive] = True
+    grown = solve.grow(
+        kit, world, targets, base.centres, np.stack([base.iy, base.ix], 1), solved, witness,
+        grasp_of,
+    )  # fmt: skip
+    return np.flatnonzero(solved), grown
 
 
 def reuse_key(

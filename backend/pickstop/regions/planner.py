@@ -17,7 +17,6 @@ from pickstop.regions.carry import LastRegions
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import compute_tray_region
-from pickstop.regions.solve import warm_kernels
 from pickstop.regions.validity import (
     CacheEntry,
     Snapshot,
@@ -26,6 +25,7 @@ from pickstop.regions.validity import (
     snapshots,
     still_valid,
 )
+from pickstop.regions.warmup import warm_kernels
 from pickstop.runtime.region_processes import RegionProcesses
 from pickstop.scene.model import Scene
 

@@ -227,6 +227,8 @@ def _region(
     t0: float,
     prune: bool = True,
 ) -> TrayRegion:
+    """The region of ``tray_id`` at ``yaw`` [rad] (None: the scene's first) by seeded IK
+    (:func:`_solve_part`) on the candidates among ``cells: (N, 2)`` (None: all)."""
     tray = scene.tray(tray_id)
     yaw = scene.base_yaw.yaws[0] if yaw is None else yaw
     grid = CellGrid.of(scene)
@@ -252,12 +254,7 @@ def _region(
         return empty(no_parts(tray))
     if cand.reason is not None:
         return empty(cand.reason)
-    idx = np.arange(len(cand.ix))
-    if cells is not None:
-        want = np.asarray(cells, dtype=int).reshape(-1, 2)
-        lin = cand.iy * grid.nx + cand.ix
-        idx = idx[np.isin(lin, want[:, 0] * grid.nx + want[:, 1])]
-        counts["requested"] = len(want)
+    idx = _requested(cand, grid, cells, counts)
     counts["evaluated"] = len(idx)
     if len(idx) == 0:
         return empty(f"none of the requested cells is a free cell within reach of {tray.id!r}")
@@ -266,19 +263,52 @@ def _region(
     if why is not None:
         return empty(why)
     st = _setup(kit, scene, tray, yaw, cand, grasps)
+    alive, witness, grasp_of, failed = _solve_parts(st, idx, rounds, seeds, max_iter, prune, counts)
+    counts.update(st.stats)
+    if failed is not None:
+        return empty(no_cell_grasps(failed, tray, len(idx)))
+    return result(alive, witness[alive], grasp_of[alive], None)
+
+
+def _requested(
+    cand: BaseCells, grid: CellGrid, cells: np.ndarray | None, counts: dict[str, int]
+) -> np.ndarray:
+    """The candidates (indices into ``cand``) among ``cells: (N, 2)`` (iy, ix), all of them
+    if None; ``counts`` gains how many were requested."""
+    idx = np.arange(len(cand.ix))
+    if cells is not None:
+        want = np.asarray(cells, dtype=int).reshape(-1, 2)
+        lin = cand.iy * grid.nx + cand.ix
+        idx = idx[np.isin(lin, want[:, 0] * grid.nx + want[:, 1])]
+        counts["requested"] = len(want)
+    return idx
+
+
+def _solve_parts(
+    st: _Setup,
+    idx: np.ndarray,
+    rounds: Sequence[int],
+    seeds: SeedFn,
+    max_iter: int,
+    prune: bool,
+    counts: dict[str, int],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, str | None]:
+    """Each part solved in turn (:func:`_solve_part`) on the candidates ``idx`` every earlier
+    part was solved on: (the candidates solved for all, witnesses ``(candidates, parts,
+    dof)``, grasp indices ``(candidates, parts)``, the part no cell serves or None).
+    ``counts`` gains the cells left per part."""
+    n, P = len(st.cand.ix), len(st.tray.parts)
     alive = idx
-    witness = np.zeros((len(cand.ix), len(part_ids), dof))
-    grasp_of = np.zeros((len(cand.ix), len(part_ids)), int)
+    witness = np.zeros((n, P, st.kit.robot.dof))
+    grasp_of = np.zeros((n, P), int)
     for k, gs in enumerate(st.grasps):
         found, th, gi = _solve_part(st, k, alive, rounds, seeds, max_iter, prune)
         alive = alive[found]
         witness[alive, k], grasp_of[alive, k] = th[found], gi[found]
         counts[f"feasible_after_{gs.part_id}"] = len(alive)
         if len(alive) == 0:
-            counts.update(st.stats)
-            return empty(no_cell_grasps(gs.part_id, tray, len(idx)))
-    counts.update(st.stats)
-    return result(alive, witness[alive], grasp_of[alive], None)
+            return alive, witness, grasp_of, gs.part_id
+    return alive, witness, grasp_of, None
 
 
 # -- the two references ------------------------------------------------------------------------

@@ -712,21 +712,8 @@ class RefineMemo:
             carry = cols.found[r] & (around != now) & live
         for k in np.unique(around[carry]).tolist():
             at = np.flatnonzero(carry & (around == k))  # into kept
-            ok[kept[at]] = True
-            new = self.newcomers(k, now)
-            if new:
-                assert free_of is not None
-                ra = r[at]
-                # Only a witness whose links' boxes meet a newcomer's bounds can touch it
-                # (the answer's box holds its links' boxes: tested first).
-                near = np.flatnonzero(
-                    self.newcomer_boxes(k, now)
-                    .hit(cols.lo[ra], cols.hi[ra], (cols.groups_lo[ra], cols.groups_hi[ra]))
-                    .any(0)
-                )
-                if len(near):
-                    i = kept[at[near]]
-                    ok[i] = free_of(i, cols.theta[ra[near]], new)
+            assert free_of is not None
+            ok[kept[at]] = self._carried(cols, r[at], kept[at], k, now, free_of)
             self.carried += int(ok[kept[at]].sum())
         rest = np.flatnonzero(~carry)
         if len(rest):
@@ -743,6 +730,32 @@ class RefineMemo:
         table.around[good] = now
         self.recalled += len(good)
         return ok, cols.take(good) if len(good) else None
+
+    def _carried(
+        self,
+        cols: CellAnswers,
+        ra: np.ndarray,
+        idx: np.ndarray,
+        old: int,
+        now: int,
+        free_of: Callable[[np.ndarray, np.ndarray, tuple[Solid, ...]], np.ndarray],
+    ) -> np.ndarray:
+        """:meth:`recall`'s found answers ``ra`` (rows of ``cols``; cells ``idx``, indices
+        into its cell keys) from the surroundings ``old``: ``(len(ra),)`` whether each
+        witness is free of the :meth:`newcomers` since."""
+        out = np.ones(len(ra), bool)
+        new = self.newcomers(old, now)
+        if new:
+            # Only a witness whose links' boxes meet a newcomer's bounds can touch it
+            # (the answer's box holds its links' boxes: tested first).
+            near = np.flatnonzero(
+                self.newcomer_boxes(old, now)
+                .hit(cols.lo[ra], cols.hi[ra], (cols.groups_lo[ra], cols.groups_hi[ra]))
+                .any(0)
+            )
+            if len(near):
+                out[near] = free_of(idx[near], cols.theta[ra[near]], new)
+        return out
 
     def remember(
         self,

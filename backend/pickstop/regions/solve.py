@@ -17,9 +17,8 @@ grows cell by cell until no neighbour can be solved. Every answer is verified th
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -28,23 +27,15 @@ from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
 from pickstop.regions.arm import screen_arm
-from pickstop.regions.arm_kernel import configs_touched, group_boxes
+from pickstop.regions.checked import CheckedConfigs, KnownChecks, cell_answers
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import (
-    SAME,
-    CellAnswers,
-    Change,
-    ChangeSet,
-    ExactCheck,
-    RefineMemo,
-    reaches,
-)
+from pickstop.regions.reuse import CellAnswers, RefineMemo, reaches
 from pickstop.robot.floor import FLOOR_CLEARANCE
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
 from pickstop.scene.grasps import GraspSet
-from pickstop.scene.world import AGREE_MARGIN, BoxArrays, Solid
+from pickstop.scene.world import BoxArrays, Solid
 
 WINDOW = 4  # candidates screened per (cell, part) at a time
 MAX_ROUNDS = 2  # refinement rounds per part (1, then 2 candidates per open cell)
@@ -195,7 +186,7 @@ def _solve_cells(
     M, dof = len(cen), kit.solver.chain.dof
     memo, keys = tg.memo, tg.cell_keys
     if memo is None or keys is None or world.around is None:
-        return _rounds(kit, world, tg, cen, *_gather(kit.db, tg, vicinity), rounds)[:3]
+        return _rounds(kit, world, tg, cen, _gather(kit.db, tg, vicinity), rounds)[:3]
     tag, part = ("vicinity" if vicinity else "db"), tg.grasps.part_id
 
     def checked(answers: CellAnswers, ids: np.ndarray) -> CheckedConfigs:
@@ -229,14 +220,14 @@ def _solve_cells(
     if len(todo):
         sub = tg.take(todo)
         f, th, g, screened, refined = _rounds(
-            kit, world, sub, cen[todo], *_gather(kit.db, sub, vicinity), rounds
+            kit, world, sub, cen[todo], _gather(kit.db, sub, vicinity), rounds
         )
         found[todo], th_out[todo], g_out[todo] = f, th, g
         memo.remember(
             tag,
             part,
             keys[todo],
-            _answers(kit, world, cen[todo], f, th, g, screened, refined),
+            cell_answers(kit, world, cen[todo], f, th, g, screened, refined),
             world.around,
         )
     return found, th_out, g_out
@@ -275,173 +266,6 @@ def free_of_newcomers(
     return ~hit
 
 
-def _answers(
-    kit: RegionKit,
-    world: ArmWorld,
-    cen: np.ndarray,
-    found: np.ndarray,
-    thetas: np.ndarray,
-    grasps: np.ndarray,
-    screened: tuple[np.ndarray, np.ndarray],
-    refined: tuple[np.ndarray, np.ndarray],
-) -> CellAnswers:
-    """The M cells' answers from :func:`_rounds` as the memo keeps them: the database rows
-    ``screened`` and the joint values ``refined`` checked for it (``(cells, rows)`` and
-    ``(cells, thetas)``) and the relative box that holds all their links."""
-    assert world.around is not None
-    M, dof = len(cen), kit.solver.chain.dof
-    xy = cen - np.asarray(world.tray_xy)
-    s_cell, s_rows = screened
-    r_cell, r_th = refined
-    th = np.concatenate([kit.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
-    cell = np.concatenate([s_cell, r_cell]).astype(np.int64)
-    g_lo, g_hi = group_boxes_of(kit, th, xy[cell], world.yaw, cell, M)
-    lo, hi = g_lo.min(axis=1), g_hi.max(axis=1)
-    rows_of = _per_cell(s_rows.astype(np.int32), s_cell, M)
-    ref_of = _per_cell(r_th.reshape(-1, dof).astype(np.float32), r_cell, M)
-    return CellAnswers(
-        found.astype(bool),
-        np.array(thetas, float),
-        np.asarray(grasps, np.int64),
-        lo,
-        hi,
-        xy,
-        g_lo,
-        g_hi,
-        rows_of,
-        ref_of,
-    )
-
-
-def _per_cell(values: np.ndarray, cell: np.ndarray, M: int) -> list[np.ndarray]:
-    """``values`` (along the first axis) of each of M cells, ``cell`` telling whose each is:
-    views of one array sorted by cell (stable: each cell's in their order)."""
-    order = np.argsort(cell, kind="stable")
-    ends = np.cumsum(np.bincount(cell, minlength=M)).tolist()
-    v = values[order]
-    return [v[s:e] for s, e in zip([0, *ends[:-1]], ends, strict=True)]
-
-
-@dataclass(frozen=True)
-class CheckedLinks:
-    """C configurations on their bases as the sphere screen sees them: per joint, a box
-    around the covering spheres of every link it carries (the hand's included), padded by
-    :data:`AGREE_MARGIN`. Whatever a screen or an exact check of the arm against the scene
-    looks at lies in the spheres."""
-
-    lo: np.ndarray  # (C * J, 3) [m]
-    hi: np.ndarray  # (C * J, 3)
-    owner: np.ndarray  # (C * J,) the id of the thing each box belongs to
-    group: np.ndarray  # (C * J,) which joint's group of spheres
-
-    @classmethod
-    def of(
-        cls, kit: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray
-    ) -> CheckedLinks:
-        """``thetas: (C, dof)`` on bases at ``xy: (C, 2)``; ``owner: (C,)`` per configuration."""
-        C, J = len(thetas), len(kit.arm.joint_groups.joints)
-        lo, hi = group_boxes_of(kit, thetas, xy, yaw, np.arange(C), C)
-        return cls(
-            lo.reshape(-1, 3), hi.reshape(-1, 3), np.repeat(owner, J), np.tile(np.arange(J), C)
-        )
-
-
-def group_boxes_of(
-    kit: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray, A: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(A, J, 3)`` twice: per owner ``a`` (``owner: (C,)`` in 0..A-1) and joint group, the box
-    that holds the group's covering spheres, padded by :data:`AGREE_MARGIN`, over every
-    configuration ``thetas: (C, dof)`` on its base ``xy: (C, 2)`` at ``yaw`` that ``a`` owns
-    (inf and -inf where it owns none), compiled
-    (:func:`~pickstop.regions.arm_kernel.group_boxes`)."""
-    chain, groups = kit.solver.chain, kit.arm.joint_groups
-    J = len(groups.joints)
-    lo, hi = np.full((A, J, 3), np.inf), np.full((A, J, 3), -np.inf)
-    if len(thetas):
-        group_boxes(
-            np.ascontiguousarray(thetas, dtype=float).reshape(len(thetas), -1),
-            np.ascontiguousarray(xy, dtype=float).reshape(-1, 2),
-            np.ascontiguousarray(owner, dtype=np.int64),
-            math.cos(yaw),
-            math.sin(yaw),
-            chain.R_parent_joint,
-            chain.p_parent_joint,
-            chain.axis_index.astype(np.int64),
-            chain.axes,
-            chain.prismatic,
-            (groups.joints - 1).astype(np.int64),
-            groups.lo,
-            groups.hi,
-            AGREE_MARGIN,
-            lo,
-            hi,
-        )
-    return lo, hi
-
-
-@dataclass(frozen=True)
-class CheckedConfigs:
-    """What some remembered things checked (:meth:`~pickstop.regions.reuse.RefineMemo.held`):
-    C configurations ``thetas: (C, dof)`` on bases ``xy: (C, 2)`` (relative to the tray [m])
-    at ``yaw``, each owned by the thing ``owner: (C,)`` (an id)."""
-
-    kit: RegionKit
-    thetas: np.ndarray
-    xy: np.ndarray
-    yaw: float
-    owner: np.ndarray
-
-    def touched_by(self, changes: list[Change], reached: list[np.ndarray]) -> np.ndarray:
-        """The ids of the owners some covering sphere of whose configurations, padded by
-        :data:`AGREE_MARGIN`, may see a change: ``changes[h]`` for the owners
-        ``reached[h]`` (ids) alone. Tested coarse to fine, compiled
-        (:func:`~pickstop.regions.arm_kernel.configs_touched`)."""
-        ids, inv = np.unique(self.owner, return_inverse=True)
-        reach = np.zeros((len(ids), len(reached)), bool)  # (A, H)
-        for h, r in enumerate(reached):
-            pos = np.minimum(np.searchsorted(ids, r), len(ids) - 1)
-            reach[pos[ids[pos] == r], h] = True
-        keep = reach[inv].any(1)
-        if not keep.any():
-            return ids[:0]
-        arm, chain = self.kit.arm, self.kit.solver.chain
-        groups = arm.joint_groups
-        touched = np.zeros(len(ids), bool)
-        cs = ChangeSet.of(changes)
-        configs_touched(
-            np.ascontiguousarray(self.thetas[keep], dtype=float),
-            np.ascontiguousarray(self.xy[keep], dtype=float),
-            inv[keep].astype(np.int64),
-            math.cos(self.yaw),
-            math.sin(self.yaw),
-            chain.R_parent_joint,
-            chain.p_parent_joint,
-            chain.axis_index.astype(np.int64),
-            chain.axes,
-            chain.prismatic,
-            (groups.joints - 1).astype(np.int64),
-            groups.lo,
-            groups.hi,
-            np.cumsum([0] + [len(k) for k in groups.links]).astype(np.int64),
-            np.concatenate(groups.links).astype(np.int64),
-            *arm.link_boxes,
-            arm.leaf_start,
-            arm.leaf_count,
-            arm.leaf_c,
-            arm.leaf_r,
-            AGREE_MARGIN,
-            cs.c_lo,
-            cs.c_hi,
-            cs.n_lo,
-            cs.n_hi,
-            cs.moved,
-            reach,
-            SAME,
-            touched,
-        )
-        return ids[touched]
-
-
 def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
     """``(M,)`` True for points within about ``dist`` [m] of a found one: in the same or a
     neighbouring bucket of a grid of ``dist`` squares (the points are one tray's cells in
@@ -462,14 +286,20 @@ def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
     return near[key[:, 0], key[:, 1]]
 
 
-def _gather(
-    db: ReachDatabase, tg: Targets, vicinity: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Candidates of the targets, sorted by cell then score.
+@dataclass(frozen=True)
+class Candidates:
+    """The database's candidates of M cells' targets, sorted by cell then score."""
 
-    Returns rows, cell, grasp, target (cell * G + grasp), rank within the cell and the target
-    positions ``(M * G, 3)``.
-    """
+    rows: np.ndarray  # (R,) database rows
+    cell: np.ndarray  # (R,) the cell of each (index into the targets' cells)
+    grasp: np.ndarray  # (R,) its grasp
+    target: np.ndarray  # (R,) cell * G + grasp
+    rank: np.ndarray  # (R,) rank within its cell
+    ps: np.ndarray  # (M * G, 3) the target positions [m]
+
+
+def _gather(db: ReachDatabase, tg: Targets, vicinity: bool) -> Candidates:
+    """Candidates of the targets: their own voxels' or (``vicinity``) the 27 around them."""
     M, G = tg.ps_base_tool.shape[:2]
     ps, qs = tg.ps_base_tool.reshape(-1, 3), np.tile(tg.qs_base_tool, (M, 1))
     if vicinity:
@@ -492,7 +322,50 @@ def _gather(
     rows, cell, g, target = rows[order], cell[order], g[order], target[order]
     first = np.searchsorted(cell, np.arange(M))
     rank = np.arange(len(cell)) - first[cell]
-    return rows, cell, g, target, rank, ps
+    return Candidates(rows, cell, g, target, rank, ps)
+
+
+@dataclass(frozen=True)
+class _Search:
+    """Where :func:`_rounds` stands over M cells and R candidates (changed in place): each
+    candidate's state, how far each cell's candidates were screened, the answers so far, and
+    what was checked against the scene (per screen and refinement, the cells and the rows or
+    joint values)."""
+
+    state: np.ndarray  # (R,) int8: 0 unscreened, 1 free untried, 2 done, 3 flagged
+    screened: np.ndarray  # (M,) candidates screened per cell (by rank)
+    found: np.ndarray  # (M,) bool
+    thetas: np.ndarray  # (M, dof) witnesses
+    grasps: np.ndarray  # (M,) grasp indices
+    s_cells: list[np.ndarray] = field(default_factory=list)
+    s_rows: list[np.ndarray] = field(default_factory=list)
+    r_cells: list[np.ndarray] = field(default_factory=list)
+    r_ths: list[np.ndarray] = field(default_factory=list)
+
+    @classmethod
+    def start(cls, M: int, R: int, dof: int) -> _Search:
+        return cls(
+            np.zeros(R, np.int8),
+            np.zeros(M, np.int64),
+            np.zeros(M, bool),
+            np.zeros((M, dof)),
+            np.zeros(M, int),
+        )
+
+    def checked(
+        self, dof: int
+    ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """The database rows screened ``(cells, rows)`` and the refined joint values verified
+        ``(cells, thetas)``."""
+        rows = (
+            np.concatenate([np.zeros(0, int), *self.s_cells]),
+            np.concatenate([np.zeros(0, int), *self.s_rows]),
+        )
+        refined = (
+            np.concatenate([np.zeros(0, int), *self.r_cells]),
+            np.concatenate([np.zeros((0, dof)), *self.r_ths]),
+        )
+        return rows, refined
 
 
 def _rounds(
@@ -500,12 +373,7 @@ def _rounds(
     world: ArmWorld,
     tg: Targets,
     cen: np.ndarray,
-    rows: np.ndarray,
-    cell: np.ndarray,
-    g: np.ndarray,
-    target: np.ndarray,
-    rank: np.ndarray,
-    ps: np.ndarray,
+    cands: Candidates,
     rounds: int,
 ) -> tuple[
     np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]
@@ -516,104 +384,109 @@ def _rounds(
     Returns found ``(M,)``, witnesses ``(M, dof)``, grasps ``(M,)`` and what was checked
     against the scene: the database rows screened ``(cells, rows)`` and the refined joint
     values verified ``(cells, thetas)``."""
-    db, solver = kit.db, kit.solver
-    M = len(cen)
-    s_cells: list[np.ndarray] = []
-    s_rows: list[np.ndarray] = []
-    r_cells: list[np.ndarray] = []
-    r_ths: list[np.ndarray] = []
-    state = np.zeros(len(rows), np.int8)  # 0 unscreened, 1 free untried, 2 done, 3 flagged
-    screened = np.zeros(M, np.int64)
-    per_cell = np.bincount(cell, minlength=M)
-    found = np.zeros(M, bool)
-    th_out = np.zeros((M, solver.chain.dof))
-    g_out = np.zeros(M, int)
+    M, dof = len(cen), kit.solver.chain.dof
+    search = _Search.start(M, len(cands.rows), dof)
+    per_cell = np.bincount(cands.cell, minlength=M)
     for attempt in range(rounds):
         kit.checkpoint()
-        open_cells = np.flatnonzero(~found & (screened < per_cell))
-        pending = ~found[cell] & (state == 1)
-        ready = np.zeros(M, bool)
-        ready[cell[pending]] = True
-        need = open_cells[~ready[open_cells]]
-        if len(need):
-            sel = np.flatnonzero(
-                np.isin(cell, need) & (rank >= screened[cell]) & (rank < screened[cell] + WINDOW)
-            )
-            screened[need] += WINDOW
-            if len(sel):
-                th = db.thetas(rows[sel])
-                _, _, frames = fk_soa(solver.chain, np.ascontiguousarray(th.T), frames=True)
-                s_cells.append(cell[sel])
-                s_rows.append(rows[sel])
-                hit = screen_arm(
-                    kit.arm,
-                    world.boxes,
-                    frames,
-                    cen[cell[sel]],
-                    world.yaw,
-                    world.env,
-                    tg.grasps.part_id,
-                    world.floor,
-                )
-                state[sel] = np.where(hit, 3, 1)
-        # Screen-free candidates first; a cell whose screened candidates are all flagged tries
-        # its best flagged ones (exactly checked by verify).
-        free = (state == 1) & ~found[cell]
-        has_free = np.zeros(M, bool)
-        has_free[cell[free]] = True
-        cand = np.flatnonzero(free | ((state == 3) & ~found[cell] & ~has_free[cell]))
-        if len(cand) == 0:
+        _screen_window(kit, world, tg, cen, cands, per_cell, search)
+        e = _to_refine(cands.cell, search, attempt)
+        if len(e) == 0:
             continue
-        # The best untried free candidates per cell (entries are sorted by cell then score):
-        # one in the first round, then more at once, so few rounds settle the hard cells.
-        width = min(1 << attempt, 4)
-        _, first, count = np.unique(cell[cand], return_index=True, return_counts=True)
-        pos = np.arange(len(cand)) - np.repeat(first, count)
-        e = cand[pos < width]
-        state[e] = 2
-        thetas, success = tg.refine(
-            solver,
-            "db",
-            cell[e],
-            g[e],
-            rows[e].tolist(),
-            db.thetas(rows[e]),
-            tg.Rs_base_tool[g[e]],
-            ps[target[e]],
-            REFINE_ITERATIONS,
-            REFINE_GIVE_UP,
-        )
-        ok = np.flatnonzero(success)
-        if len(ok) == 0:
-            continue
-        r_cells.append(cell[e[ok]])
-        r_ths.append(thetas[ok])
-        memo = (
-            None
-            if tg.memo is None or tg.cell_keys is None
-            else (tg.memo, tg.cell_keys[cell[e[ok]]])
-        )
-        good = verify(
-            kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id,
-            cell_keys=memo,
-        )  # fmt: skip
-        acc, ths = e[ok[good]], thetas[ok[good]]
-        # Several may succeed for a cell: keep its best-ranked (first) one.
-        _, keep = np.unique(cell[acc], return_index=True)
-        acc, ths = acc[keep], ths[keep]
-        found[cell[acc]] = True
-        th_out[cell[acc]] = ths
-        g_out[cell[acc]] = g[acc]
-    dof = solver.chain.dof
-    checked_rows = (
-        np.concatenate([np.zeros(0, int), *s_cells]),
-        np.concatenate([np.zeros(0, int), *s_rows]),
+        search.state[e] = 2
+        _refine_and_verify(kit, world, tg, cen, cands, e, search)
+    return search.found, search.thetas, search.grasps, *search.checked(dof)
+
+
+def _screen_window(
+    kit: RegionKit,
+    world: ArmWorld,
+    tg: Targets,
+    cen: np.ndarray,
+    cands: Candidates,
+    per_cell: np.ndarray,
+    search: _Search,
+) -> None:
+    """Screen the next :data:`WINDOW` candidates (by rank) of each open cell with no
+    screen-free candidate left to try, against the scene with the spheres; ``per_cell``:
+    ``(M,)`` each cell's candidates."""
+    cell, rank = cands.cell, cands.rank
+    found, state, screened = search.found, search.state, search.screened
+    open_cells = np.flatnonzero(~found & (screened < per_cell))
+    pending = ~found[cell] & (state == 1)
+    ready = np.zeros(len(found), bool)
+    ready[cell[pending]] = True
+    need = open_cells[~ready[open_cells]]
+    if not len(need):
+        return
+    sel = np.flatnonzero(
+        np.isin(cell, need) & (rank >= screened[cell]) & (rank < screened[cell] + WINDOW)
     )
-    checked_refined = (
-        np.concatenate([np.zeros(0, int), *r_cells]),
-        np.concatenate([np.zeros((0, dof)), *r_ths]),
+    screened[need] += WINDOW
+    if not len(sel):
+        return
+    th = kit.db.thetas(cands.rows[sel])
+    _, _, frames = fk_soa(kit.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    search.s_cells.append(cell[sel])
+    search.s_rows.append(cands.rows[sel])
+    hit = screen_arm(
+        kit.arm, world.boxes, frames, cen[cell[sel]], world.yaw, world.env, tg.grasps.part_id,
+        world.floor,
+    )  # fmt: skip
+    state[sel] = np.where(hit, 3, 1)
+
+
+def _to_refine(cell: np.ndarray, search: _Search, attempt: int) -> np.ndarray:
+    """The candidates to refine in round ``attempt`` (indices, by cell then score).
+
+    Screen-free candidates first; a cell whose screened candidates are all flagged tries its
+    best flagged ones (exactly checked by verify). The best untried per cell: one in the
+    first round, then more at once, so few rounds settle the hard cells."""
+    found, state = search.found, search.state
+    free = (state == 1) & ~found[cell]
+    has_free = np.zeros(len(found), bool)
+    has_free[cell[free]] = True
+    cand = np.flatnonzero(free | ((state == 3) & ~found[cell] & ~has_free[cell]))
+    if len(cand) == 0:
+        return cand
+    width = min(1 << attempt, 4)
+    _, first, count = np.unique(cell[cand], return_index=True, return_counts=True)
+    pos = np.arange(len(cand)) - np.repeat(first, count)
+    return cand[pos < width]
+
+
+def _refine_and_verify(
+    kit: RegionKit,
+    world: ArmWorld,
+    tg: Targets,
+    cen: np.ndarray,
+    cands: Candidates,
+    e: np.ndarray,
+    search: _Search,
+) -> None:
+    """Refine candidates ``e`` (indices) to exact IK solutions, verify those that converge,
+    and take each cell's best-ranked verified one as its witness."""
+    cell, g, rows = cands.cell, cands.grasp, cands.rows
+    thetas, success = tg.refine(
+        kit.solver, "db", cell[e], g[e], rows[e].tolist(), kit.db.thetas(rows[e]),
+        tg.Rs_base_tool[g[e]], cands.ps[cands.target[e]], REFINE_ITERATIONS, REFINE_GIVE_UP,
+    )  # fmt: skip
+    ok = np.flatnonzero(success)
+    if len(ok) == 0:
+        return
+    search.r_cells.append(cell[e[ok]])
+    search.r_ths.append(thetas[ok])
+    memo = None if tg.memo is None or tg.cell_keys is None else (tg.memo, tg.cell_keys[cell[e[ok]]])
+    good = verify(
+        kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id, cell_keys=memo
     )
-    return found, th_out, g_out, checked_rows, checked_refined
+    acc, ths = e[ok[good]], thetas[ok[good]]
+    # Several may succeed for a cell: keep its best-ranked (first) one.
+    _, keep = np.unique(cell[acc], return_index=True)
+    acc, ths = acc[keep], ths[keep]
+    search.found[cell[acc]] = True
+    search.thetas[cell[acc]] = ths
+    search.grasps[cell[acc]] = g[acc]
 
 
 def verify(
@@ -638,31 +511,17 @@ def verify(
     a check remembered there is taken where the surroundings near its links are as they
     were, and new ones are kept.
     """
-    p = kit
-    B = len(thetas)
-    env_hit = np.zeros(B, bool)
-    self_hit = np.zeros(B, bool)
-    for s in range(0, B, VERIFY_CHUNK):
-        sl = slice(s, s + VERIFY_CHUNK)
-        th = np.ascontiguousarray(thetas[sl].T)
-        _, _, frames = fk_soa(p.solver.chain, th, frames=True)
-        tg = targets if targets is None or isinstance(targets, str) else targets[sl]
-        env_hit[sl] = screen_arm(
-            p.arm, world.boxes, frames, base_xy[sl], world.yaw, world.env, tg, world.floor
-        )
-        self_hit[sl] = screen_self(p.self_spheres, frames)
+    env_hit, self_hit = _screens(kit, world, thetas, base_xy, targets)
     flagged = env_hit | self_hit
     good = ~flagged
     done = set() if owner is None else set(owner[good].tolist())
     rows = np.flatnonzero(flagged)
-
-    def target_of(j: int) -> str | None:
-        return targets if targets is None or isinstance(targets, str) else str(targets[j])
-
     env_rows = rows[env_hit[rows]]
-    checks = _ExactChecks.of(p, world, thetas, base_xy, env_rows, target_of, cell_keys)
+    checks = KnownChecks.of(
+        kit, world, thetas, base_xy, env_rows, partial(_target_of, targets), cell_keys
+    )
     env_targets = targets if targets is None or isinstance(targets, str) else targets[env_rows]
-    arm_checks = p.exact_arm.checks(
+    arm_checks = kit.exact_arm.checks(
         thetas[env_rows], base_xy[env_rows], world.yaw, world.solids, env_targets, world.floor,
         world.boxes,
     )  # fmt: skip
@@ -673,7 +532,7 @@ def verify(
             continue
         if counts is not None:
             counts["exact_checks"] = counts.get("exact_checks", 0) + 1
-        bad = bool(self_hit[j] and p.exact_self.colliding(thetas[j][None])[0])
+        bad = bool(self_hit[j] and kit.exact_self.colliding(thetas[j][None])[0])
         if not bad and env_hit[j]:
             bad = checks.known.get(j)  # type: ignore[assignment]
             if bad is None:
@@ -686,76 +545,33 @@ def verify(
     return good
 
 
-@dataclass
-class _ExactChecks:
-    """The exact arm checks of one :func:`verify` call that the targets' memo remembers
-    (``known``: row -> collided), and the keeping of new ones."""
-
-    kit: RegionKit
-    world: ArmWorld
-    thetas: np.ndarray
-    base_xy: np.ndarray
-    keys: dict[int, tuple[int, str, bytes]]
-    known: dict[int, bool]
-    memo: RefineMemo | None = None
-    pending: list[tuple[int, bool]] = field(default_factory=list)
-
-    @classmethod
-    def of(
-        cls,
-        kit: RegionKit,
-        world: ArmWorld,
-        thetas: np.ndarray,
-        base_xy: np.ndarray,
-        rows: np.ndarray,
-        target_of: Callable[[int], str | None],
-        cell_keys: tuple[RefineMemo, np.ndarray] | None,
-    ) -> _ExactChecks:
-        """Rows ``rows`` (the screen flagged them against the scene) of ``thetas``;
-        ``cell_keys``: the memo and each row's cell key (None: nothing is remembered)."""
-        out = cls(kit, world, thetas, base_xy, {}, {})
-        if cell_keys is None or world.around is None or not len(rows):
-            return out
-        memo, ck = cell_keys
-        out.memo = memo
-        out.keys = {j: (int(ck[j]), str(target_of(j)), thetas[j].tobytes()) for j in rows.tolist()}
-        order = list(out.keys)
-        xy = base_xy[order] - np.asarray(world.tray_xy)
-        dof = thetas.shape[1]
-        got = memo.remembered_checks(
-            [out.keys[j] for j in order],
-            world.around,
-            lambda rows, ids: CheckedConfigs(
-                kit, thetas[np.array(order)[rows]].reshape(-1, dof), xy[rows], world.yaw, ids
-            ),
+def _screens(
+    kit: RegionKit,
+    world: ArmWorld,
+    thetas: np.ndarray,
+    base_xy: np.ndarray,
+    targets: np.ndarray | str | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`verify`'s sphere screens, :data:`VERIFY_CHUNK` rows at a time: ``(B,)`` flagged
+    against the scene and the floor, ``(B,)`` flagged against itself."""
+    B = len(thetas)
+    env_hit = np.zeros(B, bool)
+    self_hit = np.zeros(B, bool)
+    for s in range(0, B, VERIFY_CHUNK):
+        sl = slice(s, s + VERIFY_CHUNK)
+        th = np.ascontiguousarray(thetas[sl].T)
+        _, _, frames = fk_soa(kit.solver.chain, th, frames=True)
+        tg = targets if targets is None or isinstance(targets, str) else targets[sl]
+        env_hit[sl] = screen_arm(
+            kit.arm, world.boxes, frames, base_xy[sl], world.yaw, world.env, tg, world.floor
         )
-        out.known = {j: g for j, g in zip(order, got, strict=True) if g is not None}
-        return out
+        self_hit[sl] = screen_self(kit.self_spheres, frames)
+    return env_hit, self_hit
 
-    def remember(self, j: int, colliding: bool) -> None:
-        """Row ``j`` was checked exactly (kept by :meth:`flush`)."""
-        if j in self.keys and self.memo is not None:
-            self.pending.append((j, colliding))
 
-    def flush(self) -> None:
-        """Keep the checks made since the last flush in the memo, their links' boxes
-        computed at once."""
-        memo, around = self.memo, self.world.around
-        if not self.pending or memo is None or around is None:
-            return
-        rows = np.array([j for j, _ in self.pending])
-        xy = self.base_xy[rows] - np.asarray(self.world.tray_xy)
-        links = CheckedLinks.of(self.kit, self.thetas[rows], xy, self.world.yaw, rows)
-        n = len(rows)
-        g_lo, g_hi = links.lo.reshape(n, -1, 3), links.hi.reshape(n, -1, 3)
-        for i, (j, colliding) in enumerate(self.pending):
-            memo.remember_check(
-                self.keys[j],
-                ExactCheck(
-                    colliding, around, g_lo[i].min(0), g_hi[i].max(0), xy[i], g_lo[i], g_hi[i]
-                ),
-            )
-        self.pending = []
+def _target_of(targets: np.ndarray | str | None, j: int) -> str | None:
+    """The part row ``j`` grasps (``targets``: one for all, or per row)."""
+    return targets if targets is None or isinstance(targets, str) else str(targets[j])
 
 
 def seeded(
@@ -802,25 +618,121 @@ def seeded(
     return win, thetas
 
 
-def _grown_before(
+_NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 1], [-1, -1]])
+
+
+def grow(
     kit: RegionKit,
     world: ArmWorld,
     targets: list[Targets],
     cen: np.ndarray,
-    open_: np.ndarray,
-    got: np.ndarray,
-    th_new: np.ndarray,
-    g_new: np.ndarray,
+    ij: np.ndarray,
+    found: np.ndarray,
+    thetas: np.ndarray,
+    grasp: np.ndarray,
+) -> int:
+    """Grow the solved cells into their open neighbours, in place; returns how many were added.
+
+    ``cen: (M, 2)`` base positions [m] of grid cells ``ij: (M, 2)`` (iy, ix); ``found: (M,)``,
+    ``thetas: (M, P, dof)`` and ``grasp: (M, P)`` hold the solved cells. An open cell next to
+    a solved one is refined, every part at once, from the solved neighbours' witnesses
+    (4-neighbours first); it joins when every part verifies. Each wave retries only cells
+    next to cells the previous wave added.
+    """
+    if not found.any():
+        return 0
+    nb = _neighbour_rows(ij)
+    fresh = found.copy()
+    added = 0
+    for _ in range(GROW_WAVES):
+        kit.checkpoint()
+        wave = _Wave.next(nb, found, fresh, thetas, grasp)
+        if wave is None:
+            break
+        _grown_before(kit, world, targets, cen, wave)
+        # The neighbours' own grasps first; then, where a part is still open, every other
+        # grasp from the same seeds: a witness for one grasp often reaches another here (the
+        # wrist turns) where its own grasp runs into a joint limit.
+        for other in (False, True):
+            _seed_from_neighbours(kit, world, targets, cen, wave, other)
+        new = _join(targets, wave, found, thetas, grasp)
+        fresh = np.zeros_like(found)
+        fresh[new] = True
+        added += len(new)
+    return added
+
+
+def _neighbour_rows(ij: np.ndarray) -> np.ndarray:
+    """``(M, 8)`` the row of each of the 8 neighbours of grid cells ``ij: (M, 2)`` (iy, ix)
+    among them, -1 where it is not one of them (4-neighbours first)."""
+    lo = ij.min(0)
+    shape = ij.max(0) - lo + 3
+    index = np.full(tuple(shape), -1)
+    index[ij[:, 0] - lo[0] + 1, ij[:, 1] - lo[1] + 1] = np.arange(len(ij))
+    return index[
+        ij[:, None, 0] - lo[0] + 1 + _NEIGHBOURS[None, :, 0],
+        ij[:, None, 1] - lo[1] + 1 + _NEIGHBOURS[None, :, 1],
+    ]
+
+
+@dataclass(frozen=True)
+class _Wave:
+    """One wave of :func:`grow`: the O open cells next to cells the last wave added, the S
+    seeding pairs (an open cell and one of its first :data:`GROW_SEEDS` solved neighbours,
+    whose witnesses seed it), and what is solved of each open cell's P parts so far (changed
+    in place)."""
+
+    open_: np.ndarray  # (O,) rows of the open cells
+    o_loc: np.ndarray  # (S,) each pair's open cell (index into open_)
+    seed_th: np.ndarray  # (S, P, dof) each pair's neighbour's witnesses
+    seed_g: np.ndarray  # (S, P) and their grasps
+    got: np.ndarray  # (O, P) bool: the part is solved
+    th_new: np.ndarray  # (O, P, dof) its witness
+    g_new: np.ndarray  # (O, P) its grasp
+
+    @classmethod
+    def next(
+        cls,
+        nb: np.ndarray,
+        found: np.ndarray,
+        fresh: np.ndarray,
+        thetas: np.ndarray,
+        grasp: np.ndarray,
+    ) -> _Wave | None:
+        """The wave after the one that added ``fresh: (M,)`` (None: no open cell is next to
+        them); ``nb: (M, 8)`` the neighbours' rows, ``thetas: (M, P, dof)`` and
+        ``grasp: (M, P)`` the solved cells' witnesses."""
+        has_fresh = ((nb >= 0) & fresh[np.maximum(nb, 0)]).any(1)
+        open_ = np.flatnonzero(~found & has_fresh)
+        if not len(open_):
+            return None
+        sol = (nb[open_] >= 0) & found[np.maximum(nb[open_], 0)]  # (O, 8) solved neighbours
+        o_loc, k = np.nonzero(sol & (np.cumsum(sol, 1) <= GROW_SEEDS))
+        src = nb[open_[o_loc], k]  # the seeding neighbour of each pair
+        n_open, P, dof = len(open_), *thetas.shape[1:]
+        return cls(
+            open_,
+            o_loc,
+            thetas[src],
+            grasp[src],
+            np.zeros((n_open, P), bool),
+            np.zeros((n_open, P, dof)),
+            np.zeros((n_open, P), int),
+        )
+
+
+def _grown_before(
+    kit: RegionKit, world: ArmWorld, targets: list[Targets], cen: np.ndarray, wave: _Wave
 ) -> None:
-    """For :func:`grow`'s open cells ``open_`` (indices into ``cen``), in place: each part of
-    a cell grown before (at this offset from the tray, with the tray elsewhere or other things
-    around it) whose witness then still reaches its grasp's target and verifies here now is
-    solved with it (``got``, ``th_new``, ``g_new``: ``(O, P)`` rows of ``open_``), before any
+    """For the ``wave``'s open cells, in place: each part of a cell grown before (at this
+    offset from the tray, with the tray elsewhere or other things around it) whose witness
+    then still reaches its grasp's target and verifies here now is solved with it, before any
     seed is refined. A witness is one configuration to check where the seeds are many to
     refine, and the seeds themselves differ wherever a neighbour's witness does."""
     memo, keys = targets[0].memo, targets[0].cell_keys
     if memo is None or keys is None or not memo.grown:
         return
+    open_ = wave.open_
     rows, seeds, grasps, Rs, ps, parts = [], [], [], [], [], []
     for j, tg in enumerate(targets):
         for i, k in enumerate(keys[open_].tolist()):
@@ -852,152 +764,117 @@ def _grown_before(
     ]
     o, p = np.divmod(np.array(rows)[good], len(targets))
     memo.regrown += len(good)
-    got[o, p] = True
-    th_new[o, p] = th[good]
-    g_new[o, p] = np.array(grasps)[good]
+    wave.got[o, p] = True
+    wave.th_new[o, p] = th[good]
+    wave.g_new[o, p] = np.array(grasps)[good]
 
 
-_NEIGHBOURS = np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [1, 1], [1, -1], [-1, 1], [-1, -1]])
-
-
-def grow(
+def _seed_from_neighbours(
     kit: RegionKit,
     world: ArmWorld,
     targets: list[Targets],
     cen: np.ndarray,
-    ij: np.ndarray,
+    wave: _Wave,
+    other: bool,
+) -> None:
+    """Refine the ``wave``'s parts still open from the seeding neighbours' witnesses towards
+    the neighbour's own grasp, or (``other``) every other grasp of the part, and verify them;
+    the first verified row of each (cell, part) solves it, in place."""
+    P = len(targets)
+    rows = _seed_rows(targets, wave, other)
+    if rows is None:
+        return
+    pair, part, g = rows
+    cell = wave.open_[wave.o_loc[pair]]
+    R_t = np.empty((len(pair), 3, 3))
+    p_t = np.empty((len(pair), 3))
+    for p in range(P):
+        m = part == p
+        R_t[m] = targets[p].Rs_base_tool[g[m]]
+        p_t[m] = targets[p].ps_base_tool[cell[m], g[m]]
+    problem = wave.o_loc[pair] * P + part
+    part_ids = np.array([tg.grasps.part_id for tg in targets], dtype=object)
+    seeds = wave.seed_th[pair, part]
+    memo = _grow_memo(targets[0], part_ids, part, cell, g, seeds)
+    win, ths = seeded(
+        kit, world, seeds, R_t, p_t, cen[cell], problem, len(wave.open_) * P, GROW_ITERATIONS,
+        GROW_GIVE_UP, part_ids[part], memo,
+    )  # fmt: skip
+    solved = np.flatnonzero(win >= 0)
+    o, p_ = np.divmod(solved, P)
+    wave.got[o, p_] = True
+    wave.th_new[o, p_] = ths[win[solved]]
+    wave.g_new[o, p_] = g[win[solved]]
+
+
+def _seed_rows(
+    targets: list[Targets], wave: _Wave, other: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The rows to refine, grouped by problem (open cell, part): the seeding pair, the part
+    and the grasp of each (None: no part is open). A pair seeds each open part with its
+    neighbour's grasp, or (``other``) every other grasp of the part."""
+    P = len(targets)
+    G = np.array([len(tg.Rs_base_tool) for tg in targets])
+    rows_pair, rows_part, rows_grasp = [], [], []
+    for p in range(P):
+        pair = np.flatnonzero(~wave.got[wave.o_loc, p])
+        shift = np.arange(1, G[p]) if other else np.zeros(1, int)
+        if not len(pair) or not len(shift):
+            continue
+        rows_pair.append(np.repeat(pair, len(shift)))
+        rows_part.append(np.full(len(pair) * len(shift), p))
+        rows_grasp.append(((wave.seed_g[pair, p][:, None] + shift) % G[p]).ravel())
+    if not rows_pair:
+        return None
+    pair, part, g = map(np.concatenate, (rows_pair, rows_part, rows_grasp))
+    order = np.argsort(wave.o_loc[pair] * P + part, kind="stable")  # rows grouped by problem
+    return pair[order], part[order], g[order]
+
+
+def _grow_memo(
+    tg: Targets,
+    part_ids: np.ndarray,
+    part: np.ndarray,
+    cell: np.ndarray,
+    g: np.ndarray,
+    seeds: np.ndarray,
+) -> tuple[RefineMemo, list[Any]] | None:
+    """The targets' memo of refinements and each row's key (None: no memo): the part, the
+    cell's key, the grasp and the seed."""
+    keys = tg.cell_keys
+    if tg.memo is None or keys is None:
+        return None
+    ck = keys[cell].tolist()
+    return (
+        tg.memo,
+        [
+            ("grow", part_ids[pp], c, gg, sd.tobytes())
+            for pp, c, gg, sd in zip(part.tolist(), ck, g.tolist(), seeds, strict=True)
+        ],
+    )
+
+
+def _join(
+    targets: list[Targets],
+    wave: _Wave,
     found: np.ndarray,
     thetas: np.ndarray,
     grasp: np.ndarray,
-) -> int:
-    """Grow the solved cells into their open neighbours, in place; returns how many were added.
-
-    ``cen: (M, 2)`` base positions [m] of grid cells ``ij: (M, 2)`` (iy, ix); ``found: (M,)``,
-    ``thetas: (M, P, dof)`` and ``grasp: (M, P)`` hold the solved cells. An open cell next to
-    a solved one is refined, every part at once, from the solved neighbours' witnesses
-    (4-neighbours first); it joins when every part verifies. Each wave retries only cells
-    next to cells the previous wave added.
-    """
-    if not found.any():
-        return 0
-    lo = ij.min(0)
-    shape = ij.max(0) - lo + 3
-    index = np.full(tuple(shape), -1)
-    index[ij[:, 0] - lo[0] + 1, ij[:, 1] - lo[1] + 1] = np.arange(len(ij))
-    nb = index[
-        ij[:, None, 0] - lo[0] + 1 + _NEIGHBOURS[None, :, 0],
-        ij[:, None, 1] - lo[1] + 1 + _NEIGHBOURS[None, :, 1],
-    ]  # (M, 8) neighbour rows or -1
-    P = len(targets)
-    G = np.array([len(tg.Rs_base_tool) for tg in targets])
-    fresh = found.copy()
-    added = 0
-    for _ in range(GROW_WAVES):
-        kit.checkpoint()
-        has_fresh = ((nb >= 0) & fresh[np.maximum(nb, 0)]).any(1)
-        open_ = np.flatnonzero(~found & has_fresh)
-        if not len(open_):
-            break
-        sol = (nb[open_] >= 0) & found[np.maximum(nb[open_], 0)]  # (O, 8) solved neighbours
-        o_loc, k = np.nonzero(sol & (np.cumsum(sol, 1) <= GROW_SEEDS))
-        src = nb[open_[o_loc], k]  # the seeding neighbour of each pair
-        n_open = len(open_)
-        got = np.zeros((n_open, P), bool)
-        th_new = np.zeros((n_open, P, thetas.shape[2]))
-        g_new = np.zeros((n_open, P), int)
-        _grown_before(kit, world, targets, cen, open_, got, th_new, g_new)
-        # The neighbours' own grasps first; then, where a part is still open, every other
-        # grasp from the same seeds: a witness for one grasp often reaches another here (the
-        # wrist turns) where its own grasp runs into a joint limit.
-        for other in (False, True):
-            rows_pair, rows_part, rows_grasp = [], [], []
-            for p in range(P):
-                pair = np.flatnonzero(~got[o_loc, p])
-                shift = np.arange(1, G[p]) if other else np.zeros(1, int)
-                if not len(pair) or not len(shift):
-                    continue
-                rows_pair.append(np.repeat(pair, len(shift)))
-                rows_part.append(np.full(len(pair) * len(shift), p))
-                rows_grasp.append(((grasp[src[pair], p][:, None] + shift) % G[p]).ravel())
-            if not rows_pair:
-                continue
-            pair, part, g = map(np.concatenate, (rows_pair, rows_part, rows_grasp))
-            order = np.argsort(o_loc[pair] * P + part, kind="stable")  # rows grouped by problem
-            pair, part, g = pair[order], part[order], g[order]
-            cell = open_[o_loc[pair]]
-            R_t = np.empty((len(pair), 3, 3))
-            p_t = np.empty((len(pair), 3))
-            for p in range(P):
-                m = part == p
-                R_t[m] = targets[p].Rs_base_tool[g[m]]
-                p_t[m] = targets[p].ps_base_tool[cell[m], g[m]]
-            problem = o_loc[pair] * P + part
-            part_ids = np.array([tg.grasps.part_id for tg in targets], dtype=object)
-            seeds = thetas[src[pair], part]
-            memo = None
-            keys = targets[0].cell_keys
-            if targets[0].memo is not None and keys is not None:
-                ck = keys[cell].tolist()
-                memo = (
-                    targets[0].memo,
-                    [
-                        ("grow", part_ids[pp], c, gg, sd.tobytes())
-                        for pp, c, gg, sd in zip(part.tolist(), ck, g.tolist(), seeds, strict=True)
-                    ],
-                )
-            win, ths = seeded(
-                kit,
-                world,
-                seeds,
-                R_t,
-                p_t,
-                cen[cell],
-                problem,
-                n_open * P,
-                GROW_ITERATIONS,
-                GROW_GIVE_UP,
-                part_ids[part],
-                memo,
-            )
-            solved = np.flatnonzero(win >= 0)
-            o, p_ = np.divmod(solved, P)
-            got[o, p_] = True
-            th_new[o, p_] = ths[win[solved]]
-            g_new[o, p_] = g[win[solved]]
-        alive = got.all(1)
-        new = open_[alive]
-        found[new] = True
-        thetas[new] = th_new[alive]
-        grasp[new] = g_new[alive]
-        grown, keys = targets[0].memo, targets[0].cell_keys
-        if grown is not None and keys is not None and len(new):
-            grown.remember_grown(
-                [tg.grasps.part_id for tg in targets], keys[new], th_new[alive], g_new[alive]
-            )
-        fresh = np.zeros_like(found)
-        fresh[new] = True
-        added += len(new)
-    return added
+) -> np.ndarray:
+    """The ``wave``'s cells solved for every part join the region (``found``, ``thetas``,
+    ``grasp``, in place) and the targets' memo; returns their rows."""
+    alive = wave.got.all(1)
+    new = wave.open_[alive]
+    found[new] = True
+    thetas[new] = wave.th_new[alive]
+    grasp[new] = wave.g_new[alive]
+    memo, keys = targets[0].memo, targets[0].cell_keys
+    if memo is not None and keys is not None and len(new):
+        memo.remember_grown(
+            [tg.grasps.part_id for tg in targets], keys[new], wave.th_new[alive], wave.g_new[alive]
+        )
+    return new
 
 
 #: Changes whenever the algorithm's answer may change (part of a cached region's key).
 VERSION = [WINDOW, MAX_ROUNDS, REFINE_ITERATIONS, VICINITY_ROUNDS, GROW_SEEDS, GROW_WAVES, 10]
-
-
-def warm_kernels(kit: RegionKit) -> None:
-    """Run each compiled kernel once on one configuration and one box: they load now
-    (compiled once per checkout, then read from numba's cache), not in the first region."""
-    theta = np.zeros((1, kit.robot.dof))
-    _, _, frames = fk_soa(kit.solver.chain, theta.T.copy(), frames=True)
-    solids = [Solid.box(np.eye(4), np.ones(3), "warm-up")]
-    boxes = BoxArrays.of(solids)
-    screen_arm(kit.arm, boxes, frames, np.zeros((1, 2)), 0.0)
-    screen_self(kit.self_spheres, frames)
-    kit.exact_arm.colliding(theta[0], 0.0, 0.0, 0.0, solids, boxes=boxes)
-    change = Change(-np.ones(3), np.ones(3))
-    ChangeSet.of([change]).hit(np.zeros((1, 3)), np.ones((1, 3)))
-    group_boxes_of(kit, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int), 1)
-    CheckedConfigs(kit, theta, np.zeros((1, 2)), 0.0, np.zeros(1, int)).touched_by(
-        [change], [np.zeros(1, int)]
-    )
-    refine_batch(kit.solver, theta, np.eye(3)[None], np.zeros((1, 3)), give_up=((1, 1.0),))

@@ -80,7 +80,7 @@ def witness_boxes(kit: RegionKit, region: TrayRegion) -> tuple[np.ndarray, np.nd
     """``(K * P, 3)`` lo and hi: the world box around the covering spheres of each witness
     arm of ``region`` (cell by cell, part by part), padded as the screens' boxes are: a solid
     whose bounds miss it is not flagged by the screen, so the witness is free of it."""
-    from pickstop.regions.solve import CheckedLinks
+    from pickstop.regions.checked import CheckedLinks
 
     K, P, dof = region.thetas.shape
     xy = np.repeat(region.grid.centres(region.cells[:, 1], region.cells[:, 0]), P, axis=0)

@@ -283,29 +283,47 @@ def _by_enumeration(
         budget -= math.comb(N, k) * k
         if budget < 0:
             return None
-        sets = np.array(list(itertools.combinations(range(N), k)), np.int64).reshape(-1, k)
-        sets = sets[np.bitwise_or.reduce(masks[sets], axis=1) == full]
-        if group is not None and k > 1:
-            g = np.sort(group[sets], axis=1)
-            sets = sets[(np.diff(g, axis=1) != 0).all(axis=1)]
-        sets = sets[_hall(masks[sets])]
+        sets = _covering_sets(masks, k, full, group)
         if not len(sets):
             continue
         budget -= len(sets) * math.factorial(k) * (k + 1)
         if budget < 0:
             return None
-        perms = np.array(list(itertools.permutations(range(k))), np.int64)
-        nodes = sets[:, perms] + 2  # (S, P, k) every visiting order of every set
-        total = c[0, nodes[..., 0]] + c[nodes[..., -1], 1] + (stop_unit or 0) * k
-        for i in range(k - 1):
-            total += c[nodes[..., i], nodes[..., i + 1]]
-        s, p = divmod(int(np.argmin(total)), len(perms))
-        if total[s, p] < UNREACHABLE and (best is None or total[s, p] < best[0]):
-            best = (int(total[s, p]), nodes[s, p] - 2)
+        total, visit = _cheapest_visit(sets, c, (stop_unit or 0) * k)
+        if total < UNREACHABLE and (best is None or total < best[0]):
+            best = (total, visit)
     if best is None:
         return None
     order = tuple(int(v) for v in best[1])
     return order, _serves(trays_of, req, order)
+
+
+def _covering_sets(
+    masks: np.ndarray, k: int, full: int, group: np.ndarray | None = None
+) -> np.ndarray:
+    """``(S, k)`` the sets of k candidates (tray bits ``masks: (N,)``), in lexicographic
+    order, that together serve every tray (``full``: all the bits) and each a tray of its own
+    (:func:`_hall`); with ``group`` (a group per candidate), none holding two of a group."""
+    sets = np.array(list(itertools.combinations(range(len(masks)), k)), np.int64).reshape(-1, k)
+    sets = sets[np.bitwise_or.reduce(masks[sets], axis=1) == full]
+    if group is not None and k > 1:
+        g = np.sort(group[sets], axis=1)
+        sets = sets[(np.diff(g, axis=1) != 0).all(axis=1)]
+    return sets[_hall(masks[sets])]
+
+
+def _cheapest_visit(sets: np.ndarray, c: np.ndarray, stops: int) -> tuple[int, np.ndarray]:
+    """The least cost of a set of ``sets: (S, k)`` visited from start to goal in the integer
+    costs ``c`` (candidate i at node i + 2) plus ``stops``, and its candidates in visiting
+    order ``(k,)``: every order of every set, the first best in lexicographic order."""
+    k = sets.shape[1]
+    perms = np.array(list(itertools.permutations(range(k))), np.int64)
+    nodes = sets[:, perms] + 2  # (S, P, k) every visiting order of every set
+    total = c[0, nodes[..., 0]] + c[nodes[..., -1], 1] + stops
+    for i in range(k - 1):
+        total += c[nodes[..., i], nodes[..., i + 1]]
+    s, p = divmod(int(np.argmin(total)), len(perms))
+    return int(total[s, p]), nodes[s, p] - 2
 
 
 def _hall(m: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ from pickstop.sequence.cover import (
     UNREACHABLE,
     InfeasiblePlanError,
     Selection,
-    _hall,
+    _covering_sets,
 )
 from pickstop.sequence.failure import FailureCosts, failure_time
 
@@ -203,11 +203,8 @@ def _by_enumeration(
     none). ``early``: stop at the first k whose stops alone cost more than the best so far
     (the rest are then absent). Within each k, sets and visiting orders in lexicographic
     order, the first best taken: the same inputs always give the same stops."""
-    N, T = len(masks), extra.shape[1].bit_length() - 1
-    full = (1 << T) - 1
-    c = np.where(icost < 0, UNREACHABLE, icost)
-    widest = int(max(np.bitwise_count(masks))) if N else 0
-    cheapest = extra[:, 1:].min(axis=1)  # (N,) the least a stop's part can cost
+    m = _Enumeration.of(masks, extra, icost, stop_unit)
+    N = len(masks)
     budget, sharing, best = limit, SHARING, None
     out: Found = {}
     for k in ks:
@@ -219,40 +216,70 @@ def _by_enumeration(
         if budget < 0:
             out[k] = False
             continue
-        sets = np.array(list(itertools.combinations(range(N), k)), np.int64).reshape(-1, k)
-        sets = sets[np.bitwise_or.reduce(masks[sets], axis=1) == full]
-        sets = sets[_hall(masks[sets])]
+        sets = _covering_sets(masks, k, m.full)
         if not len(sets):
             continue
         budget -= len(sets) * _route_work(k)
         if budget < 0:
             out[k] = False
             continue
-        # The sharing only where it can matter: a set whose route, stops and cheapest parts
-        # already cost more than a set's whole is out.
-        lower = _routes(sets, c) + stop_unit * k + cheapest[sets].sum(axis=1)
-        total = np.full(len(sets), UNREACHABLE * (k + 3), np.int64)
-        for chunk in np.array_split(np.argsort(lower, kind="stable"), max(1, len(sets) // 256)):
-            if lower[chunk[0]] > total.min() or lower[chunk[0]] >= UNREACHABLE:
-                break
-            sharing -= len(chunk) * k * (1 << widest) * (full + 1)
-            if sharing < 0:
-                break
-            total[chunk] = (
-                lower[chunk]
-                - cheapest[sets[chunk]].sum(axis=1)
-                + _sharing(sets[chunk], masks, extra)[:, full]
-            )
+        total, sharing = _totals(m, sets, sharing)
         if sharing < 0:
             out[k] = False
             continue
         s = int(np.argmin(total))
         if total[s] >= UNREACHABLE:
             continue
-        order = _order(sets[s], c)
+        order = _order(sets[s], m.c)
         out[k] = (order, _parts(sets[s], masks, extra, order))
         best = int(total[s]) if best is None else min(best, int(total[s]))
     return out
+
+
+@dataclass(frozen=True)
+class _Enumeration:
+    """:func:`_by_enumeration`'s model in integer units: per candidate its tray bits and the
+    failure cost of each tray mask, the leg costs, a stop's cost."""
+
+    masks: np.ndarray  # (N,) tray bits per candidate
+    extra: np.ndarray  # (N, 2^T) failure cost per tray mask (UNREACHABLE: it cannot serve it)
+    c: np.ndarray  # (N + 2, N + 2) leg costs (UNREACHABLE: no leg)
+    stop_unit: int
+    full: int  # every tray's bit
+    widest: int  # the most trays a candidate serves
+    cheapest: np.ndarray  # (N,) the least a stop's part can cost
+
+    @classmethod
+    def of(
+        cls, masks: np.ndarray, extra: np.ndarray, icost: np.ndarray, stop_unit: int
+    ) -> _Enumeration:
+        N, T = len(masks), extra.shape[1].bit_length() - 1
+        c = np.where(icost < 0, UNREACHABLE, icost)
+        widest = int(max(np.bitwise_count(masks))) if N else 0
+        cheapest = extra[:, 1:].min(axis=1)
+        return cls(masks, extra, c, stop_unit, (1 << T) - 1, widest, cheapest)
+
+
+def _totals(m: _Enumeration, sets: np.ndarray, sharing: int) -> tuple[np.ndarray, int]:
+    """``(S,)`` each set's least cost (route, stops, failures; above :data:`UNREACHABLE`
+    where not worked out) and the sharing programme's budget left (negative: spent). The
+    sharing is worked out only where it can matter, cheapest bound first: a set whose route,
+    stops and cheapest parts already cost more than a set's whole is out."""
+    k = sets.shape[1]
+    lower = _routes(sets, m.c) + m.stop_unit * k + m.cheapest[sets].sum(axis=1)
+    total = np.full(len(sets), UNREACHABLE * (k + 3), np.int64)
+    for chunk in np.array_split(np.argsort(lower, kind="stable"), max(1, len(sets) // 256)):
+        if lower[chunk[0]] > total.min() or lower[chunk[0]] >= UNREACHABLE:
+            break
+        sharing -= len(chunk) * k * (1 << m.widest) * (m.full + 1)
+        if sharing < 0:
+            break
+        total[chunk] = (
+            lower[chunk]
+            - m.cheapest[sets[chunk]].sum(axis=1)
+            + _sharing(sets[chunk], m.masks, m.extra)[:, m.full]
+        )
+    return total, sharing
 
 
 def _route_work(k: int) -> int:

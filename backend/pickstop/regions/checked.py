@@ -1,0 +1,282 @@
+"""What a region's computation checked against the scene, as the memo of reuse keeps it.
+
+The links of checked configurations as boxes per joint group (:class:`CheckedLinks`,
+:func:`group_boxes_of`, :class:`CheckedConfigs`), the cell answers of
+:func:`~pickstop.regions.solve.solve_part` with what each checked (:func:`cell_answers`), and the
+exact checks of one :func:`~pickstop.regions.solve.verify` call the memo remembers
+(:class:`KnownChecks`): what :mod:`pickstop.regions.reuse` tests against a change of the scene.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from pickstop.regions.arm_kernel import configs_touched, group_boxes
+from pickstop.regions.kit import RegionKit
+from pickstop.regions.reuse import SAME, CellAnswers, Change, ChangeSet, ExactCheck, RefineMemo
+from pickstop.scene.world import AGREE_MARGIN
+
+
+class TrayView(Protocol):
+    """Where checks are made from, as the memo places them relative to the tray
+    (:class:`~pickstop.regions.solve.ArmWorld` is one)."""
+
+    @property
+    def yaw(self) -> float:
+        """The base yaw [rad]."""
+        ...
+
+    @property
+    def tray_xy(self) -> tuple[float, float]:
+        """The tray's position (x, y) [m]."""
+        ...
+
+    @property
+    def around(self) -> int | None:
+        """The id of the tray's surroundings in the memo (None: nothing is remembered)."""
+        ...
+
+
+@dataclass(frozen=True)
+class CheckedLinks:
+    """C configurations on their bases as the sphere screen sees them: per joint, a box
+    around the covering spheres of every link it carries (the hand's included), padded by
+    :data:`AGREE_MARGIN`. Whatever a screen or an exact check of the arm against the scene
+    looks at lies in the spheres."""
+
+    lo: np.ndarray  # (C * J, 3) [m]
+    hi: np.ndarray  # (C * J, 3)
+    owner: np.ndarray  # (C * J,) the id of the thing each box belongs to
+    group: np.ndarray  # (C * J,) which joint's group of spheres
+
+    @classmethod
+    def of(
+        cls, kit: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray
+    ) -> CheckedLinks:
+        """``thetas: (C, dof)`` on bases at ``xy: (C, 2)``; ``owner: (C,)`` per configuration."""
+        C, J = len(thetas), len(kit.arm.joint_groups.joints)
+        lo, hi = group_boxes_of(kit, thetas, xy, yaw, np.arange(C), C)
+        return cls(
+            lo.reshape(-1, 3), hi.reshape(-1, 3), np.repeat(owner, J), np.tile(np.arange(J), C)
+        )
+
+
+def group_boxes_of(
+    kit: RegionKit, thetas: np.ndarray, xy: np.ndarray, yaw: float, owner: np.ndarray, A: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, J, 3)`` twice: per owner ``a`` (``owner: (C,)`` in 0..A-1) and joint group, the box
+    that holds the group's covering spheres, padded by :data:`AGREE_MARGIN`, over every
+    configuration ``thetas: (C, dof)`` on its base ``xy: (C, 2)`` at ``yaw`` that ``a`` owns
+    (inf and -inf where it owns none), compiled
+    (:func:`~pickstop.regions.arm_kernel.group_boxes`)."""
+    chain, groups = kit.solver.chain, kit.arm.joint_groups
+    J = len(groups.joints)
+    lo, hi = np.full((A, J, 3), np.inf), np.full((A, J, 3), -np.inf)
+    if len(thetas):
+        group_boxes(
+            np.ascontiguousarray(thetas, dtype=float).reshape(len(thetas), -1),
+            np.ascontiguousarray(xy, dtype=float).reshape(-1, 2),
+            np.ascontiguousarray(owner, dtype=np.int64),
+            math.cos(yaw),
+            math.sin(yaw),
+            chain.R_parent_joint,
+            chain.p_parent_joint,
+            chain.axis_index.astype(np.int64),
+            chain.axes,
+            chain.prismatic,
+            (groups.joints - 1).astype(np.int64),
+            groups.lo,
+            groups.hi,
+            AGREE_MARGIN,
+            lo,
+            hi,
+        )
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class CheckedConfigs:
+    """What some remembered things checked (:meth:`~pickstop.regions.reuse.RefineMemo.held`):
+    C configurations ``thetas: (C, dof)`` on bases ``xy: (C, 2)`` (relative to the tray [m])
+    at ``yaw``, each owned by the thing ``owner: (C,)`` (an id)."""
+
+    kit: RegionKit
+    thetas: np.ndarray
+    xy: np.ndarray
+    yaw: float
+    owner: np.ndarray
+
+    def touched_by(self, changes: list[Change], reached: list[np.ndarray]) -> np.ndarray:
+        """The ids of the owners some covering sphere of whose configurations, padded by
+        :data:`AGREE_MARGIN`, may see a change: ``changes[h]`` for the owners
+        ``reached[h]`` (ids) alone. Tested coarse to fine, compiled
+        (:func:`~pickstop.regions.arm_kernel.configs_touched`)."""
+        ids, inv = np.unique(self.owner, return_inverse=True)
+        reach = np.zeros((len(ids), len(reached)), bool)  # (A, H)
+        for h, r in enumerate(reached):
+            pos = np.minimum(np.searchsorted(ids, r), len(ids) - 1)
+            reach[pos[ids[pos] == r], h] = True
+        keep = reach[inv].any(1)
+        if not keep.any():
+            return ids[:0]
+        arm, chain = self.kit.arm, self.kit.solver.chain
+        groups = arm.joint_groups
+        touched = np.zeros(len(ids), bool)
+        cs = ChangeSet.of(changes)
+        configs_touched(
+            np.ascontiguousarray(self.thetas[keep], dtype=float),
+            np.ascontiguousarray(self.xy[keep], dtype=float),
+            inv[keep].astype(np.int64),
+            math.cos(self.yaw),
+            math.sin(self.yaw),
+            chain.R_parent_joint,
+            chain.p_parent_joint,
+            chain.axis_index.astype(np.int64),
+            chain.axes,
+            chain.prismatic,
+            (groups.joints - 1).astype(np.int64),
+            groups.lo,
+            groups.hi,
+            np.cumsum([0] + [len(k) for k in groups.links]).astype(np.int64),
+            np.concatenate(groups.links).astype(np.int64),
+            *arm.link_boxes,
+            arm.leaf_start,
+            arm.leaf_count,
+            arm.leaf_c,
+            arm.leaf_r,
+            AGREE_MARGIN,
+            cs.c_lo,
+            cs.c_hi,
+            cs.n_lo,
+            cs.n_hi,
+            cs.moved,
+            reach,
+            SAME,
+            touched,
+        )
+        return ids[touched]
+
+
+def cell_answers(
+    kit: RegionKit,
+    world: TrayView,
+    cen: np.ndarray,
+    found: np.ndarray,
+    thetas: np.ndarray,
+    grasps: np.ndarray,
+    screened: tuple[np.ndarray, np.ndarray],
+    refined: tuple[np.ndarray, np.ndarray],
+) -> CellAnswers:
+    """The M cells' answers of :func:`~pickstop.regions.solve.solve_part`'s rounds as the
+    memo keeps them: the database rows ``screened`` and the joint values ``refined`` checked
+    for it (``(cells, rows)`` and ``(cells, thetas)``) and the relative box that holds all
+    their links."""
+    assert world.around is not None
+    M, dof = len(cen), kit.solver.chain.dof
+    xy = cen - np.asarray(world.tray_xy)
+    s_cell, s_rows = screened
+    r_cell, r_th = refined
+    th = np.concatenate([kit.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
+    cell = np.concatenate([s_cell, r_cell]).astype(np.int64)
+    g_lo, g_hi = group_boxes_of(kit, th, xy[cell], world.yaw, cell, M)
+    lo, hi = g_lo.min(axis=1), g_hi.max(axis=1)
+    rows_of = _per_cell(s_rows.astype(np.int32), s_cell, M)
+    ref_of = _per_cell(r_th.reshape(-1, dof).astype(np.float32), r_cell, M)
+    return CellAnswers(
+        found.astype(bool),
+        np.array(thetas, float),
+        np.asarray(grasps, np.int64),
+        lo,
+        hi,
+        xy,
+        g_lo,
+        g_hi,
+        rows_of,
+        ref_of,
+    )
+
+
+def _per_cell(values: np.ndarray, cell: np.ndarray, M: int) -> list[np.ndarray]:
+    """``values`` (along the first axis) of each of M cells, ``cell`` telling whose each is:
+    views of one array sorted by cell (stable: each cell's in their order)."""
+    order = np.argsort(cell, kind="stable")
+    ends = np.cumsum(np.bincount(cell, minlength=M)).tolist()
+    v = values[order]
+    return [v[s:e] for s, e in zip([0, *ends[:-1]], ends, strict=True)]
+
+
+@dataclass
+class KnownChecks:
+    """The exact arm checks of one :func:`~pickstop.regions.solve.verify` call that the
+    targets' memo remembers (``known``: row -> collided), and the keeping of new ones."""
+
+    kit: RegionKit
+    world: TrayView
+    thetas: np.ndarray
+    base_xy: np.ndarray
+    keys: dict[int, tuple[int, str, bytes]]
+    known: dict[int, bool]
+    memo: RefineMemo | None = None
+    pending: list[tuple[int, bool]] = field(default_factory=list)
+
+    @classmethod
+    def of(
+        cls,
+        kit: RegionKit,
+        world: TrayView,
+        thetas: np.ndarray,
+        base_xy: np.ndarray,
+        rows: np.ndarray,
+        target_of: Callable[[int], str | None],
+        cell_keys: tuple[RefineMemo, np.ndarray] | None,
+    ) -> KnownChecks:
+        """Rows ``rows`` (the screen flagged them against the scene) of ``thetas``;
+        ``cell_keys``: the memo and each row's cell key (None: nothing is remembered)."""
+        out = cls(kit, world, thetas, base_xy, {}, {})
+        if cell_keys is None or world.around is None or not len(rows):
+            return out
+        memo, ck = cell_keys
+        out.memo = memo
+        out.keys = {j: (int(ck[j]), str(target_of(j)), thetas[j].tobytes()) for j in rows.tolist()}
+        order = list(out.keys)
+        xy = base_xy[order] - np.asarray(world.tray_xy)
+        dof = thetas.shape[1]
+        got = memo.remembered_checks(
+            [out.keys[j] for j in order],
+            world.around,
+            lambda rows, ids: CheckedConfigs(
+                kit, thetas[np.array(order)[rows]].reshape(-1, dof), xy[rows], world.yaw, ids
+            ),
+        )
+        out.known = {j: g for j, g in zip(order, got, strict=True) if g is not None}
+        return out
+
+    def remember(self, j: int, colliding: bool) -> None:
+        """Row ``j`` was checked exactly (kept by :meth:`flush`)."""
+        if j in self.keys and self.memo is not None:
+            self.pending.append((j, colliding))
+
+    def flush(self) -> None:
+        """Keep the checks made since the last flush in the memo, their links' boxes
+        computed at once."""
+        memo, around = self.memo, self.world.around
+        if not self.pending or memo is None or around is None:
+            return
+        rows = np.array([j for j, _ in self.pending])
+        xy = self.base_xy[rows] - np.asarray(self.world.tray_xy)
+        links = CheckedLinks.of(self.kit, self.thetas[rows], xy, self.world.yaw, rows)
+        n = len(rows)
+        g_lo, g_hi = links.lo.reshape(n, -1, 3), links.hi.reshape(n, -1, 3)
+        for i, (j, colliding) in enumerate(self.pending):
+            memo.remember_check(
+                self.keys[j],
+                ExactCheck(
+                    colliding, around, g_lo[i].min(0), g_hi[i].max(0), xy[i], g_lo[i], g_hi[i]
+                ),
+            )
+        self.pending = []
