@@ -11,12 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pickstop.frames import R_z
-from pickstop.regions.arm import ArmSpheres
+from pickstop.regions.arm import TOUCH, ArmSpheres, ExactArm, points_to_world
+from pickstop.regions.arm_kernel import contacts_many, link_contacts
 from pickstop.regions.checked import CheckedConfigs, group_boxes_of
 from pickstop.regions.reuse import Change, ChangeSet
 from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.kinematics import FEW, Chain, fk_soa
-from pickstop.scene.world import AGREE_MARGIN
+from pickstop.scene.load import load_scene
+from pickstop.scene.world import AGREE_MARGIN, BoxArrays, scene_solids, spheres_hit
+from tests.regions.conftest import EXAMPLES
 from tests.utils import random_thetas
 
 
@@ -209,3 +212,103 @@ def test_boxes_hit_by_changes_are_the_numpy_tests(seed):
         fixed.hit(lo, hi), _hit_reference([Change(c.lo, c.hi) for c in changes], lo, hi)
     )
     assert ChangeSet.of([]).hit(lo, hi).shape == (0, n)
+
+
+@pytest.fixture(scope="module")
+def paper_solids():
+    solids = scene_solids(load_scene(EXAMPLES / "paper_experiment.json"))
+    return solids, BoxArrays.of(solids), [BoxArrays.of([s]) for s in solids]
+
+
+def _pairs_reference(arm, frames, b, xy, yaw, solids, code):
+    """The (link, solid) pairs of configuration ``b`` of :func:`fk_soa`'s ``frames`` where a
+    covering sphere of the link meets the solid (:func:`spheres_hit`, one solid at a time),
+    solids of owner ``code`` no obstacle for the hand."""
+    _, boxes, each = solids
+    leaves = points_to_world(frames, arm.link_joint[arm.leaf_link], arm.leaf_c, xy, yaw)[b]
+    out = set()
+    for k, one in enumerate(each):
+        hit = spheres_hit(one, leaves, arm.leaf_r)
+        if boxes.owner_codes[k] == code:
+            hit &= ~arm.is_hand[arm.leaf_link]
+        out |= {(int(lk), k) for lk in np.unique(arm.leaf_link[hit])}
+    return out
+
+
+def _bases(rng, tiago, n):
+    th = rng.uniform(tiago.lower, tiago.upper, (n, tiago.dof))
+    xy = np.stack([rng.uniform(0.5, 2.2, n), rng.uniform(0.6, 1.1, n)], 1)
+    return th, xy, float(rng.uniform(0, 2 * np.pi))
+
+
+def _contacts_of_one(arm, M, x, y, yaw, boxes, code):
+    L, K = len(arm.bound_r), len(boxes.owners)
+    out_link, out_box = np.empty(L * K, np.int64), np.empty(L * K, np.int64)
+    n = link_contacts(
+        M, arm.link_joint, arm.bound_c, arm.bound_r, arm.is_hand, arm.leaf_start,
+        arm.leaf_count, arm.leaf_c, arm.leaf_r, x, y, np.cos(yaw), np.sin(yaw), boxes.centres,
+        boxes.R, boxes.half, boxes.is_cylinder, boxes.radius, boxes.lo, boxes.hi,
+        boxes.owner_codes, code, TOUCH, out_link, out_box,
+    )  # fmt: skip
+    return list(zip(out_link[:n].tolist(), out_box[:n].tolist(), strict=True))
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_link_contacts_are_the_pairs_whose_numpy_spheres_meet(tiago, tiago_kit, paper_solids, seed):
+    """Per configuration, the compiled contacts are each (link, solid) pair where a covering
+    sphere of the link meets the solid, once, the hand's target owner no obstacle for it."""
+    rng = np.random.default_rng(seed)
+    _, boxes, _ = paper_solids
+    arm, exact = tiago_kit.arm, ExactArm(tiago)
+    n = 60
+    th, xy, yaw = _bases(rng, tiago, n)
+    codes = rng.integers(-1, len(boxes.owner_index), n)
+    _, _, frames = fk_soa(tiago_kit.solver.chain, np.ascontiguousarray(th.T), frames=True)
+    found = 0
+    for b in range(n):
+        exact.place(th[b])
+        got = _contacts_of_one(arm, exact.M, xy[b, 0], xy[b, 1], yaw, boxes, codes[b])
+        assert len(set(got)) == len(got)
+        assert set(got) == _pairs_reference(arm, frames, b, xy, yaw, paper_solids, codes[b])
+        found += bool(got)
+    assert 0 < found < n
+
+
+@settings(max_examples=3, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_contacts_many_are_link_contacts_row_by_row(tiago, tiago_kit, paper_solids, seed):
+    """The batched kernel places each row's joints as the one-configuration FK does, its
+    geometries and their lowest points as numpy does, and finds the pairs
+    :func:`link_contacts` finds, in its order."""
+    rng = np.random.default_rng(seed)
+    _, boxes, _ = paper_solids
+    arm, chain, exact = tiago_kit.arm, tiago_kit.solver.chain, ExactArm(tiago)
+    fl, pl = exact.floor, exact.floor.placements
+    B, n = 40, tiago.dof
+    th, xy, yaw = _bases(rng, tiago, B)
+    codes = rng.integers(-1, len(boxes.owner_index), B)
+    G, L, K = len(pl.parent), len(arm.bound_r), len(boxes.owners)
+    M, R, p = np.empty((B, n + 1, 4, 4)), np.empty((B, G, 3, 3)), np.empty((B, G, 3))
+    z, start = np.empty(B), np.zeros(B + 1, np.int64)
+    out_link, out_box = np.empty(B * L * K, np.int64), np.empty(B * L * K, np.int64)
+    contacts_many(
+        th, xy, codes, np.cos(yaw), np.sin(yaw), chain.R_parent_joint, chain.p_parent_joint,
+        chain.axis_index.astype(np.int64), chain.axes, chain.prismatic, arm.link_joint,
+        arm.bound_c, arm.bound_r, arm.is_hand, arm.leaf_start, arm.leaf_count, arm.leaf_c,
+        arm.leaf_r, boxes.centres, boxes.R, boxes.half, boxes.is_cylinder, boxes.radius,
+        boxes.lo, boxes.hi, boxes.owner_codes, TOUCH, pl.parent,
+        np.ascontiguousarray(pl.R_local), np.ascontiguousarray(pl.p_local), fl.box_c, fl.box_h,
+        M, R, p, z, start, out_link, out_box,
+    )  # fmt: skip
+    for b in range(B):
+        exact.place(th[b])
+        assert np.array_equal(M[b], exact.M)
+        assert np.allclose(R[b], exact.R, atol=1e-12) and np.allclose(p[b], exact.p, atol=1e-12)
+        low = np.einsum("gj,gj->g", R[b, :, 2], fl.box_c) + p[b, :, 2]
+        low -= np.einsum("gj,gj->g", np.abs(R[b, :, 2]), fl.box_h)
+        assert np.isclose(z[b], low.min(), atol=1e-12)
+        rows = slice(start[b], start[b + 1])
+        got = list(zip(out_link[rows].tolist(), out_box[rows].tolist(), strict=True))
+        assert got == _contacts_of_one(arm, M[b], xy[b, 0], xy[b, 1], yaw, boxes, codes[b])
+    assert 0 < start[B] < B * L * K

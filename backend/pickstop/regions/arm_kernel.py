@@ -11,10 +11,14 @@ hundred configurations was mostly numpy calls.
 - :func:`link_contacts`: the (link, solid) pairs of one configuration whose spheres meet,
   all that :class:`pickstop.regions.arm.ExactArm` hands coal.
 - :func:`group_boxes`: per joint group the world box around its spheres, over many
-  configurations at once, gathered per owner (:class:`pickstop.regions.solve.CheckedLinks`).
+  configurations at once, gathered per owner (:class:`pickstop.regions.checked.CheckedLinks`).
 - :func:`boxes_hit`: which remembered things' boxes a change may reach, and
   :func:`configs_touched`: whether their configurations may see it
   (:meth:`pickstop.regions.reuse.RefineMemo.held`), coarse to fine.
+
+Frames, points and boxes go through :mod:`pickstop.robot.frame_kernel`'s helpers. The loops
+over solids, links and leaves stay in each kernel: an inlined helper that branches or loops
+keeps its array arguments' reference counts, which doubled the time of the kernels here.
 """
 
 from __future__ import annotations
@@ -23,35 +27,47 @@ import numpy as np
 from numba import njit
 
 from pickstop.robot.fk_kernel import joint_frames
+from pickstop.robot.frame_kernel import Base, Frame, compose, frame, put, to_world, world_box
 
 BOUNDS_PAD = 1e-9  # [m] a bounding sphere's bounds grown by this against rounding
+
+#: The solids as the kernels take them (:class:`~pickstop.scene.world.BoxArrays`): centres
+#: ``(K, 3)``, rotations ``(K, 3, 3)``, half extents ``(K, 3)``, cylinder flags ``(K,)``, radii
+#: ``(K,)`` and world bounds ``lo, hi: (K, 3)`` [m].
+Solids = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _in_bounds(
+    x: float,
+    y: float,
+    z: float,
+    hx: float,
+    hy: float,
+    hz: float,
+    box_lo: np.ndarray,
+    box_hi: np.ndarray,
+    k: int,
+) -> bool:
+    """Does the box ``(x, y, z) +- (hx, hy, hz)`` [m] overlap solid ``k``'s bounds? Written
+    without a branch (``&``, not ``and``): so inlined, its array arguments cost nothing."""
+    return (
+        (x + hx > box_lo[k, 0])
+        & (x - hx < box_hi[k, 0])
+        & (y + hy > box_lo[k, 1])
+        & (y - hy < box_hi[k, 1])
+        & (z + hz > box_lo[k, 2])
+        & (z - hz < box_hi[k, 2])
+    )
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _sphere_meets(
-    x: float,
-    y: float,
-    z: float,
-    r: float,
-    k: int,
-    box_c: np.ndarray,
-    box_R: np.ndarray,
-    box_half: np.ndarray,
-    box_cyl: np.ndarray,
-    box_rad: np.ndarray,
-    box_lo: np.ndarray,
-    box_hi: np.ndarray,
-    touch: float,
+    x: float, y: float, z: float, r: float, k: int, solids: Solids, touch: float
 ) -> bool:
     """Does the sphere ``(x, y, z), r`` meet solid ``k`` (its bounds, then exactly)?"""
-    if not (
-        x + r > box_lo[k, 0]
-        and x - r < box_hi[k, 0]
-        and y + r > box_lo[k, 1]
-        and y - r < box_hi[k, 1]
-        and z + r > box_lo[k, 2]
-        and z - r < box_hi[k, 2]
-    ):
+    box_c, box_R, box_half, box_cyl, box_rad, box_lo, box_hi = solids
+    if not _in_bounds(x, y, z, r, r, r, box_lo, box_hi, k):
         return False
     ex, ey, ez = x - box_c[k, 0], y - box_c[k, 1], z - box_c[k, 2]
     # the centre in the solid's frame: (p - c) @ R
@@ -114,57 +130,32 @@ def screen_links(
     ``group_lo, group_hi`` around the leaves of the links ``link_group == g`` in the frame of
     joint ``group_joint[g]`` (0-based): a solid clear of the box's world bounds meets none of
     them, and their links are tested against the others alone."""
-    B = base_xy.shape[0]
-    L = bound_r.shape[0]
+    solids = (box_c, box_R, box_half, box_cyl, box_rad, box_lo, box_hi)
     K = box_lo.shape[0]
-    G = group_joint.shape[0]
     near = np.empty(K, np.int64)  # the solids a link's bounding sphere meets, in order
-    g_near = np.empty((G, K), np.int64)  # the solids each group's bounds meet, in order
-    g_count = np.zeros(G, np.int64)
-    for b in range(B):
-        bx, by = base_xy[b, 0], base_xy[b, 1]
-        for g in range(G):
+    g_near = np.empty((group_joint.shape[0], K), np.int64)  # the solids near each group
+    g_count = np.zeros(group_joint.shape[0], np.int64)
+    for b in range(base_xy.shape[0]):
+        base = (base_xy[b, 0], base_xy[b, 1], cos_yaw, sin_yaw)
+        Rb, pb = R[:, :, :, b], p[:, :, b]
+        for g in range(group_joint.shape[0]):
             j = group_joint[g]
-            m0 = (group_lo[g, 0] + group_hi[g, 0]) / 2
-            m1 = (group_lo[g, 1] + group_hi[g, 1]) / 2
-            m2 = (group_lo[g, 2] + group_hi[g, 2]) / 2
-            px = R[j, 0, 0, b] * m0 + R[j, 0, 1, b] * m1 + R[j, 0, 2, b] * m2 + p[j, 0, b]
-            py = R[j, 1, 0, b] * m0 + R[j, 1, 1, b] * m1 + R[j, 1, 2, b] * m2 + p[j, 1, b]
-            pz = R[j, 2, 0, b] * m0 + R[j, 2, 1, b] * m1 + R[j, 2, 2, b] * m2 + p[j, 2, b]
-            cx = cos_yaw * px - sin_yaw * py + bx
-            cy = sin_yaw * px + cos_yaw * py + by
-            hx = hy = hz = BOUNDS_PAD
-            for c in range(3):
-                e = (group_hi[g, c] - group_lo[g, c]) / 2
-                hx += abs(cos_yaw * R[j, 0, c, b] - sin_yaw * R[j, 1, c, b]) * e
-                hy += abs(sin_yaw * R[j, 0, c, b] + cos_yaw * R[j, 1, c, b]) * e
-                hz += abs(R[j, 2, c, b]) * e
+            cx, cy, cz, hx, hy, hz = world_box(
+                frame(Rb[j], pb[j]), base, group_lo[g], group_hi[g], BOUNDS_PAD
+            )
             n = 0
             for k in range(K):
-                if (
-                    cx + hx > box_lo[k, 0]
-                    and cx - hx < box_hi[k, 0]
-                    and cy + hy > box_lo[k, 1]
-                    and cy - hy < box_hi[k, 1]
-                    and pz + hz > box_lo[k, 2]
-                    and pz - hz < box_hi[k, 2]
-                ):
+                if _in_bounds(cx, cy, cz, hx, hy, hz, box_lo, box_hi, k):
                     g_near[g, n] = k
                     n += 1
             g_count[g] = n
-        for lk in range(L):
+        for lk in range(bound_r.shape[0]):
             g = link_group[lk]
             if g < 0 or g_count[g] == 0:  # no leaves, or none near a solid
                 continue
-            j = link_joint[lk]
+            F = frame(Rb[link_joint[lk]], pb[link_joint[lk]])
             skip = code[b] if is_hand[lk] else -1
-            # the bounding sphere in the world
-            lx, ly, lz = bound_c[lk, 0], bound_c[lk, 1], bound_c[lk, 2]
-            px = R[j, 0, 0, b] * lx + R[j, 0, 1, b] * ly + R[j, 0, 2, b] * lz + p[j, 0, b]
-            py = R[j, 1, 0, b] * lx + R[j, 1, 1, b] * ly + R[j, 1, 2, b] * lz + p[j, 1, b]
-            pz = R[j, 2, 0, b] * lx + R[j, 2, 1, b] * ly + R[j, 2, 2, b] * lz + p[j, 2, b]
-            wx = cos_yaw * px - sin_yaw * py + bx
-            wy = sin_yaw * px + cos_yaw * py + by
+            wx, wy, wz = to_world(F, base, bound_c[lk, 0], bound_c[lk, 1], bound_c[lk, 2])
             # Every leaf lies inside the bounding sphere: a solid the leaves may meet is one
             # whose bounds meet the bounding sphere's (padded against rounding).
             r = bound_r[lk] + BOUNDS_PAD
@@ -172,22 +163,11 @@ def screen_links(
             meets = False
             for i in range(g_count[g]):
                 k = g_near[g, i]
-                if (
-                    box_code[k] != skip
-                    and wx + r > box_lo[k, 0]
-                    and wx - r < box_hi[k, 0]
-                    and wy + r > box_lo[k, 1]
-                    and wy - r < box_hi[k, 1]
-                    and pz + r > box_lo[k, 2]
-                    and pz - r < box_hi[k, 2]
-                ):
+                if box_code[k] != skip and _in_bounds(wx, wy, wz, r, r, r, box_lo, box_hi, k):
                     near[n] = k
                     n += 1
                     if not meets:
-                        meets = _sphere_meets(
-                            wx, wy, pz, bound_r[lk], k, box_c, box_R, box_half, box_cyl,
-                            box_rad, box_lo, box_hi, touch,
-                        )  # fmt: skip
+                        meets = _sphere_meets(wx, wy, wz, bound_r[lk], k, solids, touch)
             if not meets:
                 continue
             for f in range(leaf_start[lk], leaf_start[lk] + leaf_count[lk]):
@@ -201,28 +181,14 @@ def screen_links(
                     n = todo
                     if n == 0:
                         break
-                lx, ly, lz = leaf_c[f, 0], leaf_c[f, 1], leaf_c[f, 2]
-                px = R[j, 0, 0, b] * lx + R[j, 0, 1, b] * ly + R[j, 0, 2, b] * lz + p[j, 0, b]
-                py = R[j, 1, 0, b] * lx + R[j, 1, 1, b] * ly + R[j, 1, 2, b] * lz + p[j, 1, b]
-                pz = R[j, 2, 0, b] * lx + R[j, 2, 1, b] * ly + R[j, 2, 2, b] * lz + p[j, 2, b]
-                wx = cos_yaw * px - sin_yaw * py + bx
-                wy = sin_yaw * px + cos_yaw * py + by
+                wx, wy, wz = to_world(F, base, leaf_c[f, 0], leaf_c[f, 1], leaf_c[f, 2])
                 r = leaf_r[f]
                 for i in range(n):
                     k = near[i]
                     # the bounds here first: a call with the solids' arrays costs more
-                    if (
-                        wx + r > box_lo[k, 0]
-                        and wx - r < box_hi[k, 0]
-                        and wy + r > box_lo[k, 1]
-                        and wy - r < box_hi[k, 1]
-                        and pz + r > box_lo[k, 2]
-                        and pz - r < box_hi[k, 2]
-                        and _sphere_meets(
-                            wx, wy, pz, r, k, box_c, box_R, box_half, box_cyl, box_rad,
-                            box_lo, box_hi, touch,
-                        )
-                    ):  # fmt: skip
+                    if _in_bounds(wx, wy, wz, r, r, r, box_lo, box_hi, k) and _sphere_meets(
+                        wx, wy, wz, r, k, solids, touch
+                    ):
                         flagged[b] = True
                         box_hit[k] = True
 
@@ -364,37 +330,13 @@ def boxes_hit(
 
 @njit(cache=True, nogil=True, inline="always")
 def _placed_box_hits(
-    ch: ChangeRow,
-    Rj: np.ndarray,
-    pj: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    bx: float,
-    by: float,
-    cos_yaw: float,
-    sin_yaw: float,
-    margin: float,
+    ch: ChangeRow, F: Frame, base: Base, lo: np.ndarray, hi: np.ndarray, margin: float,
     same: float,
-) -> bool:
-    """Does the change ``ch`` hit the box ``lo, hi`` (3,) of a joint frame ``Rj, pj``, placed
-    on the base at ``(bx, by)`` and bounded in the world, padded by ``margin``?"""
-    m0, m1, m2 = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2
-    e0, e1, e2 = (hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, (hi[2] - lo[2]) / 2
-    px = Rj[0, 0] * m0 + Rj[0, 1] * m1 + Rj[0, 2] * m2 + pj[0]
-    py = Rj[1, 0] * m0 + Rj[1, 1] * m1 + Rj[1, 2] * m2 + pj[1]
-    pz = Rj[2, 0] * m0 + Rj[2, 1] * m1 + Rj[2, 2] * m2 + pj[2]
-    cx = cos_yaw * px - sin_yaw * py + bx
-    cy = sin_yaw * px + cos_yaw * py + by
-    # world axes: R_z(yaw) @ Rj
-    hx = hy = hz = margin
-    for c in range(3):
-        e = e0 if c == 0 else (e1 if c == 1 else e2)
-        w0 = cos_yaw * Rj[0, c] - sin_yaw * Rj[1, c]
-        w1 = sin_yaw * Rj[0, c] + cos_yaw * Rj[1, c]
-        hx += abs(w0) * e
-        hy += abs(w1) * e
-        hz += abs(Rj[2, c]) * e
-    return _change_hits(ch, cx - hx, cy - hy, pz - hz, cx + hx, cy + hy, pz + hz, same)
+) -> bool:  # fmt: skip
+    """Does the change ``ch`` hit the box ``lo, hi`` (3,) of the joint frame ``F``, the base at
+    ``base``, bounded in the world and padded by ``margin``?"""
+    cx, cy, cz, hx, hy, hz = world_box(F, base, lo, hi, margin)
+    return _change_hits(ch, cx - hx, cy - hy, cz - hz, cx + hx, cy + hy, cz + hz, same)
 
 
 @njit(cache=True, nogil=True)
@@ -422,34 +364,20 @@ def group_boxes(
     (0-based) turned into the world (the base at yaw ``cos_yaw, sin_yaw``), padded by
     ``margin``. The chain's arrays as for :func:`~pickstop.robot.fk_kernel.joint_frames`."""
     C, n = thetas.shape
-    G = group_joint.shape[0]
     R = np.empty((n, 3, 3))
     p = np.empty((n, 3))
     for c in range(C):
         a = owner[c]
         joint_frames(R_parent, p_parent, axis_index, axes, prismatic, thetas[c], R, p)
-        bx, by = xy[c, 0], xy[c, 1]
-        for g in range(G):
+        base = (xy[c, 0], xy[c, 1], cos_yaw, sin_yaw)
+        for g in range(group_joint.shape[0]):
             j = group_joint[g]
-            lx = 0.5 * (group_lo[g, 0] + group_hi[g, 0])
-            ly = 0.5 * (group_lo[g, 1] + group_hi[g, 1])
-            lz = 0.5 * (group_lo[g, 2] + group_hi[g, 2])
-            px = R[j, 0, 0] * lx + R[j, 0, 1] * ly + R[j, 0, 2] * lz + p[j, 0]
-            py = R[j, 1, 0] * lx + R[j, 1, 1] * ly + R[j, 1, 2] * lz + p[j, 1]
-            pz = R[j, 2, 0] * lx + R[j, 2, 1] * ly + R[j, 2, 2] * lz + p[j, 2]
-            centre = (cos_yaw * px - sin_yaw * py + bx, sin_yaw * px + cos_yaw * py + by, pz)
-            for i in range(3):
-                half = margin
-                for k in range(3):
-                    if i == 0:
-                        w = cos_yaw * R[j, 0, k] - sin_yaw * R[j, 1, k]
-                    elif i == 1:
-                        w = sin_yaw * R[j, 0, k] + cos_yaw * R[j, 1, k]
-                    else:
-                        w = R[j, 2, k]
-                    half += abs(w) * 0.5 * (group_hi[g, k] - group_lo[g, k])
-                out_lo[a, g, i] = min(out_lo[a, g, i], centre[i] - half)
-                out_hi[a, g, i] = max(out_hi[a, g, i], centre[i] + half)
+            cx, cy, cz, hx, hy, hz = world_box(
+                frame(R[j], p[j]), base, group_lo[g], group_hi[g], margin
+            )
+            lo, hi = out_lo[a, g], out_hi[a, g]
+            lo[0], lo[1], lo[2] = min(lo[0], cx - hx), min(lo[1], cy - hy), min(lo[2], cz - hz)
+            hi[0], hi[1], hi[2] = max(hi[0], cx + hx), max(hi[1], cy + hy), max(hi[2], cz + hz)
 
 
 @njit(cache=True, nogil=True)
@@ -488,14 +416,13 @@ def configs_touched(
     """In place: ``touched[a]`` set where a covering sphere of a configuration owned by ``a``
     (``owner: (C,)``, 0..A-1) may meet a change that reaches ``a`` (``reach: (A, H)``).
 
-    Coarse to fine, as :class:`pickstop.regions.solve.CheckedLinks` tests: per joint group a
+    Coarse to fine, as :class:`pickstop.regions.checked.CheckedLinks` tests: per joint group a
     box around its spheres (``group_*``, joint frames, 0-based ``group_joint``), then the box of
     each of its links (``group_links[group_start[g]:group_start[g + 1]]``), then each sphere,
     every box padded by ``margin``; the changes as :class:`pickstop.regions.reuse.Change`
     (``moved[h]``: an axis-aligned box that moved from ``c_*`` to ``n_*``). A configuration's
     frames are computed only while its owner is not yet known to be touched."""
     C, n = thetas.shape
-    H = c_lo.shape[0]
     R = np.empty((n, 3, 3))
     p = np.empty((n, 3))
     for c in range(C):
@@ -503,34 +430,23 @@ def configs_touched(
         if touched[a]:
             continue
         joint_frames(R_parent, p_parent, axis_index, axes, prismatic, thetas[c], R, p)
-        bx, by = xy[c, 0], xy[c, 1]
-        for h in range(H):
+        base = (xy[c, 0], xy[c, 1], cos_yaw, sin_yaw)
+        for h in range(c_lo.shape[0]):
             if not reach[a, h] or touched[a]:
                 continue
             ch = _change_row(c_lo, c_hi, n_lo, n_hi, moved, h)
             for g in range(group_joint.shape[0]):
-                j = group_joint[g]
-                if not _placed_box_hits(
-                    ch, R[j], p[j], group_lo[g], group_hi[g], bx, by, cos_yaw, sin_yaw, margin,
-                    same,
-                ):  # fmt: skip
+                F = frame(R[group_joint[g]], p[group_joint[g]])
+                if not _placed_box_hits(ch, F, base, group_lo[g], group_hi[g], margin, same):
                     continue
                 for i in range(group_start[g], group_start[g + 1]):
                     lk = group_links[i]
-                    if not _placed_box_hits(
-                        ch, R[j], p[j], link_lo[lk], link_hi[lk], bx, by, cos_yaw, sin_yaw,
-                        margin, same,
-                    ):  # fmt: skip
+                    if not _placed_box_hits(ch, F, base, link_lo[lk], link_hi[lk], margin, same):
                         continue
                     for f in range(leaf_start[lk], leaf_start[lk] + leaf_count[lk]):
-                        lx, ly, lz = leaf_c[f, 0], leaf_c[f, 1], leaf_c[f, 2]
-                        px = R[j, 0, 0] * lx + R[j, 0, 1] * ly + R[j, 0, 2] * lz + p[j, 0]
-                        py = R[j, 1, 0] * lx + R[j, 1, 1] * ly + R[j, 1, 2] * lz + p[j, 1]
-                        pz = R[j, 2, 0] * lx + R[j, 2, 1] * ly + R[j, 2, 2] * lz + p[j, 2]
-                        wx = cos_yaw * px - sin_yaw * py + bx
-                        wy = sin_yaw * px + cos_yaw * py + by
+                        wx, wy, wz = to_world(F, base, leaf_c[f, 0], leaf_c[f, 1], leaf_c[f, 2])
                         r = leaf_r[f] + margin
-                        if _change_hits(ch, wx - r, wy - r, pz - r, wx + r, wy + r, pz + r, same):
+                        if _change_hits(ch, wx - r, wy - r, wz - r, wx + r, wy + r, wz + r, same):
                             touched[a] = True
                             break
                     if touched[a]:
@@ -573,66 +489,38 @@ def link_contacts(
 
     M: ``(n + 1, 4, 4)`` the joints' placements in the base frame (index = joint id, as
     ``link_joint``); the base at ``(bx, by)``; ``code``: the owner the hand may touch."""
-    L = bound_r.shape[0]
+    solids = (box_c, box_R, box_half, box_cyl, box_rad, box_lo, box_hi)
+    base = (bx, by, cos_yaw, sin_yaw)
     K = box_lo.shape[0]
     near = np.empty(K, np.int64)
     found = np.zeros(K, np.bool_)
     count = 0
-    for lk in range(L):
-        j = link_joint[lk]
+    for lk in range(bound_r.shape[0]):
+        F = frame(M[link_joint[lk]], M[link_joint[lk], :, 3])
         skip = code if is_hand[lk] else -1
-        lx, ly, lz = bound_c[lk, 0], bound_c[lk, 1], bound_c[lk, 2]
-        px = M[j, 0, 0] * lx + M[j, 0, 1] * ly + M[j, 0, 2] * lz + M[j, 0, 3]
-        py = M[j, 1, 0] * lx + M[j, 1, 1] * ly + M[j, 1, 2] * lz + M[j, 1, 3]
-        pz = M[j, 2, 0] * lx + M[j, 2, 1] * ly + M[j, 2, 2] * lz + M[j, 2, 3]
-        wx = cos_yaw * px - sin_yaw * py + bx
-        wy = sin_yaw * px + cos_yaw * py + by
+        wx, wy, wz = to_world(F, base, bound_c[lk, 0], bound_c[lk, 1], bound_c[lk, 2])
         r = bound_r[lk] + BOUNDS_PAD
         n = 0
         meets = False
         for k in range(K):
-            if (
-                box_code[k] != skip
-                and wx + r > box_lo[k, 0]
-                and wx - r < box_hi[k, 0]
-                and wy + r > box_lo[k, 1]
-                and wy - r < box_hi[k, 1]
-                and pz + r > box_lo[k, 2]
-                and pz - r < box_hi[k, 2]
-            ):
+            if box_code[k] != skip and _in_bounds(wx, wy, wz, r, r, r, box_lo, box_hi, k):
                 near[n] = k
                 n += 1
                 if not meets:
-                    meets = _sphere_meets(
-                        wx, wy, pz, bound_r[lk], k, box_c, box_R, box_half, box_cyl, box_rad,
-                        box_lo, box_hi, touch,
-                    )  # fmt: skip
+                    meets = _sphere_meets(wx, wy, wz, bound_r[lk], k, solids, touch)
         if not meets:
             continue
         left = n
         for f in range(leaf_start[lk], leaf_start[lk] + leaf_count[lk]):
-            lx, ly, lz = leaf_c[f, 0], leaf_c[f, 1], leaf_c[f, 2]
-            px = M[j, 0, 0] * lx + M[j, 0, 1] * ly + M[j, 0, 2] * lz + M[j, 0, 3]
-            py = M[j, 1, 0] * lx + M[j, 1, 1] * ly + M[j, 1, 2] * lz + M[j, 1, 3]
-            pz = M[j, 2, 0] * lx + M[j, 2, 1] * ly + M[j, 2, 2] * lz + M[j, 2, 3]
-            wx = cos_yaw * px - sin_yaw * py + bx
-            wy = sin_yaw * px + cos_yaw * py + by
+            wx, wy, wz = to_world(F, base, leaf_c[f, 0], leaf_c[f, 1], leaf_c[f, 2])
             r = leaf_r[f]
             for i in range(n):
                 k = near[i]
                 if (
                     not found[k]
-                    and wx + r > box_lo[k, 0]
-                    and wx - r < box_hi[k, 0]
-                    and wy + r > box_lo[k, 1]
-                    and wy - r < box_hi[k, 1]
-                    and pz + r > box_lo[k, 2]
-                    and pz - r < box_hi[k, 2]
-                    and _sphere_meets(
-                        wx, wy, pz, r, k, box_c, box_R, box_half, box_cyl, box_rad, box_lo,
-                        box_hi, touch,
-                    )
-                ):  # fmt: skip
+                    and _in_bounds(wx, wy, wz, r, r, r, box_lo, box_hi, k)
+                    and _sphere_meets(wx, wy, wz, r, k, solids, touch)
+                ):
                     found[k] = True
                     out_link[count] = lk
                     out_box[count] = k
@@ -643,6 +531,46 @@ def link_contacts(
         for i in range(n):
             found[near[i]] = False
     return count
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _place_row(
+    theta: np.ndarray,
+    R_parent: np.ndarray,
+    p_parent: np.ndarray,
+    axis_index: np.ndarray,
+    axes: np.ndarray,
+    prismatic: np.ndarray,
+    geom_parent: np.ndarray,
+    geom_R: np.ndarray,
+    geom_p: np.ndarray,
+    geom_c: np.ndarray,
+    geom_h: np.ndarray,
+    R: np.ndarray,
+    p: np.ndarray,
+    M: np.ndarray,
+    R_geom: np.ndarray,
+    p_geom: np.ndarray,
+) -> float:
+    """One row of :func:`contacts_many`: the joints' placements of ``theta`` into ``M`` (by
+    way of ``R, p``), the geometries' into ``R_geom, p_geom``; returns their lowest z [m]."""
+    joint_frames(R_parent, p_parent, axis_index, axes, prismatic, theta, R, p)
+    for r in range(4):
+        for c in range(4):
+            M[0, r, c] = 1.0 if r == c else 0.0
+    M[1:, :3, :3] = R
+    M[1:, :3, 3] = p
+    M[1:, 3, :3] = 0.0
+    M[1:, 3, 3] = 1.0
+    low = np.inf
+    for g in range(geom_parent.shape[0]):
+        j = geom_parent[g]
+        put(compose(frame(M[j], M[j, :, 3]), frame(geom_R[g], geom_p[g])), R_geom[g], p_geom[g])
+        z = p_geom[g, 2]
+        for c in range(3):
+            z += R_geom[g, 2, c] * geom_c[g, c] - abs(R_geom[g, 2, c]) * geom_h[g, c]
+        low = min(low, z)
+    return low
 
 
 @njit(cache=True, nogil=True)
@@ -697,54 +625,18 @@ def contacts_many(
     :class:`~pickstop.robot.floor.Placements` places them), and ``z_low: (B,)`` is the lowest
     z of their local bounding boxes (centres ``geom_c``, half extents ``geom_h``) so placed."""
     B, n = thetas.shape
-    L = bound_r.shape[0]
-    K = box_lo.shape[0]
     R = np.empty((n, 3, 3))
     p = np.empty((n, 3))
-    lk_buf = np.empty(L * K, np.int64)
-    bx_buf = np.empty(L * K, np.int64)
-    count = 0
     start[0] = 0
     for b in range(B):
-        joint_frames(R_parent, p_parent, axis_index, axes, prismatic, thetas[b], R, p)
-        for r in range(4):
-            for c in range(4):
-                M[b, 0, r, c] = 1.0 if r == c else 0.0
-        for i in range(n):
-            for r in range(3):
-                for c in range(3):
-                    M[b, i + 1, r, c] = R[i, r, c]
-                M[b, i + 1, r, 3] = p[i, r]
-                M[b, i + 1, 3, r] = 0.0
-            M[b, i + 1, 3, 3] = 1.0
-        low = np.inf
-        for g in range(geom_parent.shape[0]):
-            j = geom_parent[g]
-            for r in range(3):
-                for c in range(3):
-                    R_geom[b, g, r, c] = (
-                        M[b, j, r, 0] * geom_R[g, 0, c]
-                        + M[b, j, r, 1] * geom_R[g, 1, c]
-                        + M[b, j, r, 2] * geom_R[g, 2, c]
-                    )
-                p_geom[b, g, r] = (
-                    M[b, j, r, 0] * geom_p[g, 0]
-                    + M[b, j, r, 1] * geom_p[g, 1]
-                    + M[b, j, r, 2] * geom_p[g, 2]
-                    + M[b, j, r, 3]
-                )
-            z = p_geom[b, g, 2]
-            for c in range(3):
-                z += R_geom[b, g, 2, c] * geom_c[g, c] - abs(R_geom[b, g, 2, c]) * geom_h[g, c]
-            low = min(low, z)
-        z_low[b] = low
+        z_low[b] = _place_row(thetas[b], R_parent, p_parent, axis_index, axes, prismatic,
+                              geom_parent, geom_R, geom_p, geom_c, geom_h, R, p, M[b],
+                              R_geom[b], p_geom[b])  # fmt: skip
+        # written in place: the outputs hold at least L * K slots past any row's start
         k = link_contacts(
             M[b], link_joint, bound_c, bound_r, is_hand, leaf_start, leaf_count, leaf_c,
             leaf_r, xy[b, 0], xy[b, 1], cos_yaw, sin_yaw, box_c, box_R, box_half, box_cyl,
-            box_rad, box_lo, box_hi, box_code, codes[b], touch, lk_buf, bx_buf,
+            box_rad, box_lo, box_hi, box_code, codes[b], touch, out_link[start[b]:],
+            out_box[start[b]:],
         )  # fmt: skip
-        for i in range(k):
-            out_link[count + i] = lk_buf[i]
-            out_box[count + i] = bx_buf[i]
-        count += k
-        start[b + 1] = count
+        start[b + 1] = start[b] + k

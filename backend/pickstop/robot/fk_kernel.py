@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from pickstop.robot.frame_kernel import compose, frame, put
+
 
 @njit(cache=True, nogil=True)
 def joint_frames(
@@ -27,24 +29,10 @@ def joint_frames(
     for i in range(n):
         # the joint's frame at zero motion: its parent's (the last joint's, moved) times its
         # placement there
-        if i == 0:
-            for r in range(3):
-                p[0, r] = p_parent[0, r]
-                for c in range(3):
-                    R[0, r, c] = R_parent[0, r, c]
-        else:
-            for r in range(3):
-                p[i, r] = p[i - 1, r] + (
-                    R[i - 1, r, 0] * p_parent[i, 0]
-                    + R[i - 1, r, 1] * p_parent[i, 1]
-                    + R[i - 1, r, 2] * p_parent[i, 2]
-                )
-                for c in range(3):
-                    R[i, r, c] = (
-                        R[i - 1, r, 0] * R_parent[i, 0, c]
-                        + R[i - 1, r, 1] * R_parent[i, 1, c]
-                        + R[i - 1, r, 2] * R_parent[i, 2, c]
-                    )
+        F = frame(R_parent[i], p_parent[i])
+        if i > 0:
+            F = compose(frame(R[i - 1], p[i - 1]), F)
+        put(F, R[i], p[i])
         a = axis_index[i]
         if prismatic[i]:
             for r in range(3):
