@@ -231,13 +231,9 @@ class Refiner:
         by :meth:`_verify`; stalled against joint limits, it steps back inside and goes on."""
         x = self._at(theta, oMdes)
         best = x
-        mu = 1.0
-        n_eval = 1
-        nudges = _MAX_NUDGES
-        no_progress = 0
+        mu, n_eval, nudges, no_progress = 1.0, 1, _MAX_NUDGES, 0
         reason = "max_iter"
-        lo_b = self.lower + _LIMIT_EPS
-        hi_b = self.upper - _LIMIT_EPS
+        lo_b, hi_b = self.lower + _LIMIT_EPS, self.upper - _LIMIT_EPS
         while True:
             if x.within(pos_tol, rot_tol):
                 reason = "converged"
