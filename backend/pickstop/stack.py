@@ -132,15 +132,8 @@ def start(
 
     from pickstop.api.app import create_app
 
-    host, port = settings.host, settings.port
-    try:
-        sock = listen(host, port)
-    except PortInUse:
-        if not move_if_busy:
-            raise
-        new = free_port(host)
-        print(f"pickstop: port {port} is busy; the demo's API takes {new}", file=sys.stderr)
-        port, sock = new, listen(host, new)
+    host = settings.host
+    port, sock = _bind_api(settings, move_if_busy)
     if ui and not move_if_busy and not port_free(host, settings.ui_port):
         sock.close()
         raise PortInUse(f"port {settings.ui_port} on {host} (the 3D planner's) is not "
@@ -151,11 +144,7 @@ def start(
     api_url = f"http://{host}:{port}"
     server: Any
     if settings.workers > 1:
-        from pickstop.runtime.servers import WorkerPool, wait_healthy
-
-        server = WorkerPool(sock, settings, log_level)
-        sock.close()  # the workers hold it
-        wait_healthy(api_url, server)
+        server = _worker_pool(settings, sock, api_url, log_level)
     else:
         from pickstop.runtime.servers import SERVER_OPTIONS
 
@@ -163,15 +152,7 @@ def start(
             create_app(settings), host=host, port=port, log_level=log_level, **SERVER_OPTIONS
         )
         server = uvicorn.Server(config)
-        thread = threading.Thread(
-            target=server.run, kwargs={"sockets": [sock]}, name="pickstop-api", daemon=True
-        )
-        thread.start()
-        t0 = time.time()
-        while not server.started:
-            if not thread.is_alive() or time.time() - t0 > 300:
-                raise PickStopError(f"the API did not start on {host}:{port}")
-            time.sleep(0.1)
+        _run_in_thread(server, sock, host, port)
     if not ui:
         return Stack(api_url, None, None, server, None)
 
@@ -180,15 +161,58 @@ def start(
 
     client = PickStopClient(api_url, ui_key)
     if scene_id is None:
-        if scene_file is not None:
-            doc = json.loads(Path(scene_file).read_text(encoding="utf-8"))
-            scene_id = client.create_scene(doc).id
-        else:
-            stored = client.http.get("/api/v1/scenes", params={"limit": 1}).json()
-            if stored:
-                scene_id = stored[0]["id"]
-            else:
-                doc = json.loads(EXAMPLE_SCENE.read_text(encoding="utf-8"))
-                scene_id = client.create_scene(doc).id
+        scene_id = _planner_scene(client, scene_file)
     app = PlannerApp(client, scene_id, host=host, port=settings.ui_port)
     return Stack(api_url, f"http://{host}:{app.port}/", scene_id, server, app)
+
+
+def _bind_api(settings: Settings, move_if_busy: bool) -> tuple[int, socket.socket]:
+    """The API's port and its listening socket: the configured port, or (``move_if_busy``)
+    a free one, said on stderr."""
+    host, port = settings.host, settings.port
+    try:
+        sock = listen(host, port)
+    except PortInUse:
+        if not move_if_busy:
+            raise
+        new = free_port(host)
+        print(f"pickstop: port {port} is busy; the demo's API takes {new}", file=sys.stderr)
+        port, sock = new, listen(host, new)
+    return port, sock
+
+
+def _worker_pool(settings: Settings, sock: socket.socket, api_url: str, log_level: str) -> Any:
+    """``settings.workers`` API processes sharing ``sock``, returned once ``api_url`` answers."""
+    from pickstop.runtime.servers import WorkerPool, wait_healthy
+
+    server = WorkerPool(sock, settings, log_level)
+    sock.close()  # the workers hold it
+    wait_healthy(api_url, server)
+    return server
+
+
+def _run_in_thread(server: Any, sock: socket.socket, host: str, port: int) -> None:
+    """Run the uvicorn ``server`` on ``sock`` in a daemon thread; return once it has started
+    (:class:`PickStopError` if its thread dies or it takes over 300 s)."""
+    thread = threading.Thread(
+        target=server.run, kwargs={"sockets": [sock]}, name="pickstop-api", daemon=True
+    )
+    thread.start()
+    t0 = time.time()
+    while not server.started:
+        if not thread.is_alive() or time.time() - t0 > 300:
+            raise PickStopError(f"the API did not start on {host}:{port}")
+        time.sleep(0.1)
+
+
+def _planner_scene(client: Any, scene_file: Path | None) -> str:
+    """The id of the scene the planner opens: ``scene_file`` stored anew, else the newest
+    stored scene, else the example scene stored anew."""
+    if scene_file is not None:
+        doc = json.loads(Path(scene_file).read_text(encoding="utf-8"))
+        return client.create_scene(doc).id
+    stored = client.http.get("/api/v1/scenes", params={"limit": 1}).json()
+    if stored:
+        return stored[0]["id"]
+    doc = json.loads(EXAMPLE_SCENE.read_text(encoding="utf-8"))
+    return client.create_scene(doc).id

@@ -194,22 +194,13 @@ class Dispatcher:
         cancelled: Callable[[], bool] | None,
         record: Callable[[Arrival], None] | None,
     ) -> dict[str, Any]:
-        if not self.vehicle_seen.wait(wait_vehicle):
-            raise DispatchError(
-                f"no vehicle on {self.topics['state']} (no state or ONLINE connection in "
-                f"{wait_vehicle:.0f} s)"
-            )
-        doc = v.dump(order)
-        self._header = max(self._header + 1, order.header_id)
-        doc["headerId"] = self._header  # per topic, one more with every message sent
-        with self._cond:
-            self.tracker = tr
-            self.refused = None
-            tr.sent_at = time.monotonic()
-        self._last_sent = time.monotonic()
-        self.link.publish(self.topics["order"], doc)
-        t_end = tr.sent_at + timeout
-        last_sent, last_report = tr.sent_at, 0.0
+        """Send ``order`` and follow ``tr`` until done: hand ``record`` each new arrival,
+        ``progress`` the summary at most every 0.5 s, send the order again every ``resend``
+        [s] until a state names it; raise if it is refused, cancelled or not done in
+        ``timeout`` [s]. Returns the tracker's last summary."""
+        doc, sent_at = self._send(order, tr, wait_vehicle)
+        t_end = sent_at + timeout
+        last_sent, last_report = sent_at, 0.0
         while True:
             with self._cond:
                 if tr.done:
@@ -225,19 +216,9 @@ class Dispatcher:
             now = time.monotonic()
             if done:
                 break
-            if self.refused is not None:
-                raise DispatchError(f"the vehicle refused order {order.order_id}: {self.refused}")
-            if cancelled is not None and cancelled():
-                raise DispatchCancelled(f"order {order.order_id} cancelled")
-            if now > t_end:
-                raise DispatchError(
-                    f"order {order.order_id} not done after {timeout:.0f} s: "
-                    f"{len(tr.reached)}/{len(order.nodes)} nodes reached"
-                )
+            self._check_going(order, tr, now > t_end, timeout, cancelled)
             if tr.acknowledged_at is None and now - last_sent > resend:
-                self._header += 1
-                doc = {**doc, "headerId": self._header, "timestamp": orders.timestamp()}
-                self.link.publish(self.topics["order"], doc)
+                doc = self._resend(doc)
                 last_sent = self._last_sent = now
             if progress is not None and summary is not None and now - last_report > 0.5:
                 progress(summary)
@@ -247,6 +228,55 @@ class Dispatcher:
         if progress is not None:
             progress(summary)
         return summary
+
+    def _send(
+        self, order: v.Order, tr: OrderTracker, wait_vehicle: float
+    ) -> tuple[dict[str, Any], float]:
+        """Publish ``order`` once a vehicle is seen (within ``wait_vehicle`` [s]), ``tr``
+        following it from now; returns the message sent and when [s, monotonic]."""
+        if not self.vehicle_seen.wait(wait_vehicle):
+            raise DispatchError(
+                f"no vehicle on {self.topics['state']} (no state or ONLINE connection in "
+                f"{wait_vehicle:.0f} s)"
+            )
+        doc = v.dump(order)
+        self._header = max(self._header + 1, order.header_id)
+        doc["headerId"] = self._header  # per topic, one more with every message sent
+        with self._cond:
+            self.tracker = tr
+            self.refused = None
+            tr.sent_at = sent_at = time.monotonic()
+        self._last_sent = time.monotonic()
+        self.link.publish(self.topics["order"], doc)
+        return doc, sent_at
+
+    def _resend(self, doc: dict[str, Any]) -> dict[str, Any]:
+        """Publish the order message ``doc`` again, with the next header id and a new
+        timestamp; returns the message sent."""
+        self._header += 1
+        doc = {**doc, "headerId": self._header, "timestamp": orders.timestamp()}
+        self.link.publish(self.topics["order"], doc)
+        return doc
+
+    def _check_going(
+        self,
+        order: v.Order,
+        tr: OrderTracker,
+        overdue: bool,
+        timeout: float,
+        cancelled: Callable[[], bool] | None,
+    ) -> None:
+        """Raise if the vehicle refused ``order``, whoever follows it ``cancelled``, or it is
+        ``overdue`` (not done in ``timeout`` [s])."""
+        if self.refused is not None:
+            raise DispatchError(f"the vehicle refused order {order.order_id}: {self.refused}")
+        if cancelled is not None and cancelled():
+            raise DispatchCancelled(f"order {order.order_id} cancelled")
+        if overdue:
+            raise DispatchError(
+                f"order {order.order_id} not done after {timeout:.0f} s: "
+                f"{len(tr.reached)}/{len(order.nodes)} nodes reached"
+            )
 
 
 #: ``build(pick) -> order``: the plan's order with a vehicle type's pick (None: PickStop's own)

@@ -104,6 +104,30 @@ def build_nav2(
         raise InputError(f"distro: {distro!r} is not humble, jazzy or kilted", field="distro")
     # the robot is at start
     wps = rt.waypoints(plan, start_yaw, goal_yaw, yaw_tolerance, shapes)[1:]
+    goal = _goal(wps, frame_id, distro)
+    segments = _segments(wps)
+    picks = [
+        {"segment": k, "stop": seg["name"], "pose_index": seg["last"], **p}
+        for k, seg in enumerate(segments)
+        for p in seg["picks"]
+    ]
+    return {
+        "format": FORMAT,
+        "version": 1,
+        "action": "nav2_msgs/action/NavigateThroughPoses",
+        "distro": distro,
+        "frame_id": frame_id,
+        "scene": plan.scene,
+        "goal": goal,
+        "segments": segments,
+        "picks": picks,
+        "notes": [*NOTES, _tolerance_note([rt.guaranteed_radius(s) for s in plan.stops])],
+    }
+
+
+def _goal(wps: list[rt.Waypoint], frame_id: str, distro: Distro) -> dict[str, Any]:
+    """The NavigateThroughPoses goal through ``wps``: one stamped pose [m, quaternion] each,
+    wrapped in ``nav_msgs/Goals`` for Kilted."""
 
     def header() -> dict[str, Any]:  # stamp zero: "use the latest transform"
         return {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": frame_id}
@@ -122,6 +146,12 @@ def build_nav2(
     if distro == "kilted":
         goal = {"poses": {"header": header(), "goals": poses},
                 "behavior_tree": ""}  # fmt: skip
+    return goal
+
+
+def _segments(wps: list[rt.Waypoint]) -> list[dict[str, Any]]:
+    """One segment per stop (and the goal): its poses ``first..last`` into ``wps``, its
+    tolerances [m, rad], the docking poses along it and the picks to run at its end."""
     segments, first = [], 0
     for i, w in enumerate(wps):
         if w.kind not in ("stop", "goal"):
@@ -148,23 +178,7 @@ def build_nav2(
             seg["predicted_success"] = w.predicted_success
         segments.append(seg)
         first = i + 1
-    picks = [
-        {"segment": k, "stop": seg["name"], "pose_index": seg["last"], **p}
-        for k, seg in enumerate(segments)
-        for p in seg["picks"]
-    ]
-    return {
-        "format": FORMAT,
-        "version": 1,
-        "action": "nav2_msgs/action/NavigateThroughPoses",
-        "distro": distro,
-        "frame_id": frame_id,
-        "scene": plan.scene,
-        "goal": goal,
-        "segments": segments,
-        "picks": picks,
-        "notes": [*NOTES, _tolerance_note([rt.guaranteed_radius(s) for s in plan.stops])],
-    }
+    return segments
 
 
 def dumps(doc: dict[str, Any], fmt: Literal["json", "yaml"]) -> str:

@@ -102,6 +102,30 @@ class _Node:
     actions: list[_Action]
 
 
+def _node_of(n: Any) -> _Node:
+    """An order's node as the vehicle runs it: position [m] (0 without one), heading [rad] if
+    given, allowed deviation [m] (an ellipse's semi-major axis) and its actions, waiting."""
+    p = n.node_position
+    dev = 0.0 if p is None else p.allowed_deviation_xy
+    dev = dev.a if isinstance(dev, v.DeviationEllipse) else float(dev or 0.0)
+    return _Node(
+        n.node_id,
+        n.sequence_id,
+        0.0 if p is None else p.x,
+        0.0 if p is None else p.y,
+        None if p is None else p.theta,
+        dev,
+        [
+            _Action(
+                a.action_id,
+                a.action_type,
+                {q.key: q.value for q in a.action_parameters or []},
+            )
+            for a in n.actions
+        ],
+    )
+
+
 @dataclass
 class _Phase:
     kind: str  # "drive", "dock", "redock", "operator", "pick"
@@ -164,54 +188,47 @@ class SimVehicle:
         refs = (("orderId", oid),)
         # an earlier refusal is history once a new order arrives
         self.errors = [e for e in self.errors if e["errorType"] not in REFUSAL_TYPES]
+        o = self._validated(doc, refs)
+        if o is None:
+            return False
+        if o.order_id == self.order_id and o.order_update_id <= self.order_update_id:
+            return True  # a repeat of the order we run
+        self._start(o)
+        return True
+
+    def _validated(self, doc: dict[str, Any], refs: tuple[tuple[str, str], ...]) -> v.Order | None:
+        """The order model of ``doc``, or None with the refusal in ``errors``: a newer protocol
+        version, a schema error, an action its factsheet does not list, or a broken rule of
+        the standard (an order without nodes among them)."""
         theirs = str(doc.get("version", "")) if isinstance(doc, dict) else ""
         if v.minor(theirs) > v.minor(self.version):
             text = f"order version {theirs} is not compatible with vehicle version {self.version}"
             self._error("validationError", text, "FATAL", refs)
-            return False
+            return None
         try:
             o = v.ORDER_MODELS[self.version].model_validate(doc)
         except Exception as e:
             text = f"order refused: {e}".splitlines()[0]
             self._error("validationError", text, "FATAL", refs)
-            return False
+            return None
         unable = fs.check_order(o, fs.read(self.factsheet()))
         if unable:
             self._error("orderError", "order action is not executable: " + "; ".join(unable),
                         "WARNING", refs)  # fmt: skip
-            return False
+            return None
         problems = orders.check_order(o)
         if problems or not o.nodes:
             text = "order refused: " + "; ".join(problems or ["no nodes"])
             self._error("orderError", text, "WARNING", refs)
-            return False
-        if o.order_id == self.order_id and o.order_update_id <= self.order_update_id:
-            return True  # a repeat of the order we run
+            return None
+        return o
+
+    def _start(self, o: v.Order) -> None:
+        """Run the validated order ``o`` from its first node (placed there if
+        ``teleport_to_first_node``), its phases planned and nothing done yet."""
         self.errors = []
         self.order_id, self.order_update_id = o.order_id, o.order_update_id
-        self.nodes = []
-        for n in o.nodes:
-            p = n.node_position
-            dev = 0.0 if p is None else p.allowed_deviation_xy
-            dev = dev.a if isinstance(dev, v.DeviationEllipse) else float(dev or 0.0)
-            self.nodes.append(
-                _Node(
-                    n.node_id,
-                    n.sequence_id,
-                    0.0 if p is None else p.x,
-                    0.0 if p is None else p.y,
-                    None if p is None else p.theta,
-                    dev,
-                    [
-                        _Action(
-                            a.action_id,
-                            a.action_type,
-                            {q.key: q.value for q in a.action_parameters or []},
-                        )
-                        for a in n.actions
-                    ],
-                )
-            )
+        self.nodes = [_node_of(n) for n in o.nodes]
         self.edges = [(e.edge_id, e.sequence_id) for e in o.edges]
         first = self.nodes[0]
         if self.teleport_to_first_node:
@@ -227,7 +244,6 @@ class SimVehicle:
         self.elapsed = 0.0
         if not self.phases:
             self.finished_at = self.clock
-        return True
 
     def _plan_phases(self) -> list[_Phase]:
         """Rest-to-rest drives between the nodes it halts at (those with actions or an

@@ -82,6 +82,22 @@ def check_target(R_target: np.ndarray, p_target: np.ndarray) -> tuple[np.ndarray
     return np.ascontiguousarray(R), np.ascontiguousarray(p)
 
 
+@dataclass(frozen=True)
+class _Point:
+    """One configuration of the LM loop: ``theta: (dof,)`` [rad or m], error ``e: (6,)``, its
+    Jacobian ``J: (6, dof)``, position [m] and rotation [rad] errors, and ``cost = e.e / 2``."""
+
+    theta: np.ndarray
+    e: np.ndarray
+    J: np.ndarray
+    pos_err: float
+    rot_err: float
+    cost: float
+
+    def within(self, pos_tol: float, rot_tol: float) -> bool:
+        return self.pos_err <= pos_tol and self.rot_err <= rot_tol
+
+
 def _check_thetas(thetas: np.ndarray, dof: int, name: str, batched: bool) -> np.ndarray:
     th = np.asarray(thetas, dtype=np.float64)
     want = "(k, dof)" if batched else "(dof,)"
@@ -211,40 +227,36 @@ class Refiner:
         max_iter: int,
         damping: float,
     ) -> IKResult:
-        e, J, pos_err, rot_err = self._eval(theta, oMdes)
-        cost = 0.5 * float(e @ e)
-        best_theta, best_cost = theta, cost
-        mu = 1.0
-        n_eval = 1
-        nudges = _MAX_NUDGES
-        no_progress = 0
+        """The LM loop from ``theta: (dof,)`` (within limits) to ``oMdes``, judged at the end
+        by :meth:`_verify`; stalled against joint limits, it steps back inside and goes on."""
+        x = self._at(theta, oMdes)
+        best = x
+        mu, n_eval, nudges, no_progress = 1.0, 1, _MAX_NUDGES, 0
         reason = "max_iter"
-        lo_b = self.lower + _LIMIT_EPS
-        hi_b = self.upper - _LIMIT_EPS
+        lo_b, hi_b = self.lower + _LIMIT_EPS, self.upper - _LIMIT_EPS
         while True:
-            if pos_err <= pos_tol and rot_err <= rot_tol:
+            if x.within(pos_tol, rot_tol):
                 reason = "converged"
                 break
-            if not math.isfinite(cost):
+            if not math.isfinite(x.cost):
                 reason = "numerical"
                 break
             if n_eval > max_iter:
                 break
-            dq, blocked = self._step(theta, e, J, mu * cost + damping, lo_b, hi_b)
-            cand = self.project(theta + dq)
-            stalled = float(np.abs(cand - theta).max()) < 1e-12
+            dq, blocked = self._step(x.theta, x.e, x.J, mu * x.cost + damping, lo_b, hi_b)
+            cand = self.project(x.theta + dq)
+            stalled = float(np.abs(cand - x.theta).max()) < 1e-12
             if not stalled:
-                e_c, J_c, pe_c, re_c = self._eval(cand, oMdes)
+                c = self._at(cand, oMdes)
                 n_eval += 1
-                cost_c = 0.5 * float(e_c @ e_c)
-                if cost_c < cost:
-                    no_progress = no_progress + 1 if cost - cost_c < _STALL_RATIO * cost else 0
-                    theta, e, J, pos_err, rot_err, cost = cand, e_c, J_c, pe_c, re_c, cost_c
+                if c.cost < x.cost:
+                    no_progress = no_progress + 1 if x.cost - c.cost < _STALL_RATIO * x.cost else 0
+                    x = c
                     mu = max(mu / 3.0, 1e-3)
                 else:
                     mu *= 4.0
-                stalled = (no_progress >= _STALL_STEPS or mu > _MU_MAX) and not (
-                    pos_err <= pos_tol and rot_err <= rot_tol
+                stalled = (no_progress >= _STALL_STEPS or mu > _MU_MAX) and not x.within(
+                    pos_tol, rot_tol
                 )
             if not stalled:
                 continue
@@ -254,20 +266,29 @@ class Refiner:
             if nudges == 0 or n_eval > max_iter:
                 reason = "joint_limits"
                 break
-            # Pressed against limits (typically a straight elbow, where the gradient cannot tell
-            # which way to bend): step the blocked joints back inside and carry on.
             nudges -= 1
-            if cost < best_cost:
-                best_theta, best_cost = theta, cost
-            inward = np.where(theta >= hi_b, -1.0, 1.0)
-            theta = self.project(theta + np.where(blocked, inward * self._nudge, 0.0))
-            e, J, pos_err, rot_err = self._eval(theta, oMdes)
+            if x.cost < best.cost:
+                best = x
+            x = self._nudged(x.theta, blocked, hi_b, oMdes)
             n_eval += 1
-            cost = 0.5 * float(e @ e)
             mu, no_progress = 1.0, 0
-        if reason != "converged" and best_cost < cost:
-            theta = best_theta
+        theta = best.theta if reason != "converged" and best.cost < x.cost else x.theta
         return self._verify(theta, oMdes, pos_tol, rot_tol, n_eval - 1, reason)
+
+    def _at(self, theta: np.ndarray, oMdes: pin.SE3) -> _Point:
+        """The loop's view of ``theta: (dof,)``: its error to ``oMdes``, Jacobian and cost."""
+        e, J, pos_err, rot_err = self._eval(theta, oMdes)
+        return _Point(theta, e, J, pos_err, rot_err, 0.5 * float(e @ e))
+
+    def _nudged(
+        self, theta: np.ndarray, blocked: np.ndarray, hi_b: np.ndarray, oMdes: pin.SE3
+    ) -> _Point:
+        """``theta: (dof,)`` with its ``blocked`` joints stepped back inside their limits.
+
+        Pressed against limits (typically a straight elbow, where the gradient cannot tell
+        which way to bend), the loop carries on from there."""
+        inward = np.where(theta >= hi_b, -1.0, 1.0)
+        return self._at(self.project(theta + np.where(blocked, inward * self._nudge, 0.0)), oMdes)
 
     def _step(
         self,

@@ -15,6 +15,7 @@ import math
 import time
 from collections import Counter
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -56,14 +57,7 @@ def check_config(
     from pickstop.robot.link_geometry import collision_links
 
     seconds: dict[str, float] = {"config": parse_s}
-
-    def timed(name: str, what: str, fn: Callable[[], T]) -> T:
-        report_step(steps, what)
-        t0 = time.perf_counter()
-        out = fn()
-        seconds[name] = round(time.perf_counter() - t0, 3)
-        return out
-
+    timed = _Timer(steps, seconds)
     before = Counter(COMPUTED)
     robot: RobotModel = timed(
         "model",
@@ -78,17 +72,9 @@ def check_config(
     travel = timed("travel", "the travel posture", lambda: travel_of(robot, disabled))
     report: dict[str, Any] = {
         **_describe(robot, links, label),
-        "self_collision": {
-            "source": disabled.source,
-            "counts": disabled.counts(),
-            "disabled": [[p.link1, p.link2, p.reason] for p in disabled.pairs],
-        },
+        "self_collision": _pairs(disabled),
         "screen": _screen(quality),
-        "travel": {
-            "source": travel.source,
-            "joints": {k: round(v, 6) for k, v in travel.by_joint(robot).items()},
-            "collisions": [list(p) for p in travel.collisions],
-        },
+        "travel": _travel(robot, travel),
         "seconds": seconds,
         "warnings": [],
     }
@@ -111,6 +97,40 @@ def check_config(
         "computed": sorted((COMPUTED - before).elements()),  # the rest was read from it
     }
     return report
+
+
+@dataclass(frozen=True)
+class _Timer:
+    """Runs a step of the check, telling ``steps`` of it and keeping its time in ``seconds``
+    [s, rounded to ms] under its name."""
+
+    steps: Steps | None
+    seconds: dict[str, float]
+
+    def __call__(self, name: str, what: str, fn: Callable[[], T]) -> T:
+        report_step(self.steps, what)
+        t0 = time.perf_counter()
+        out = fn()
+        self.seconds[name] = round(time.perf_counter() - t0, 3)
+        return out
+
+
+def _pairs(disabled: Any) -> dict[str, Any]:
+    """The disabled self-collision pairs: their source, counts by reason and each pair."""
+    return {
+        "source": disabled.source,
+        "counts": disabled.counts(),
+        "disabled": [[p.link1, p.link2, p.reason] for p in disabled.pairs],
+    }
+
+
+def _travel(robot: RobotModel, travel: Any) -> dict[str, Any]:
+    """The travel posture: its source, joint positions [rad or m] and colliding link pairs."""
+    return {
+        "source": travel.source,
+        "joints": {k: round(v, 6) for k, v in travel.by_joint(robot).items()},
+        "collisions": [list(p) for p in travel.collisions],
+    }
 
 
 def _describe(robot: RobotModel, links: Any, label: str) -> dict[str, Any]:
@@ -339,9 +359,31 @@ def _footprint_line(fp: dict[str, Any]) -> str:
 
 def format_report(report: dict[str, Any]) -> str:
     """The report as text for a terminal."""
-    sc, scr, sec = report["self_collision"], report["screen"], report["seconds"]
+    lines = [*_robot_lines(report), *_collision_lines(report), _screen_line(report["screen"])]
+    if "travel" in report:
+        tr = report["travel"]
+        lines.append(
+            f"  travel posture ({tr['source']}): "
+            + ", ".join(f"{k} {v:.4g}" for k, v in tr["joints"].items())
+            + ("; collision-free (exact check)" if not tr["collisions"] else "; COLLIDING")
+        )
+    lines.append("  seconds: " + ", ".join(f"{k} {v}" for k, v in report["seconds"].items()))
+    lines += [f"WARNING: {w}" for w in report.get("warnings", [])]
+    cache = report.get("cache") or {}
+    if cache.get("folder"):
+        made = cache["computed"]
+        lines.append(
+            f"  cache {cache['folder']}: "
+            + (f"computed {', '.join(made)} (kept for every later check, build and plan)"
+               if made else "everything read from it")
+        )  # fmt: skip
+    return "\n".join(lines)
+
+
+def _robot_lines(report: dict[str, Any]) -> list[str]:
+    """The robot's files, arm, tool, hand, footprint and locked joints, a line each."""
     tool, hand = report["tool"], report["hand"]
-    lines = [
+    return [
         f"robot {report['robot']} ({report['config']}): URDF {report['urdf']}"
         + (f", SRDF {report['srdf']}" if report["srdf"] else ""),
         f"  base frame {report['base_frame']}; arm: "
@@ -365,6 +407,14 @@ def format_report(report: dict[str, Any]) -> str:
         + (", ".join(f"{k} {v:.4g}" for k, v in hand["pregrasp"].items()) or "none"),
         f"  footprint {_footprint_line(report['footprint'])}",
         f"  locked joints: {len(report['locked_joints'])}",
+    ]
+
+
+def _collision_lines(report: dict[str, Any]) -> list[str]:
+    """The collision links (those screened as hulls named), the disabled pairs by reason, and
+    where the SRDF and the computed pairs disagree (20 of each at most)."""
+    sc = report["self_collision"]
+    lines = [
         f"  collision links: {len(report['collision_links'])}"
         + "".join(
             f"\n    {lk['name']} ({lk['triangles']:,} triangles: screened as its hull)"
@@ -382,25 +432,7 @@ def format_report(report: dict[str, Any]) -> str:
         )
         lines += [f"    srdf only: {a} - {b}" for a, b in d["srdf_only"][:20]]
         lines += [f"    computed only: {a} - {b} ({r})" for a, b, r in d["computed_only"][:20]]
-    lines.append(_screen_line(scr))
-    if "travel" in report:
-        tr = report["travel"]
-        lines.append(
-            f"  travel posture ({tr['source']}): "
-            + ", ".join(f"{k} {v:.4g}" for k, v in tr["joints"].items())
-            + ("; collision-free (exact check)" if not tr["collisions"] else "; COLLIDING")
-        )
-    lines.append("  seconds: " + ", ".join(f"{k} {v}" for k, v in sec.items()))
-    lines += [f"WARNING: {w}" for w in report.get("warnings", [])]
-    cache = report.get("cache") or {}
-    if cache.get("folder"):
-        made = cache["computed"]
-        lines.append(
-            f"  cache {cache['folder']}: "
-            + (f"computed {', '.join(made)} (kept for every later check, build and plan)"
-               if made else "everything read from it")
-        )  # fmt: skip
-    return "\n".join(lines)
+    return lines
 
 
 def _screen_line(scr: dict[str, Any]) -> str:

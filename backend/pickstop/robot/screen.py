@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pickstop.robot.link_geometry import LinkShape, distance_grid
+from pickstop.robot.link_geometry import CollisionLink, LinkShape, distance_grid
 from pickstop.robot.screen_kernel import screen_rows
 from pickstop.robot.spheres import (
     SphereNode,
@@ -103,45 +103,18 @@ class SphereModel:
         joints = np.array([lk.joint for lk in links], dtype=np.int64)
         involved = sorted({i for p in pairs for i in p})
         shapes = {i: LinkShape.of(robot, links[i].geometry_ids) for i in involved}
-        finer = link_excess or {}
-        covers = {}
-        for i in involved:
-            e = finer.get(links[i].name, excess)
-            # Finer spheres need proportionally more (surface) elements to be finer.
-            covers[i] = cover(shapes[i], e, max_elements=min(16000, int(4000 * (excess / e) ** 2)))
+        covers = _covers(shapes, links, excess, link_excess or {})
         trees = {i: sphere_tree(covers[i], i) for i in involved}
         # (a-link, b-link) with a on the lower joint, for every enabled pair.
         oriented = [(i, j) if joints[i] < joints[j] else (j, i) for i, j in pairs]
-        pair_index = {p: k for k, p in enumerate(oriented)}
-
         screened = oriented if per_pair else _without_implied(oriented, shapes, joints)
         fields = _Fields(shapes, step, margin)
-        plan = _Plan()
-        body_pairs = sorted({(int(joints[a]), int(joints[b])) for a, b in screened})
-        for bp, (ja, jb) in enumerate(body_pairs):
-            partners: dict[int, list[int]] = {}
-            for a, b in screened:
-                if joints[a] == ja and joints[b] == jb:
-                    partners.setdefault(b, []).append(a)
-            root = group_tree(sorted(partners), covers, trees)
-            if per_pair:
-                root = split_by_partner(root, partners, pair_index)
-            plan.add_root(root, bp, partners, fields, ja)
+        pair_index = {p: k for k, p in enumerate(oriented)} if per_pair else None
+        plan, body_pairs = _plan_body_pairs(fields, screened, joints, covers, trees, pair_index)
 
         rows = [[joints[i], i, *s] for i in involved for s in covers[i]]
         nodes, grids = plan.arrays(), fields.arrays()
         f = nodes["node_field"]
-        rec = np.concatenate(
-            [
-                nodes["node_centre"],
-                nodes["node_radius"][:, None],
-                grids["field_origin"][f],
-                grids["field_top"][f],
-                grids["field_dims"][f][:, 1:].astype(np.float32),
-                grids["field_margin"][f][:, None],
-            ],
-            axis=1,
-        ).astype(np.float32)
         return cls(
             link_names=tuple(lk.name for lk in links),
             link_joints=joints,
@@ -150,11 +123,70 @@ class SphereModel:
             excess=excess,
             step=step,
             body_pairs=np.array(body_pairs, dtype=np.int64).reshape(-1, 2),
-            node_rec=rec,
+            node_rec=_node_records(nodes, grids),
             node_offset=grids["field_offset"][f],
             **nodes,
             **grids,
         )
+
+
+def _covers(
+    shapes: dict[int, LinkShape],
+    links: tuple[CollisionLink, ...],
+    excess: float,
+    finer: dict[str, float],
+) -> dict[int, np.ndarray]:
+    """Sphere cover ``(S, 4)`` [m] of each link ``i`` of ``shapes`` (``links[i]``), to
+    ``excess`` [m] or the link's ``finer`` excess [m], by link name."""
+    covers = {}
+    for i in shapes:
+        e = finer.get(links[i].name, excess)
+        # Finer spheres need proportionally more (surface) elements to be finer.
+        covers[i] = cover(shapes[i], e, max_elements=min(16000, int(4000 * (excess / e) ** 2)))
+    return covers
+
+
+def _plan_body_pairs(
+    fields: _Fields,
+    screened: list[tuple[int, int]],
+    joints: np.ndarray,
+    covers: dict[int, np.ndarray],
+    trees: dict[int, SphereNode],
+    pair_index: dict[tuple[int, int], int] | None,
+) -> tuple[_Plan, list[tuple[int, int]]]:
+    """The plan of one tree per body pair (joints ``a < b``) of the ``screened`` link pairs,
+    and those body pairs in plan order: body b's links grouped, each node screened against the
+    grid of its a-partners; with ``pair_index`` (per-pair screening), split so each leaf
+    reports its link pair's index."""
+    plan = _Plan()
+    body_pairs = sorted({(int(joints[a]), int(joints[b])) for a, b in screened})
+    for bp, (ja, jb) in enumerate(body_pairs):
+        partners: dict[int, list[int]] = {}
+        for a, b in screened:
+            if joints[a] == ja and joints[b] == jb:
+                partners.setdefault(b, []).append(a)
+        root = group_tree(sorted(partners), covers, trees)
+        if pair_index is not None:
+            root = split_by_partner(root, partners, pair_index)
+        plan.add_root(root, bp, partners, fields, ja)
+    return plan, body_pairs
+
+
+def _node_records(nodes: dict[str, np.ndarray], grids: dict[str, np.ndarray]) -> np.ndarray:
+    """``(N, 13)`` float32 per node: centre, radius, its grid's origin and top [m], the grid's
+    ny and nz, and its margin [m] (what the kernel reads of a node, in one row)."""
+    f = nodes["node_field"]
+    return np.concatenate(
+        [
+            nodes["node_centre"],
+            nodes["node_radius"][:, None],
+            grids["field_origin"][f],
+            grids["field_top"][f],
+            grids["field_dims"][f][:, 1:].astype(np.float32),
+            grids["field_margin"][f][:, None],
+        ],
+        axis=1,
+    ).astype(np.float32)
 
 
 def _without_implied(

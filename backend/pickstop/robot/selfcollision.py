@@ -23,6 +23,7 @@ import json
 import time
 import xml.etree.ElementTree as ET
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -76,30 +77,14 @@ def adjacent_pairs(urdf_path: Path, links: tuple[CollisionLink, ...]) -> set[tup
         root = ET.parse(urdf_path).getroot()
     except (OSError, ET.ParseError) as e:
         raise RobotConfigError(f"{urdf_path}: cannot read URDF: {e}") from None
-    parent: dict[str, str] = {}  # union-find over fixed joints
-
-    def find(x: str) -> str:
-        while parent.get(x, x) != x:
-            x = parent[x]
-        return x
-
-    edges = []
-    for j in root.iter("joint"):
-        p, c = j.find("parent"), j.find("child")
-        if p is None or c is None:
-            continue
-        a, b = p.get("link", ""), c.get("link", "")
-        if j.get("type") == "fixed":
-            parent[find(b)] = find(a)
-        else:
-            edges.append((a, b))
+    parent, edges = _fixed_groups(root)
     names = {lk.name for lk in links}
     members: dict[str, set[str]] = defaultdict(set)
     for lk in root.iter("link"):
-        members[find(lk.get("name", ""))].add(lk.get("name", ""))
+        members[_find(parent, lk.get("name", ""))].add(lk.get("name", ""))
     graph: dict[str, set[str]] = defaultdict(set)
     for a, b in edges:
-        ga, gb = find(a), find(b)
+        ga, gb = _find(parent, a), _find(parent, b)
         graph[ga].add(gb)
         graph[gb].add(ga)
 
@@ -110,16 +95,7 @@ def adjacent_pairs(urdf_path: Path, links: tuple[CollisionLink, ...]) -> set[tup
     for g in list(members):
         if not has_geom(g):
             continue
-        reach, stack, seen = {g}, [g], {g}
-        while stack:  # neighbours, walking through geometry-less groups
-            for nb in graph[stack.pop()]:
-                if nb in seen:
-                    continue
-                seen.add(nb)
-                if has_geom(nb):
-                    reach.add(nb)
-                else:
-                    stack.append(nb)
+        reach = _neighbour_groups(g, graph, has_geom)
         mine = members[g] & names
         for h in reach:
             for a in mine:
@@ -127,6 +103,48 @@ def adjacent_pairs(urdf_path: Path, links: tuple[CollisionLink, ...]) -> set[tup
                     if a != b:
                         out.add((min(a, b), max(a, b)))
     return out
+
+
+def _fixed_groups(root: ET.Element) -> tuple[dict[str, str], list[tuple[str, str]]]:
+    """Union-find parents merging the links a URDF joins by fixed joints, and the (parent,
+    child) links of its other joints."""
+    parent: dict[str, str] = {}
+    edges = []
+    for j in root.iter("joint"):
+        p, c = j.find("parent"), j.find("child")
+        if p is None or c is None:
+            continue
+        a, b = p.get("link", ""), c.get("link", "")
+        if j.get("type") == "fixed":
+            parent[_find(parent, b)] = _find(parent, a)
+        else:
+            edges.append((a, b))
+    return parent, edges
+
+
+def _find(parent: dict[str, str], x: str) -> str:
+    """The group (root link) of link ``x`` in the union-find ``parent``."""
+    while parent.get(x, x) != x:
+        x = parent[x]
+    return x
+
+
+def _neighbour_groups(
+    g: str, graph: dict[str, set[str]], has_geom: Callable[[str], bool]
+) -> set[str]:
+    """``g`` and the groups with geometry joined to it by a joint, walking through groups
+    without geometry."""
+    reach, stack, seen = {g}, [g], {g}
+    while stack:
+        for nb in graph[stack.pop()]:
+            if nb in seen:
+                continue
+            seen.add(nb)
+            if has_geom(nb):
+                reach.add(nb)
+            else:
+                stack.append(nb)
+    return reach
 
 
 def srdf_pairs(srdf_path: Path) -> set[tuple[str, str]]:
@@ -155,6 +173,8 @@ def home_thetas(robot: RobotModel) -> np.ndarray:
 def _compute(
     robot: RobotModel, samples: int, seed: int, steps: Steps | None = None
 ) -> tuple[DisabledPair, ...]:
+    """The candidate pairs to skip, each with its reason: adjacent, colliding at home, then
+    always or never colliding in ``samples`` random configurations (generator ``seed``)."""
     links = collision_links(robot)
     cands = candidate_pairs(links)
     reasons: dict[tuple[str, str], Reason] = {}
@@ -184,9 +204,33 @@ def _compute(
     model_pairs = [(spheres.link_names[i], spheres.link_names[j]) for i, j in spheres.pairs]
     col = {p: k for k, p in enumerate(rest)}
     to_checker = np.array([col[(min(a, b), max(a, b))] for a, b in model_pairs], dtype=np.int64)
-    hits = np.zeros(len(model_pairs), dtype=np.int64)
-    misses = np.zeros(len(model_pairs), dtype=np.int64)  # flagged or not, but free
-    undecided = np.ones(len(model_pairs), dtype=bool)
+    hits = _sampled_hits(robot, checker, spheres, to_checker, samples, seed, steps)
+
+    for k, (a, b) in enumerate(model_pairs):
+        p = (min(a, b), max(a, b))
+        if hits[k] == 0:
+            reasons[p] = "never"
+        elif hits[k] >= ALWAYS_FRACTION * samples:
+            reasons[p] = "always"
+    return tuple(DisabledPair(a, b, r) for (a, b), r in sorted(reasons.items()))
+
+
+def _sampled_hits(
+    robot: RobotModel,
+    checker: PairChecker,
+    spheres: SphereModel,
+    to_checker: np.ndarray,
+    samples: int,
+    seed: int,
+    steps: Steps | None,
+) -> np.ndarray:
+    """``(P,)`` how many of ``samples`` uniform configurations (generator ``seed``) put each
+    pair of ``spheres`` (``to_checker``: its index in ``checker``) in contact, by coal where
+    the screen flags it. A pair seen colliding and free too often to be "always" is no longer
+    checked (its count stays above 0, below the "always" fraction)."""
+    hits = np.zeros(len(spheres.pairs), dtype=np.int64)
+    misses = np.zeros(len(spheres.pairs), dtype=np.int64)  # flagged or not, but free
+    undecided = np.ones(len(spheres.pairs), dtype=bool)
     allowed_misses = int((1 - ALWAYS_FRACTION) * samples)
 
     chain = Chain.from_robot(robot)
@@ -210,14 +254,7 @@ def _compute(
                     misses[kp] += 1
             # A pair seen colliding, and free too often to be "always", is decided: enabled.
             undecided &= ~((hits > 0) & (misses > allowed_misses))
-
-    for k, (a, b) in enumerate(model_pairs):
-        p = (min(a, b), max(a, b))
-        if hits[k] == 0:
-            reasons[p] = "never"
-        elif hits[k] >= ALWAYS_FRACTION * samples:
-            reasons[p] = "always"
-    return tuple(DisabledPair(a, b, r) for (a, b), r in sorted(reasons.items()))
+    return hits
 
 
 def _from_srdf(robot: RobotModel, links: tuple[CollisionLink, ...]) -> tuple[DisabledPair, ...]:
