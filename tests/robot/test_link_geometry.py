@@ -11,9 +11,11 @@ from hypothesis import strategies as st
 from pickstop.robot.distance_kernel import nearest_distances
 from pickstop.robot.link_geometry import (
     LinkShape,
+    _mesh_distance,
     _Triangles,
     collision_links,
     distance_grid,
+    mesh_distance_reference,
     point_triangle_distance,
 )
 
@@ -92,6 +94,25 @@ def test_skipped_triangles_change_nothing(seed):
         assert np.array_equal(_kernel(ts, P, cand), each)
 
 
+def _lattice(lo: np.ndarray, dims: tuple[int, int, int], h: float) -> np.ndarray:
+    axes = [lo[k] + h * np.arange(dims[k]) for k in range(3)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_compiled_grid_equals_numpy_reference(seed):
+    """The compiled block loop (bounds, culling, the floor beyond ``cap``) against the numpy
+    one, on lattices with partial blocks."""
+    rng = np.random.default_rng(seed)
+    tris = _soup(rng, 40)
+    dims = tuple(int(v) for v in rng.integers(1, 16, 3))
+    nodes = _lattice(tris.min(axis=(0, 1)) - 0.05, dims, float(rng.uniform(0.01, 0.05)))
+    cap = float(rng.choice([0.02, 0.1]))
+    ref = mesh_distance_reference(nodes, tris, cap)
+    assert np.abs(_mesh_distance(nodes, tris, cap) - ref).max() <= EQUAL
+
+
 @pytest.fixture(scope="module")
 def palm(tiago):
     links = {lk.name: lk for lk in collision_links(tiago)}
@@ -121,3 +142,14 @@ def test_distance_grid_equals_numpy_reference_on_a_mesh_link(palm):
     assert (ref < cap).sum() > 500
     assert np.abs(got - ref)[ref < cap].max() <= EQUAL  # exact up to cap
     assert (got <= ref + EQUAL).all()  # a lower bound beyond
+
+
+def test_compiled_grid_equals_numpy_reference_on_a_mesh_link(palm):
+    h = 0.01
+    lo = np.floor((palm.lo - 0.1) / h) * h
+    dims = tuple(int(v) for v in np.ceil((palm.hi + 0.1 - lo) / h) + 1)
+    nodes = _lattice(lo, dims, h)
+    tris = palm.shapes[0].tris
+    ref = mesh_distance_reference(nodes, tris, 0.1)
+    assert (ref > 0.1).any()  # beyond cap too
+    assert np.abs(_mesh_distance(nodes, tris, 0.1) - ref).max() <= EQUAL

@@ -22,7 +22,7 @@ import coal
 import numpy as np
 
 from pickstop.errors import RobotConfigError
-from pickstop.robot.distance_kernel import ROW, nearest_distances
+from pickstop.robot.distance_kernel import ROW, mesh_distances
 from pickstop.robot.model import RobotModel
 
 SdfFn = Callable[[np.ndarray], np.ndarray]
@@ -100,7 +100,8 @@ class _Triangles:
         vectors = self.W.transpose(1, 0, 2).reshape(-1, 30)  # (T, 30): 10 vectors' x, y, z
         pad = self.radius + stray
         scalars = [self.off.T, self.ue.T, self.ee.T, self.uu.T, self.flat[:, None]]
-        self.rows = np.concatenate([vectors, *scalars, self.centre, pad[:, None]], axis=1)
+        ball = [self.centre, self.radius[:, None], pad[:, None]]
+        self.rows = np.concatenate([vectors, *scalars, *ball], axis=1)
         assert self.rows.shape == (len(tris), ROW)
 
     def __len__(self) -> int:
@@ -440,14 +441,22 @@ def distance_grid(
 
 
 def _mesh_distance(nodes: np.ndarray, tris: np.ndarray, cap: float, bs: int = 6) -> np.ndarray:
+    """:func:`mesh_distance_reference`, compiled
+    (:func:`~pickstop.robot.distance_kernel.mesh_distances`)."""
+    out = np.empty(nodes.shape[:3])
+    mesh_distances(np.ascontiguousarray(nodes), _Triangles(tris).rows, cap, bs, out)
+    return out
+
+
+def mesh_distance_reference(
+    nodes: np.ndarray, tris: np.ndarray, cap: float, bs: int = 6
+) -> np.ndarray:
     """Distance from ``nodes: (nx, ny, nz, 3)`` to a triangle soup [m]: exact up to ``cap``,
     a lower bound beyond. Per block of ``bs^3`` nodes, only triangles that may be nearest
-    (by a 1-Lipschitz bound taken at the block centre) are measured, by the compiled
-    :meth:`_Triangles.exact` (:func:`~pickstop.robot.distance_kernel.nearest_distances`)."""
+    (by a 1-Lipschitz bound taken at the block centre) are measured."""
     ts = _Triangles(tris)
     everything = np.arange(len(ts))
     out = np.empty(nodes.shape[:3])
-    val = np.empty(bs**3)  # a block's least exact distances
     nx, ny, nz = nodes.shape[:3]
     for i in range(0, nx, bs):
         for j in range(0, ny, bs):
@@ -462,10 +471,8 @@ def _mesh_distance(nodes: np.ndarray, tris: np.ndarray, cap: float, bs: int = 6)
                 keep = lb <= min(ub, cap + 2 * rb)
                 floor = float(lb[~keep].min()) if (~keep).any() else np.inf
                 cand = np.flatnonzero(keep)
-                cand = cand[np.argsort(lb[cand], kind="stable")]  # nearest first: skips more
-                got = val[: len(P)]
-                nearest_distances(np.ascontiguousarray(P), ts.rows, cand, got)
-                out[i : i + bs, j : j + bs, k : k + bs] = np.minimum(floor, got).reshape(
-                    blk.shape[:3]
-                )
+                val = np.full(len(P), floor)
+                if len(cand):
+                    val = np.minimum(val, ts.exact(P, cand).min(axis=1))
+                out[i : i + bs, j : j + bs, k : k + bs] = val.reshape(blk.shape[:3])
     return out
