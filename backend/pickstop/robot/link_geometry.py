@@ -443,8 +443,9 @@ def distance_grid(
 def _mesh_distance(nodes: np.ndarray, tris: np.ndarray, cap: float, bs: int = 6) -> np.ndarray:
     """:func:`mesh_distance_reference`, compiled
     (:func:`~pickstop.robot.distance_kernel.mesh_distances`)."""
-    out = np.empty(nodes.shape[:3])
-    mesh_distances(np.ascontiguousarray(nodes), _Triangles(tris).rows, cap, bs, out)
+    out = np.full(nodes.shape[:3], np.inf)  # no triangles: nothing is near
+    if len(tris):
+        mesh_distances(np.ascontiguousarray(nodes), _Triangles(tris).rows, cap, bs, out)
     return out
 
 
