@@ -22,6 +22,7 @@ import coal
 import numpy as np
 
 from pickstop.errors import RobotConfigError
+from pickstop.robot.distance_kernel import ROW, mesh_distances
 from pickstop.robot.model import RobotModel
 
 SdfFn = Callable[[np.ndarray], np.ndarray]
@@ -67,7 +68,8 @@ def is_hand_link(robot: RobotModel, name: str) -> bool:
 
 
 class _Triangles:
-    """A triangle soup ``(T, 3, 3)`` prepared for distance queries by matrix products."""
+    """A triangle soup ``(T, 3, 3)`` prepared for distance queries by matrix products, and as
+    ``rows: (T, ROW)`` for the compiled kernel (:mod:`pickstop.robot.distance_kernel`)."""
 
     def __init__(self, tris: np.ndarray) -> None:
         self.tris = tris
@@ -92,6 +94,15 @@ class _Triangles:
         self.uu = np.stack([(u * u).sum(1) for u in us])  # (3, T)
         self.centre = tris.mean(axis=1)
         self.radius = np.linalg.norm(tris - self.centre[:, None], axis=2).max(axis=1)
+        # One row per triangle for distance_kernel (its columns); the pad also covers how far
+        # the vertices stray from the computed plane, which the face distance measures to.
+        stray = np.abs(np.einsum("tk,tvk->tv", nh, tris - a[:, None])).max(axis=1)
+        vectors = self.W.transpose(1, 0, 2).reshape(-1, 30)  # (T, 30): 10 vectors' x, y, z
+        pad = self.radius + stray
+        scalars = [self.off.T, self.ue.T, self.ee.T, self.uu.T, self.flat[:, None]]
+        ball = [self.centre, self.radius[:, None], pad[:, None]]
+        self.rows = np.concatenate([vectors, *scalars, *ball], axis=1)
+        assert self.rows.shape == (len(tris), ROW)
 
     def __len__(self) -> int:
         return len(self.tris)
@@ -430,6 +441,17 @@ def distance_grid(
 
 
 def _mesh_distance(nodes: np.ndarray, tris: np.ndarray, cap: float, bs: int = 6) -> np.ndarray:
+    """:func:`mesh_distance_reference`, compiled
+    (:func:`~pickstop.robot.distance_kernel.mesh_distances`)."""
+    out = np.full(nodes.shape[:3], np.inf)  # no triangles: nothing is near
+    if len(tris):
+        mesh_distances(np.ascontiguousarray(nodes), _Triangles(tris).rows, cap, bs, out)
+    return out
+
+
+def mesh_distance_reference(
+    nodes: np.ndarray, tris: np.ndarray, cap: float, bs: int = 6
+) -> np.ndarray:
     """Distance from ``nodes: (nx, ny, nz, 3)`` to a triangle soup [m]: exact up to ``cap``,
     a lower bound beyond. Per block of ``bs^3`` nodes, only triangles that may be nearest
     (by a 1-Lipschitz bound taken at the block centre) are measured."""
