@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pickstop.robot.distance_kernel import nearest_distances
+from pickstop.robot.distance_kernel import nearest_distances, winding_numbers
 from pickstop.robot.link_geometry import (
     LinkShape,
     _mesh_distance,
@@ -17,6 +17,7 @@ from pickstop.robot.link_geometry import (
     distance_grid,
     mesh_distance_reference,
     point_triangle_distance,
+    winding_number,
 )
 
 #: The kernel and numpy evaluate the same expressions; BLAS may sum a dot product in another
@@ -153,3 +154,33 @@ def test_compiled_grid_equals_numpy_reference_on_a_mesh_link(palm):
     ref = mesh_distance_reference(nodes, tris, 0.1)
     assert (ref > 0.1).any()  # beyond cap too
     assert np.abs(_mesh_distance(nodes, tris, 0.1) - ref).max() <= EQUAL
+
+
+def _winding(P: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    out = np.empty(len(P))
+    winding_numbers(np.ascontiguousarray(P), np.ascontiguousarray(tris), out)
+    return out
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_compiled_winding_numbers_equal_numpy(seed):
+    rng = np.random.default_rng(seed)
+    tris = _soup(rng, int(rng.integers(16, 60)))
+    # Off the surface: on it, the solid angle of the triangle under the point is +-2 pi by
+    # the sign of a rounding error.
+    on = _on(rng, tris)
+    P = np.concatenate([on + rng.normal(size=on.shape) * 1e-3, rng.normal(size=(40, 3)) * 0.4])
+    assert np.abs(_winding(P, tris) - winding_number(P, tris)).max() <= 1e-9
+
+
+def test_depth_of_a_mesh_link_is_the_distance_to_its_surface_inside_and_0_outside(palm):
+    tris = palm.shapes[0].tris
+    h = float(np.max(palm.hi - palm.lo + 0.02)) / 23
+    P = _lattice(palm.lo - 0.01 + 1e-4, (24, 24, 24), h).reshape(-1, 3)
+    wn = winding_number(P, tris)
+    assert np.abs(_winding(P, tris) - wn).max() <= 1e-9
+    inside = wn > 0.5
+    assert 100 < inside.sum() < len(P) - 100  # a closed mesh: points on both sides
+    ref = np.where(inside, point_triangle_distance(P, tris).min(axis=1), 0.0)
+    assert np.abs(palm.depth(P) - ref).max() <= EQUAL

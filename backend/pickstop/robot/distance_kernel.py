@@ -197,3 +197,26 @@ def mesh_distances(
                         for c in range(k, min(k + bs, nz)):
                             out[a, b, c] = min(floor, val[m])
                             m += 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def winding_numbers(P: np.ndarray, tris: np.ndarray, out: np.ndarray) -> None:
+    """``out[n]`` = :func:`pickstop.robot.link_geometry.winding_number` of ``P[n]: (N, 3)``
+    with respect to the triangle soup ``tris: (T, 3, 3)`` (about 1 inside a closed mesh, 0
+    outside): the same solid angles (Van Oosterom and Strackee), summed per point."""
+    for n in range(P.shape[0]):
+        x, y, z = P[n, 0], P[n, 1], P[n, 2]
+        total = 0.0
+        for t in range(tris.shape[0]):
+            ax, ay, az = tris[t, 0, 0] - x, tris[t, 0, 1] - y, tris[t, 0, 2] - z
+            bx, by, bz = tris[t, 1, 0] - x, tris[t, 1, 1] - y, tris[t, 1, 2] - z
+            cx, cy, cz = tris[t, 2, 0] - x, tris[t, 2, 1] - y, tris[t, 2, 2] - z
+            la = np.sqrt(ax * ax + ay * ay + az * az)
+            lb = np.sqrt(bx * bx + by * by + bz * bz)
+            lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+            det = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+            ab = ax * bx + ay * by + az * bz
+            bc = bx * cx + by * cy + bz * cz
+            ca = cx * ax + cy * ay + cz * az
+            total += np.arctan2(det, la * lb * lc + ab * lc + bc * la + ca * lb)
+        out[n] = abs(total / (2 * np.pi))

@@ -22,7 +22,7 @@ import coal
 import numpy as np
 
 from pickstop.errors import RobotConfigError
-from pickstop.robot.distance_kernel import ROW, mesh_distances
+from pickstop.robot.distance_kernel import ROW, mesh_distances, nearest_distances, winding_numbers
 from pickstop.robot.model import RobotModel
 
 SdfFn = Callable[[np.ndarray], np.ndarray]
@@ -406,15 +406,23 @@ class LinkShape:
         return d
 
     def depth(self, P: np.ndarray) -> np.ndarray:
-        """Depth ``(N,)`` [m] of points inside the link's solids or closed meshes (0 outside)."""
+        """Depth ``(N,)`` [m] of points inside the link's solids or closed meshes (0 outside).
+
+        Compiled (:mod:`pickstop.robot.distance_kernel`); :func:`winding_number` and
+        :func:`point_triangle_distance` are the numpy references it is tested against."""
         d = np.zeros(len(P))
+        P = np.ascontiguousarray(P, dtype=float)
         for s in self.shapes:
             if s.tris is not None:
-                inside = winding_number(P, s.tris) > 0.5
-                if inside.any():
-                    dd = np.zeros(len(P))
-                    dd[inside] = point_triangle_distance(P[inside], s.tris).min(axis=1)
-                    d = np.maximum(d, dd)
+                tris = np.ascontiguousarray(s.tris, dtype=float)
+                wn = np.empty(len(P))
+                winding_numbers(P, tris, wn)
+                inside = np.flatnonzero(wn > 0.5)
+                if len(inside):
+                    near = np.empty(len(inside))
+                    rows = _Triangles(tris).rows
+                    nearest_distances(P[inside], rows, np.arange(len(rows)), near)
+                    d[inside] = np.maximum(d[inside], near)
             else:
                 assert s.sdf is not None
                 d = np.maximum(d, -s.sdf(P))

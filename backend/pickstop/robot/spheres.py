@@ -87,12 +87,14 @@ def cover(link: LinkShape, excess: float, max_elements: int = 4000) -> np.ndarra
     can = _holds(grid, depth + slack, ball_c, ball_r)
     todo = can.any(axis=0)
     spheres = _clusters(pts, pad, ball_c, np.flatnonzero(~todo), slack)
+    gain = can[:, todo].sum(axis=1)  # (C,) the open elements each candidate holds
     while todo.any():
-        k = int(np.argmax(can[:, todo].sum(axis=1)))
+        k = int(np.argmax(gain))
         take = can[k] & todo
         d = np.linalg.norm(pts[take] - grid[k], axis=2).max(axis=1) + pad[take]
         spheres.append([*grid[k], float(d.max())])
         todo &= ~take
+        gain -= can[:, take].sum(axis=1)
     return np.array(spheres)
 
 
