@@ -32,13 +32,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from pickstop.layout.search import SearchSettings, build_space, exhaustive, search, suggest
 from pickstop.layout.verify import LocalEvaluator
 from pickstop.pool import PlannerPool
-from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.load import load_scene
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence.mix import mix_document, plan_mix
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.settings import data_dir
+from pickstop.speedups.region_planner import RegionPlanner
 
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"
 

@@ -25,7 +25,6 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.pool import PlannerPool
-from pickstop.regions.pipeline import compute_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
@@ -66,7 +65,7 @@ def main() -> None:
     yaw = paper.base_yaw.yaws[0]
 
     def one_tray() -> None:
-        compute_tray_region(planner, paper, tray, yaw)
+        planner.compute_region(paper, tray.id, yaw)
 
     def all_factory() -> None:
         planner.forget()  # nor reused from the trays as they last stood, or the layout

@@ -34,7 +34,7 @@ import json, os, sys, time
 t0 = time.perf_counter()
 from pathlib import Path
 from pickstop.store.reach_catalog import open_database
-from pickstop.regions.planner import RegionPlanner
+from pickstop.speedups.region_planner import RegionPlanner
 from pickstop.robot.model import load_robot
 from pickstop.robot.config import resolve_robot
 from pickstop.scene.load import load_scene

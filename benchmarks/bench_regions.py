@@ -31,7 +31,6 @@ from pickstop.reach.batch_ik import refine_batch
 from pickstop.reach.database import RANK_LENGTH
 from pickstop.regions.arm import nearby, screen_arm
 from pickstop.regions.cells import CellGrid
-from pickstop.regions.planner import RegionPlanner
 from pickstop.regions.reference import (
     ORACLE_SEEDS,
     baseline_region,
@@ -46,6 +45,7 @@ from pickstop.scene.load import load_scene, parse_scene
 from pickstop.scene.model import Scene
 from pickstop.scene.world import BoxArrays, scene_solids
 from pickstop.settings import cache_dir, data_dir
+from pickstop.speedups.region_planner import RegionPlanner
 from pickstop.store.reach_catalog import open_database
 
 SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"

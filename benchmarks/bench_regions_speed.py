@@ -19,7 +19,6 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.pool import PlannerPool
-from pickstop.regions.pipeline import compute_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.settings import data_dir
 
@@ -50,12 +49,12 @@ def main() -> None:
     tray = paper.tray("tray_3")
     planner.grasps(paper, tray)
     yaw = paper.base_yaw.yaws[0]
-    r = compute_tray_region(planner, paper, tray, yaw)
+    r = planner.compute_region(paper, tray.id, yaw)
     g = r.grid
     print(
         f"one tray, {len(tray.parts)} parts, grid {g.res} m, {r.counts['in_reach']} cells in "
         f"reach ({r.counts['footprint_free']} free): "
-        f"{best(lambda: compute_tray_region(planner, paper, tray, yaw)):.3f} s, "
+        f"{best(lambda: planner.compute_region(paper, tray.id, yaw)):.3f} s, "
         f"{len(r.cells)} feasible"
     )
 

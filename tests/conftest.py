@@ -44,8 +44,8 @@ def pr2():
 
 def _build_region_db(tiago, folder):
     from pickstop.reach.build import BuildParams
-    from pickstop.regions.planner import RegionPlanner
     from pickstop.settings import cache_dir
+    from pickstop.speedups.region_planner import RegionPlanner
     from pickstop.store.reach_build import build
     from pickstop.store.reach_catalog import open_database
 
@@ -73,8 +73,8 @@ def region_db(tmp_path_factory, tiago):
 
 @pytest.fixture(scope="session")
 def planner(region_db, tiago):
-    from pickstop.regions.planner import RegionPlanner
     from pickstop.settings import cache_dir
+    from pickstop.speedups.region_planner import RegionPlanner
 
     folder, db = region_db
     return RegionPlanner(tiago, db, cache_dir=cache_dir(folder))

@@ -1,7 +1,8 @@
 """The layers are one-way: the core plans without the service, the planner UI is only a client.
 
-- Importing the core (robot, reach, scene, regions, sequence, the planner pool) loads no web
-  framework, UI or SQLite: it runs in a batch job, a Dask worker or a notebook as it is.
+- Importing the core (robot, reach, scene, regions and their speed-ups, sequence, the planner
+  pool) loads no web framework, UI or SQLite: it runs in a batch job, a Dask worker or a
+  notebook as it is.
 - The planner UI (``pickstop_ui``) imports nothing of the backend but the shared plan schema
   (``pickstop.sequence.plan_model``), the frames module and the scene format's pure parts
   (its defaults and the tray body's boxes, so a wall is drawn where it is checked); robot
@@ -33,6 +34,7 @@ CORE = [
     "pickstop.reach",
     "pickstop.scene",
     "pickstop.regions",
+    "pickstop.speedups",
     "pickstop.sequence",
     "pickstop.layout",
     "pickstop.report",
@@ -189,7 +191,7 @@ def test_the_backend_imports_the_ui_only_where_the_programs_are_wired():
 
 
 @pytest.mark.parametrize(
-    "module", ["pickstop.regions.planner", "pickstop.cli", "pickstop.cli.plan"]
+    "module", ["pickstop.speedups.region_planner", "pickstop.cli", "pickstop.cli.plan"]
 )
 def test_the_ui_guard_finds_a_stray_import(monkeypatch, module):
     """The core, the command line's package and its other modules may not import the UI."""
@@ -222,7 +224,14 @@ def test_what_the_ui_shares_with_the_core_is_pure(module):
 
 # The algorithm from scratch (docs/architecture.md section 6) and the modules it must not
 # reach: the speed-ups' planners and caches across requests, processes and the service.
-PURE = ["pickstop.sequence.pure", "pickstop.regions.pure", "pickstop.sequence.request"]
+PURE = [
+    "pickstop.sequence.pure",
+    "pickstop.regions.pure",
+    "pickstop.regions.pipeline",
+    "pickstop.regions.solve",
+    "pickstop.regions.recall",
+    "pickstop.sequence.request",
+]
 NOT_FROM_SCRATCH = (
     "pickstop.api",
     "pickstop.runtime",
@@ -232,11 +241,12 @@ NOT_FROM_SCRATCH = (
     "pickstop.distributed",
     "pickstop.stack",
     "pickstop.cli",
-    "pickstop.regions.planner",
-    "pickstop.regions.carry",
+    "pickstop.speedups",
     "pickstop.sequence.plan",
     "pickstop.layout",
 )
+#: The core modules that start the runtime's worker processes.
+RUNTIME_USERS = ("pickstop.speedups.region_planner",)
 #: What the runtime lends the core: the cancellation token, which imports nothing else.
 RUNTIME_IN_CORE = ("pickstop.runtime.cancel",)
 
@@ -264,7 +274,7 @@ def test_the_algorithm_from_scratch_reaches_no_planner_process_or_service(module
 
 def test_the_core_takes_only_the_token_from_the_runtime():
     for m, targets in GRAPH.items():
-        if _under(m, tuple(CORE)) and m not in ("pickstop.pool", "pickstop.regions.planner"):
+        if _under(m, tuple(CORE)) and m not in ("pickstop.pool", *RUNTIME_USERS):
             runtime = {t for t in targets if _under(t, ("pickstop.runtime",))}
             assert runtime <= set(RUNTIME_IN_CORE), (m, runtime)
     assert GRAPH["pickstop.runtime.cancel"] == set()

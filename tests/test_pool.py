@@ -30,7 +30,7 @@ CONSTANT_TABLES = {
 #: module-level function in the worker, which finds its heavy object only there.
 PROCESS_POOL_SLOTS = {
     ("pickstop.reach.build", "_WORKER_KERNEL"),  # a build's kernel, set by the initializer
-    ("pickstop.runtime.region_processes", "_KIT"),  # the region kit, set in each helper
+    ("pickstop.runtime.region_processes", "_COMPUTE"),  # the planner's computation, per helper
 }
 #: Counters of work done, for reports and tests: they hold no results and decide nothing.
 COUNTERS = {

@@ -159,14 +159,14 @@ def assert_route_clear(robot, scene, plan, step: float = 0.01) -> None:
 def count_regions(monkeypatch) -> list[str]:
     """The ids of the trays whose regions are computed from now on (the list fills as the
     region planner computes them)."""
-    import pickstop.regions.planner as region_planner
+    import pickstop.speedups.region_planner as region_planner
 
     made: list[str] = []
     real = region_planner.compute_tray_region
 
-    def counted(kit, scene, tray, yaw, key=""):
+    def counted(kit, scene, tray, yaw, *args):
         made.append(tray.id)
-        return real(kit, scene, tray, yaw, key)
+        return real(kit, scene, tray, yaw, *args)
 
     monkeypatch.setattr(region_planner, "compute_tray_region", counted)
     return made

@@ -38,8 +38,8 @@ from pickstop.settings import cache_dir
 
 if TYPE_CHECKING:  # the database (SQLite catalog), the planners and their solvers load on use
     from pickstop.reach.database import ReachDatabase
-    from pickstop.regions.planner import RegionPlanner
     from pickstop.sequence.plan import StopPlanner
+    from pickstop.speedups.region_planner import RegionPlanner
 
 DEFAULT_ROBOT = "tiago"  # the robot a service preloads
 
@@ -163,7 +163,7 @@ class PlannerPool:
 
     def slot(self, robot: RobotModel, db_id: str | None = None) -> PlannerSlot:
         """The planners of ``robot`` over its database ``db_id`` (default: its default)."""
-        from pickstop.regions.planner import RegionPlanner
+        from pickstop.speedups.region_planner import RegionPlanner
 
         with self._lock:
             db = self.database(robot, db_id)

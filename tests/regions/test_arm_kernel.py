@@ -13,12 +13,12 @@ from hypothesis import strategies as st
 from pickstop.frames import R_z
 from pickstop.regions.arm import TOUCH, ArmSpheres, ExactArm, points_to_world
 from pickstop.regions.arm_kernel import contacts_many, link_contacts
-from pickstop.regions.checked import CheckedConfigs, group_boxes_of
-from pickstop.regions.reuse import Change, ChangeSet
 from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.kinematics import FEW, Chain, fk_soa
 from pickstop.scene.load import load_scene
 from pickstop.scene.world import AGREE_MARGIN, BoxArrays, scene_solids, spheres_hit
+from pickstop.speedups.checked import CheckedConfigs, group_boxes_of
+from pickstop.speedups.region_memo import Change, ChangeSet
 from tests.regions.conftest import EXAMPLES
 from tests.utils import random_thetas
 

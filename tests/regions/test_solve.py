@@ -15,6 +15,7 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
     """Cells the database pass did not reach are grown into from solved neighbours, and
     every grown cell carries a witness that passes the exact checks."""
     from pickstop.regions import solve
+    from pickstop.regions.arm import ArmWorld
     from pickstop.regions.envelope import Envelope
     from pickstop.regions.pipeline import tray_world
     from pickstop.regions.reference import verify_witnesses
@@ -30,9 +31,7 @@ def test_growth_recovers_cells_from_their_neighbours_witnesses(planner, paper_do
     thetas = np.where(found[:, None, None], region.thetas, 0.0)
     grasp = np.where(found[:, None], region.grasp_index, 0)
     _, solids, boxes, R_base_world = tray_world(planner, scene, tray, region.yaw)
-    world = solve.ArmWorld(
-        boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max)
-    )
+    world = ArmWorld(boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max))
     targets = [solve.Targets.of(gs, cen, R_base_world) for gs in planner.grasps(scene, tray)]
     forgotten = int((~found).sum())
     added = solve.grow(planner, world, targets, cen, ij, found, thetas, grasp)
@@ -52,6 +51,7 @@ def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, m
     With a screen that flags everything, the cells are still solved, by coal alone, and each
     witness holds exactly: on its grasp, free of the scene and of itself."""
     from pickstop.regions import solve
+    from pickstop.regions.arm import ArmWorld
     from pickstop.regions.envelope import Envelope
     from pickstop.regions.pipeline import tray_world
     from pickstop.regions.reference import pose_ok
@@ -62,9 +62,7 @@ def test_candidates_the_screen_flags_go_to_the_exact_check(planner, paper_doc, m
     ij = region.cells[:: max(1, len(region.cells) // 30)]
     cen = region.grid.centres(ij[:, 1], ij[:, 0])
     _, solids, boxes, R_base_world = tray_world(planner, scene, tray, region.yaw)
-    world = solve.ArmWorld(
-        boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max)
-    )
+    world = ArmWorld(boxes, solids, region.yaw, Envelope.empty(scene.floor.min, scene.floor.max))
     gs = planner.grasps(scene, tray)[0]
     tg = solve.Targets.of(gs, cen, R_base_world)
 

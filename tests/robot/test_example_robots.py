@@ -168,8 +168,8 @@ def test_derived_footprint_holds_the_base_outline(name, robots, tiago):
 def planned(request, robots, tmp_path_factory):
     """A small database of the robot, its region planner and the paper-like scene."""
     from pickstop.reach.build import BuildParams
-    from pickstop.regions.planner import RegionPlanner
     from pickstop.settings import cache_dir
+    from pickstop.speedups.region_planner import RegionPlanner
     from pickstop.store.reach_build import build
     from pickstop.store.reach_catalog import open_database
 

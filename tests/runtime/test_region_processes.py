@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from pickstop.regions import kit as kit_mod
-from pickstop.regions.planner import RegionPlanner
 from pickstop.runtime import region_processes as processes_mod
 from pickstop.runtime.cancel import Cancelled, giving_way
 from pickstop.scene.load import parse_scene
+from pickstop.speedups.region_planner import RegionPlanner
 from tests.utils import assert_cells_verified, count_regions
 
 
@@ -108,7 +108,7 @@ def test_background_work_gives_way_in_the_helpers(fresh, paper_doc, monkeypatch,
             if t != mover:
                 two.tray_region(scene, t, yaw)
     inside = [False]  # this process computes its own share
-    real = two._compute
+    real = two.compute_region
 
     def own(*a):
         inside[0] = True
@@ -117,7 +117,7 @@ def test_background_work_gives_way_in_the_helpers(fresh, paper_doc, monkeypatch,
         finally:
             inside[0] = False
 
-    monkeypatch.setattr(two, "_compute", own)
+    monkeypatch.setattr(two, "compute_region", own)
     asked: list[bool] = []
 
     def interrupt() -> bool:
@@ -191,4 +191,4 @@ def test_region_processes_want_one_process_at_least(planner):
     from pickstop.runtime.region_processes import RegionProcesses
 
     with pytest.raises(ValueError, match="processes must be at least 1, got 0"):
-        RegionProcesses(planner, 0)
+        RegionProcesses(planner, 0, planner.compute_region)

@@ -144,7 +144,7 @@ def _outcome(make):
 def _check_regions(planner, scene, scratch, wrapped) -> bool:
     """The wrapped regions hold every cell the database solves from scratch, and every cell
     scratch does not have as it is has exactly verified witnesses (the reuse across layouts:
-    :mod:`pickstop.regions.reuse`). Returns whether they are the same regions."""
+    :mod:`pickstop.speedups.region_memo`). Returns whether they are the same regions."""
     equal = []
     for (t, yaw), s in scratch.items():
         w = wrapped[t, yaw]

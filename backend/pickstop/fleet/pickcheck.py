@@ -21,9 +21,9 @@ from pickstop.fleet.tolerance import StopShapes, stop_shapes
 from pickstop.frames import angle_gap
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.offgrid import feasible_near
-from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene
 from pickstop.sequence import plan_model as pm
+from pickstop.speedups.region_planner import RegionPlanner
 
 if TYPE_CHECKING:
     from pickstop.pool import PlannerPool

@@ -30,9 +30,9 @@ from shapely.geometry.base import BaseGeometry
 
 from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.footprint import footprint_free
-from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene
 from pickstop.scene.supports import SAME_HEIGHT, StandArea, stand_areas
+from pickstop.speedups.region_planner import RegionPlanner
 
 Kind = Literal["shares", "own", "unreachable", "unknown"]
 MAX_SHARED = 4  # trays but the moved one that one stop is tried for

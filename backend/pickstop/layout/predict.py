@@ -24,9 +24,9 @@ from pickstop.layout.guidance import eroded
 from pickstop.layout.slots import Slot
 from pickstop.regions.cells import CellGrid
 from pickstop.regions.footprint import footprint_free
-from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.model import Scene
 from pickstop.sequence.timing import leg_time
+from pickstop.speedups.region_planner import RegionPlanner
 
 EXACT_TRAYS = 6  # orders up to this many trays: every way of splitting them is tried
 INFEASIBLE = (math.inf, math.inf)

@@ -23,11 +23,11 @@ from pickstop.layout import model as lm
 from pickstop.layout.predict import Predictor
 from pickstop.layout.slots import Slot, home_slot, slots_meet, tray_slots
 from pickstop.layout.verify import Evaluator
-from pickstop.regions.planner import RegionPlanner
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import Order, Scene, SceneError
 from pickstop.sequence.mix import MixPlans, mix_document, mix_trays
 from pickstop.sequence.plan_model import PlanOptions
+from pickstop.speedups.region_planner import RegionPlanner
 
 #: (fraction of the search done, what it is doing)
 Progress = Callable[[float, str], None]

@@ -15,12 +15,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
-from pickstop.regions.planner import RegionPlanner
-from pickstop.regions.reuse import RefineMemo, ReuseCache
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence.mix import MixPlans, plan_mix
 from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
+from pickstop.speedups.region_memo import RefineMemo, ReuseCache
+from pickstop.speedups.region_planner import RegionPlanner
 
 
 class FreshMemos(ReuseCache):

@@ -24,7 +24,7 @@ from pickstop.frames import rot2
 from pickstop.regions.arm_kernel import contacts_many, link_contacts, screen_links
 from pickstop.regions.envelope import Envelope
 from pickstop.robot.fk_kernel import joint_frames
-from pickstop.robot.floor import ExactFloor, FloorSpheres, below_floor
+from pickstop.robot.floor import FLOOR_CLEARANCE, ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.kinematics import Chain
 from pickstop.robot.link_geometry import arm_links, is_hand_link
 from pickstop.robot.model import RobotModel
@@ -525,3 +525,15 @@ def nearby(
         if float(np.hypot(*d)) <= radius:
             out.append(s)
     return out
+
+
+@dataclass(frozen=True)
+class ArmWorld:
+    """What the arm is checked against near one tray, at one base yaw: the solids and the
+    floor, which every link keeps ``floor`` [m] away from (the scene's floor_clearance)."""
+
+    boxes: BoxArrays
+    solids: list[Solid]
+    yaw: float  # [rad]
+    env: Envelope | None  # where the screen's rejections are recorded (None: nowhere)
+    floor: float = FLOOR_CLEARANCE

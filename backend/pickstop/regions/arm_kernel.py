@@ -11,10 +11,10 @@ hundred configurations was mostly numpy calls.
 - :func:`link_contacts`: the (link, solid) pairs of one configuration whose spheres meet,
   all that :class:`pickstop.regions.arm.ExactArm` hands coal.
 - :func:`group_boxes`: per joint group the world box around its spheres, over many
-  configurations at once, gathered per owner (:class:`pickstop.regions.checked.CheckedLinks`).
+  configurations at once, gathered per owner (:class:`pickstop.speedups.checked.CheckedLinks`).
 - :func:`boxes_hit`: which remembered things' boxes a change may reach, and
   :func:`configs_touched`: whether their configurations may see it
-  (:meth:`pickstop.regions.reuse.RefineMemo.held`), coarse to fine.
+  (:meth:`pickstop.speedups.region_memo.RefineMemo.held`), coarse to fine.
 
 Frames, points and boxes go through :mod:`pickstop.robot.frame_kernel`'s helpers. The loops
 over solids, links and leaves stay in each kernel: an inlined helper that branches or loops
@@ -193,7 +193,7 @@ def screen_links(
                         box_hit[k] = True
 
 
-#: One :class:`pickstop.regions.reuse.Change` as the kernels pass it, by value (an array
+#: One :class:`pickstop.speedups.region_memo.Change` as the kernels pass it, by value (an array
 #: argument costs its reference count on every call): the box it was in (lo 0-2, hi 3-5), the
 #: box it moved to (6-11, NaN if it did not move) and 1.0 if it moved (12).
 ChangeRow = tuple[
@@ -267,7 +267,7 @@ def _change_hits(
     hi2: float,
     same: float,
 ) -> bool:
-    """:meth:`pickstop.regions.reuse.Change.hits` of the change ``ch`` for the box
+    """:meth:`pickstop.speedups.region_memo.Change.hits` of the change ``ch`` for the box
     ``lo, hi``."""
     m_old = _box_meets(lo0, lo1, lo2, hi0, hi1, hi2, ch[0], ch[1], ch[2], ch[3], ch[4], ch[5], same)
     if ch[12] == 0.0:
@@ -306,7 +306,8 @@ def boxes_hit(
     """In place: ``out[h, i]`` set where change ``h`` (as in :func:`configs_touched`) hits
     the box ``lo[i], hi[i]`` (``(n, 3)``) and, where there are finer boxes ``g_*: (n, J, 3)``
     (J > 0), one of box ``i``'s too: the coarse stage of
-    :meth:`pickstop.regions.reuse.RefineMemo.held`, every change against every box at once."""
+    :meth:`pickstop.speedups.region_memo.RefineMemo.held`, every change against every box at
+    once."""
     n = lo.shape[0]
     J = g_lo.shape[1]
     for h in range(c_lo.shape[0]):
@@ -416,10 +417,10 @@ def configs_touched(
     """In place: ``touched[a]`` set where a covering sphere of a configuration owned by ``a``
     (``owner: (C,)``, 0..A-1) may meet a change that reaches ``a`` (``reach: (A, H)``).
 
-    Coarse to fine, as :class:`pickstop.regions.checked.CheckedLinks` tests: per joint group a
+    Coarse to fine, as :class:`pickstop.speedups.checked.CheckedLinks` tests: per joint group a
     box around its spheres (``group_*``, joint frames, 0-based ``group_joint``), then the box of
     each of its links (``group_links[group_start[g]:group_start[g + 1]]``), then each sphere,
-    every box padded by ``margin``; the changes as :class:`pickstop.regions.reuse.Change`
+    every box padded by ``margin``; the changes as :class:`pickstop.speedups.region_memo.Change`
     (``moved[h]``: an axis-aligned box that moved from ``c_*`` to ``n_*``). A configuration's
     frames are computed only while its owner is not yet known to be touched."""
     C, n = thetas.shape

@@ -3,8 +3,9 @@
 One robot and one reachability database, and what is derived from them: the batched IK
 solver, the sphere covers of the arm and of the robot against itself, the exact (coal) checks
 and the open hand's shape. Beside them the memos of what a computation derives from a scene
-(grasps, open-hand spaces, refinements across tray positions); each is keyed by everything it
-depends on, so none needs invalidating. Region caches live in :mod:`pickstop.regions.planner`.
+(grasps, open-hand spaces); each is keyed by everything it depends on, so none needs
+invalidating. Region caches and the memo of refinements across tray positions live in
+:mod:`pickstop.speedups.region_planner`.
 """
 
 from __future__ import annotations
@@ -20,7 +21,6 @@ from pickstop.caching import Cache
 from pickstop.reach.batch_ik import BatchSolver
 from pickstop.reach.database import ReachDatabase
 from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm
-from pickstop.regions.reuse import ReuseCache
 from pickstop.robot.exact import ExactSelfCollision
 from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.robot.model import RobotModel
@@ -86,7 +86,6 @@ class RegionKit:
     grasp_memo: Cache[str, GraspSet] = field(
         default_factory=lambda: Cache("kit.grasps", max_items=MEMO_SIZE)
     )
-    reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
     _hand_spaces: Cache[str, tuple[np.ndarray, np.ndarray]] = field(
         default_factory=lambda: Cache("kit.hand_spaces", max_items=MEMO_SIZE),

@@ -14,13 +14,13 @@ import hashlib
 import numpy as np
 
 from pickstop.regions import solve
+from pickstop.regions.arm import ArmWorld
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import footprint_free
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.pipeline import arm_radius, tray_world
-from pickstop.regions.solve import ArmWorld, Targets
-from pickstop.regions.validity import own_key
+from pickstop.regions.pipeline import arm_radius, own_key, tray_world
+from pickstop.regions.solve import Targets
 from pickstop.scene.model import Scene, Tray
 from pickstop.scene.world import Solid
 

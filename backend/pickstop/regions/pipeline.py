@@ -4,7 +4,9 @@ Cells within the arm's reach of the tray, where the base footprint fits; the gra
 part; the cells the database serves; part by part, IK by query and verification
 (:mod:`pickstop.regions.solve`); growth into open neighbours from the solved cells' witnesses.
 Whatever the computation looks at is marked on the region's envelope, which
-:mod:`pickstop.regions.validity` reads to tell when the region may be reused.
+:mod:`pickstop.speedups.validity` reads to tell when the region may be reused. Where work done
+before may stand in, the pipeline asks a :class:`~pickstop.regions.recall.Recall`, made for the
+tray by a :data:`RecallOf`: from scratch (:func:`from_scratch`), it computes everything.
 """
 
 from __future__ import annotations
@@ -13,19 +15,20 @@ import hashlib
 import json
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from pickstop import frames
 from pickstop.regions import solve
-from pickstop.regions.arm import nearby
+from pickstop.regions.arm import ArmWorld, nearby
 from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.envelope import Envelope
 from pickstop.regions.footprint import footprint_check
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import Surroundings, TrayAnchor, grasps_digest
-from pickstop.regions.solve import ArmWorld, Targets
+from pickstop.regions.recall import FROM_SCRATCH, Recall
+from pickstop.regions.solve import Targets
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Scene, Tray
 from pickstop.scene.world import BoxArrays, Solid
@@ -46,6 +49,41 @@ class BaseCells:
     def cells(self) -> np.ndarray:
         """``(M, 2)`` int (iy, ix)."""
         return np.stack([self.iy, self.ix], 1)
+
+
+#: Makes the recall of one tray's region (:mod:`pickstop.regions.recall`) from the kit, the
+#: scene, the tray, the base yaw [rad], its base cells, its parts' grasps and the solids near it.
+RecallOf = Callable[[RegionKit, Scene, Tray, float, BaseCells, list[GraspSet], list[Solid]], Recall]
+
+
+def from_scratch(
+    kit: RegionKit,
+    scene: Scene,
+    tray: Tray,
+    yaw: float,
+    base: BaseCells,
+    grasp_sets: list[GraspSet],
+    solids: list[Solid],
+) -> Recall:
+    """The :data:`RecallOf` of the pipeline from scratch: nothing is taken from before."""
+    return FROM_SCRATCH
+
+
+def own_key(kit: RegionKit, scene: Scene, tray: Tray, yaw: float) -> str:
+    """What the region of ``tray`` depends on apart from the other objects."""
+    blob = {
+        "tray": tray.model_dump(),
+        "yaw": yaw,
+        "grid": [scene.grid_extent.model_dump(), scene.base_grid.resolution],
+        "floor": scene.floor.model_dump(),
+        "floor_clearance": scene.floor_clearance,
+        "gripper": scene.gripper.model_dump(),
+        "hand": kit.hand.key,
+        "robot": kit.robot.robot_hash,
+        "db": kit.db.id,
+        "algo": solve.VERSION,
+    }
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
 
 
 def tray_reach(kit: RegionKit, tray: Tray) -> float:
@@ -91,12 +129,16 @@ def base_cells(
 
 
 def compute_tray_region(
-    kit: RegionKit, scene: Scene, tray: Tray, yaw: float, key: str = "", reuse: bool = True
+    kit: RegionKit,
+    scene: Scene,
+    tray: Tray,
+    yaw: float,
+    key: str = "",
+    recall_of: RecallOf = from_scratch,
 ) -> TrayRegion:
     """The region of ``tray`` at base ``yaw`` [rad] (see the module); ``key`` is stored with
-    it (:func:`pickstop.regions.validity.own_key`). ``reuse``: take refinements and cell
-    answers from the kit's memo of the tray (:mod:`pickstop.regions.reuse`) and keep this
-    computation's there; false: nothing remembered is read or written (from scratch)."""
+    it (:func:`own_key`). ``recall_of``: where work done before may stand in (default: none,
+    from scratch)."""
     t0 = time.perf_counter()
     robot = kit.robot
     grid = CellGrid.of(scene)
@@ -122,9 +164,8 @@ def compute_tray_region(
     if why is not None:
         return empty(why)
     world, targets, alive = _arm_targets(
-        kit, scene, tray, yaw, base, grasp_sets, (solids, boxes, R_base_world, grid, env),
-        reuse,
-    )  # fmt: skip
+        kit, scene, tray, yaw, base, grasp_sets, (solids, boxes, R_base_world, env), recall_of
+    )
     counts["served"] = len(alive)
     alive, witness, grasp_of, failed = _solve_parts(
         kit, world, targets, base, alive, len(part_ids), counts
@@ -156,30 +197,21 @@ def _arm_targets(
     yaw: float,
     base: BaseCells,
     grasp_sets: list[GraspSet],
-    near: tuple[list[Solid], BoxArrays, np.ndarray, CellGrid, Envelope],
-    reuse: bool = True,
+    near: tuple[list[Solid], BoxArrays, np.ndarray, Envelope],
+    recall_of: RecallOf = from_scratch,
 ) -> tuple[ArmWorld, list[Targets], np.ndarray]:
     """The arm's world, each part's targets from the base cells, and the cells the database
     serves for every part (indices into ``base``); the others are left to the growth.
-    ``near``: the solids near the tray (exact and as arrays), R_base_world, the grid, the
-    hands' envelope. ``reuse``: through the kit's memo of the tray (else none)."""
-    solids, boxes, R_base_world, grid, env = near
-    if not reuse:
-        world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance, (tray.pose.x, tray.pose.y))
-        targets = [Targets.of(gs, base.centres, R_base_world) for gs in grasp_sets]
-        return world, targets, np.flatnonzero(solve.served(kit.db, targets))
-    anchor = TrayAnchor.of(grid.x0, grid.y0, grid.res, tray)
-    memo = kit.reuse.memo(reuse_key(kit, scene, tray, yaw, anchor, grasp_sets))
-    around = memo.around(Surroundings.of(solids, tray))
-    world = ArmWorld(
-        boxes, solids, yaw, env, scene.floor_clearance, (tray.pose.x, tray.pose.y), around
+    ``near``: the solids near the tray (exact and as arrays), R_base_world, the hands'
+    envelope. ``recall_of``: makes the targets' recall."""
+    solids, boxes, R_base_world, env = near
+    world = ArmWorld(boxes, solids, yaw, env, scene.floor_clearance)
+    recall = recall_of(kit, scene, tray, yaw, base, grasp_sets, solids)
+    targets = [Targets.of(gs, base.centres, R_base_world, recall) for gs in grasp_sets]
+    served = recall.served(
+        len(base.ix), lambda idx: solve.served(kit.db, [t.take(idx) for t in targets])
     )
-    keys = anchor.cell_keys(base.ix, base.iy)
-    targets = [Targets.of(gs, base.centres, R_base_world, keys, memo) for gs in grasp_sets]
-    alive = np.flatnonzero(
-        memo.served(keys, lambda idx: solve.served(kit.db, [t.take(idx) for t in targets]))
-    )
-    return world, targets, alive
+    return world, targets, np.flatnonzero(served)
 
 
 def _solve_parts(
@@ -228,34 +260,6 @@ def _grown(
         grasp_of,
     )  # fmt: skip
     return np.flatnonzero(solved), grown
-
-
-def reuse_key(
-    kit: RegionKit,
-    scene: Scene,
-    tray: Tray,
-    yaw: float,
-    anchor: TrayAnchor,
-    grasp_sets: list[GraspSet],
-) -> str:
-    """What the refinements from cells anchored to ``tray`` depend on: everything the region
-    does except the tray's position in whole cells and the rest of the scene."""
-    pose = tray.pose.model_dump()
-    pose.pop("x"), pose.pop("y")
-    blob = {
-        "tray": tray.model_dump(exclude={"pose", "name"}),
-        "pose": pose,
-        "phase": anchor.phase,
-        "yaw": yaw,
-        "res": scene.base_grid.resolution,
-        "floor_clearance": scene.floor_clearance,
-        "hand": kit.hand.key,
-        "robot": kit.robot.robot_hash,
-        "db": kit.db.id,
-        "algo": solve.VERSION,
-        "grasps": grasps_digest(tray, grasp_sets),
-    }
-    return hashlib.sha256(json.dumps(blob, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def arm_radius(kit: RegionKit, tray: Tray) -> float:

@@ -5,8 +5,8 @@
 :func:`~pickstop.regions.pipeline.compute_tray_region` for every tray and yaw, with no reuse
 of refinements or cell answers and a kit whose memos of scenes start empty
 (:meth:`~pickstop.regions.kit.RegionKit.scratch`). It is the algorithm the region planner
-(:mod:`pickstop.regions.planner`) speeds up with its caches, its reuse across layouts and its
-workers.
+(:mod:`pickstop.speedups.region_planner`) speeds up with its caches, its reuse across layouts
+and its workers.
 """
 
 from __future__ import annotations
@@ -16,8 +16,7 @@ from dataclasses import dataclass
 from pickstop.reach.database import ReachDatabase
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.pipeline import compute_tray_region
-from pickstop.regions.validity import own_key
+from pickstop.regions.pipeline import compute_tray_region, own_key
 from pickstop.robot.model import RobotModel
 from pickstop.scene.model import Scene
 
@@ -25,7 +24,7 @@ from pickstop.scene.model import Scene
 def tray_region(kit: RegionKit, scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
     """The region of tray ``tray_id`` at base ``yaw`` [rad], computed from scratch."""
     tray = scene.tray(tray_id)
-    return compute_tray_region(kit, scene, tray, yaw, own_key(kit, scene, tray, yaw), False)
+    return compute_tray_region(kit, scene, tray, yaw, own_key(kit, scene, tray, yaw))
 
 
 def regions(kit: RegionKit, scene: Scene) -> dict[tuple[str, float], TrayRegion]:

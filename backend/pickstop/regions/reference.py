@@ -27,6 +27,7 @@ from pickstop.frames import R_base_world
 from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.ik import POS_TOL, ROT_TOL
 from pickstop.regions import solve
+from pickstop.regions.arm import ArmWorld
 from pickstop.regions.cells import CellGrid, TrayRegion
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import (
@@ -37,7 +38,7 @@ from pickstop.regions.pipeline import (
     tray_world,
     ungraspable,
 )
-from pickstop.regions.solve import ArmWorld, Targets
+from pickstop.regions.solve import Targets
 from pickstop.robot.kinematics import fk, fk_soa
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Scene, Tray

@@ -19,23 +19,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
 
 import numpy as np
 
-from pickstop.reach.batch_ik import BatchSolver, refine_batch
 from pickstop.reach.database import RANK_LENGTH, ReachDatabase
 from pickstop.reach.so3 import matrices_to_quats
-from pickstop.regions.arm import screen_arm
-from pickstop.regions.checked import CheckedConfigs, KnownChecks, cell_answers
-from pickstop.regions.envelope import Envelope
+from pickstop.regions.arm import ArmWorld, screen_arm
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import CellAnswers, RefineMemo, reaches
-from pickstop.robot.floor import FLOOR_CLEARANCE
+from pickstop.regions.recall import FROM_SCRATCH, Recall, RefineRows, Rounds
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
 from pickstop.scene.grasps import GraspSet
-from pickstop.scene.world import BoxArrays, Solid
 
 WINDOW = 4  # candidates screened per (cell, part) at a time
 MAX_ROUNDS = 2  # refinement rounds per part (1, then 2 candidates per open cell)
@@ -52,82 +46,38 @@ VERIFY_CHUNK = 16_384  # configurations screened at once (bounds the joint frame
 
 @dataclass(frozen=True)
 class Targets:
-    """Tool targets of one part's grasps from M base cells, in the base frame."""
+    """Tool targets of one part's grasps from M base cells, in the base frame, and what the
+    computation may take from earlier ones for those cells (:mod:`pickstop.regions.recall`)."""
 
     grasps: GraspSet
     Rs_base_tool: np.ndarray  # (G, 3, 3) the same from every cell (fixed yaw)
     qs_base_tool: np.ndarray  # (G, 4) wxyz
     ps_base_tool: np.ndarray  # (M, G, 3) [m]
-    # Cells by their offset from the tray ((M,) int64) and the tray's memo of refinements:
-    # set where the cells are grid cells, so that refinements carry over to other positions.
-    cell_keys: np.ndarray | None = None
-    memo: RefineMemo | None = None
+    recall: Recall = FROM_SCRATCH
 
     @classmethod
     def of(
-        cls,
-        gs: GraspSet,
-        cen: np.ndarray,
-        R_base_world: np.ndarray,
-        cell_keys: np.ndarray | None = None,
-        memo: RefineMemo | None = None,
+        cls, gs: GraspSet, cen: np.ndarray, R_base_world: np.ndarray, recall: Recall = FROM_SCRATCH
     ) -> Targets:
         """``cen: (M, 2)`` base positions [m]; ``R_base_world: (3, 3)`` R_base_world of the yaw."""
         Rs_base_tool = np.einsum("ij,gjk->gik", R_base_world, gs.Ts_world_tool[:, :3, :3])
         base = np.concatenate([cen, np.zeros((len(cen), 1))], 1)
         ps_base_tool = (gs.Ts_world_tool[None, :, :3, 3] - base[:, None]) @ R_base_world.T
-        assert cell_keys is None or cell_keys.shape == (len(cen),)
-        return cls(gs, Rs_base_tool, matrices_to_quats(Rs_base_tool), ps_base_tool, cell_keys, memo)
+        return cls(gs, Rs_base_tool, matrices_to_quats(Rs_base_tool), ps_base_tool, recall)
+
+    @property
+    def part_id(self) -> str:
+        return self.grasps.part_id
 
     def take(self, idx: np.ndarray) -> Targets:
-        keys = None if self.cell_keys is None else self.cell_keys[idx]
+        """The targets of cells ``idx: (K,)`` (indices)."""
         return Targets(
             self.grasps,
             self.Rs_base_tool,
             self.qs_base_tool,
             self.ps_base_tool[idx],
-            keys,
-            self.memo,
+            self.recall.take(idx),
         )
-
-    def refine(
-        self,
-        solver: BatchSolver,
-        tag: str,
-        cells: np.ndarray,
-        grasps: np.ndarray,
-        sources: list[Any],
-        seeds: np.ndarray,
-        Rs: np.ndarray,
-        ps: np.ndarray,
-        max_iter: int,
-        give_up: tuple[tuple[int, float], ...],
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Refine ``seeds`` for rows of ``cells`` (indices into the targets' cells) and
-        ``grasps``, through the memo where there is one. Returns thetas and success."""
-        if self.memo is None or self.cell_keys is None:
-            res = refine_batch(solver, seeds, Rs, ps, max_iter=max_iter, give_up=give_up)
-            return res.thetas, res.success
-        part = self.grasps.part_id
-        ck = self.cell_keys[cells].tolist()
-        keys = [(tag, part, c, g, s) for c, g, s in zip(ck, grasps.tolist(), sources, strict=True)]
-        return self.memo.refine(solver, keys, seeds, Rs, ps, max_iter, give_up)
-
-
-@dataclass(frozen=True)
-class ArmWorld:
-    """What the arm is checked against near one tray, at one base yaw: the solids and the
-    floor, which every link keeps ``floor`` [m] away from (the scene's floor_clearance)."""
-
-    boxes: BoxArrays
-    solids: list[Solid]
-    yaw: float  # [rad]
-    env: Envelope | None  # where the screen's rejections are recorded (None: nowhere)
-    floor: float = FLOOR_CLEARANCE
-    # The tray's position (x, y) [m] and the id of its surroundings in the targets' memo
-    # (:meth:`~pickstop.regions.reuse.RefineMemo.around`; None: cell answers are not reused).
-    tray_xy: tuple[float, float] = (0.0, 0.0)
-    around: int | None = None
 
 
 def served(db: ReachDatabase, targets: list[Targets]) -> np.ndarray:
@@ -178,92 +128,14 @@ def _solve_cells(
     kit: RegionKit, world: ArmWorld, tg: Targets, cen: np.ndarray, vicinity: bool, rounds: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_rounds` over the database's candidates (the own voxels, or the vicinity) of M
-    cells, each solved on its own. Where the targets carry a memo, a cell's remembered answer
-    is taken while the surroundings, seen from the tray, are as they were wherever the
-    configurations it checked reach, and a remembered witness while it is free of what is new
-    there (:meth:`~pickstop.regions.reuse.RefineMemo.recall`); the other cells are solved and
-    their answers remembered."""
-    M, dof = len(cen), kit.solver.chain.dof
-    memo, keys = tg.memo, tg.cell_keys
-    if memo is None or keys is None or world.around is None:
-        return _rounds(kit, world, tg, cen, _gather(kit.db, tg, vicinity), rounds)[:3]
-    tag, part = ("vicinity" if vicinity else "db"), tg.grasps.part_id
+    cells, each solved on its own (through the targets' recall)."""
 
-    def checked(answers: CellAnswers, ids: np.ndarray) -> CheckedConfigs:
-        # each answer's database rows, then its refinements (one lookup for all the rows)
-        n_rows = [len(r) for r in answers.rows]
-        n_ref = [len(r) for r in answers.refined]
-        rows = np.concatenate(answers.rows) if len(answers) else np.zeros(0, np.int32)
-        th = np.concatenate([kit.db.thetas(rows).reshape(-1, dof), *answers.refined]).reshape(
-            -1, dof
-        )
-        xy = answers.xy.reshape(-1, 2)
-        xy = np.concatenate([np.repeat(xy, n_rows, axis=0), np.repeat(xy, n_ref, axis=0)])
-        owner = np.concatenate([np.repeat(ids, n_rows), np.repeat(ids, n_ref)])
-        return CheckedConfigs(kit, th, xy, world.yaw, owner)
+    def compute(idx: np.ndarray) -> Rounds:
+        sub = tg.take(idx)
+        return _rounds(kit, world, sub, cen[idx], _gather(kit.db, sub, vicinity), rounds)
 
-    def free_of(idx: np.ndarray, thetas: np.ndarray, solids: tuple[Solid, ...]) -> np.ndarray:
-        xy = cen[idx] - np.asarray(world.tray_xy)
-        return free_of_newcomers(kit, world, thetas, xy, part, solids)
-
-    ok, reused = memo.recall(tag, part, keys, world.around, checked, free_of)
-    found, th_out, g_out = np.zeros(M, bool), np.zeros((M, dof)), np.zeros(M, int)
-    idx = np.flatnonzero(ok)
-    if reused is not None:
-        found[idx], th_out[idx], g_out[idx] = reused.found, reused.theta, reused.grasp
-        if world.env is not None:
-            # What the screens of these cells flagged lies among what meets their boxes.
-            world.env.hit_owners |= memo.surroundings[world.around].owners_within(
-                reused.lo, reused.hi
-            )
-    todo = np.flatnonzero(~ok)
-    if len(todo):
-        sub = tg.take(todo)
-        f, th, g, screened, refined = _rounds(
-            kit, world, sub, cen[todo], _gather(kit.db, sub, vicinity), rounds
-        )
-        found[todo], th_out[todo], g_out[todo] = f, th, g
-        memo.remember(
-            tag,
-            part,
-            keys[todo],
-            cell_answers(kit, world, cen[todo], f, th, g, screened, refined),
-            world.around,
-        )
-    return found, th_out, g_out
-
-
-def free_of_newcomers(
-    kit: RegionKit,
-    world: ArmWorld,
-    thetas: np.ndarray,
-    base_xy: np.ndarray,
-    target: str,
-    solids: tuple[Solid, ...],
-) -> np.ndarray:
-    """``(B,)`` True where witnesses ``thetas: (B, dof)`` on bases ``base_xy: (B, 2)``, each
-    verified before in surroundings that lacked only ``solids``, are free of those too (bases
-    and solids relative to the tray): the sphere screen, then coal for whatever it flags.
-    Against the rest of the scene, the floor and itself each was checked exactly when it was
-    found, at the same place relative to the tray."""
-    B = len(thetas)
-    if not solids or not B:
-        return np.ones(B, bool)
-    boxes = BoxArrays.of(list(solids))
-    hit = np.zeros(B, bool)
-    for s in range(0, B, VERIFY_CHUNK):
-        sl = slice(s, s + VERIFY_CHUNK)
-        _, _, frames = fk_soa(kit.solver.chain, np.ascontiguousarray(thetas[sl].T), frames=True)
-        hit[sl] = screen_arm(
-            kit.arm, boxes, frames, base_xy[sl], world.yaw, world.env, target, None
-        )
-    flagged = np.flatnonzero(hit)
-    checks = kit.exact_arm.checks(
-        thetas[flagged], base_xy[flagged], world.yaw, list(solids), target, None, boxes
-    )
-    for i, j in enumerate(flagged.tolist()):
-        hit[j] = checks.colliding(i)
-    return ~hit
+    tag = "vicinity" if vicinity else "db"
+    return tg.recall.solve_cells(kit, world, tag, tg.part_id, cen, compute)
 
 
 def _near_found(cen: np.ndarray, found: np.ndarray, dist: float) -> np.ndarray:
@@ -467,8 +339,9 @@ def _refine_and_verify(
     """Refine candidates ``e`` (indices) to exact IK solutions, verify those that converge,
     and take each cell's best-ranked verified one as its witness."""
     cell, g, rows = cands.cell, cands.grasp, cands.rows
-    thetas, success = tg.refine(
-        kit.solver, "db", cell[e], g[e], rows[e].tolist(), kit.db.thetas(rows[e]),
+    recall = tg.recall.take(cell[e])  # a cell per row
+    thetas, success = recall.refine(
+        kit.solver, RefineRows("db", tg.part_id, g[e], rows[e]), kit.db.thetas(rows[e]),
         tg.Rs_base_tool[g[e]], cands.ps[cands.target[e]], REFINE_ITERATIONS, REFINE_GIVE_UP,
     )  # fmt: skip
     ok = np.flatnonzero(success)
@@ -476,9 +349,8 @@ def _refine_and_verify(
         return
     search.r_cells.append(cell[e[ok]])
     search.r_ths.append(thetas[ok])
-    memo = None if tg.memo is None or tg.cell_keys is None else (tg.memo, tg.cell_keys[cell[e[ok]]])
     good = verify(
-        kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.grasps.part_id, cell_keys=memo
+        kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.part_id, None, recall.take(ok)
     )
     acc, ths = e[ok[good]], thetas[ok[good]]
     # Several may succeed for a cell: keep its best-ranked (first) one.
@@ -497,7 +369,7 @@ def verify(
     owner: np.ndarray | None = None,
     targets: np.ndarray | str | None = None,
     counts: dict[str, int] | None = None,
-    cell_keys: tuple[RefineMemo, np.ndarray] | None = None,
+    recall: Recall = FROM_SCRATCH,
 ) -> np.ndarray:
     """``(B,)`` True where ``thetas: (B, dof)`` on a base at ``base_xy: (B, 2)`` is free of the
     scene, of the floor and of itself, the robot's whole collision geometry (hand included)
@@ -507,9 +379,8 @@ def verify(
     coal checks of its other flagged rows are skipped (they count as not verified).
     targets: the part each row grasps (one for all, or per row): no obstacle for the hand.
     counts: if given, its ``"exact_checks"`` counts the rows checked by coal.
-    cell_keys: a memo of exact checks and each row's cell key (:mod:`pickstop.regions.reuse`):
-    a check remembered there is taken where the surroundings near its links are as they
-    were, and new ones are kept.
+    recall: where exact checks known before are taken from and new ones kept, bound to one
+    cell per row (:meth:`~pickstop.regions.recall.Recall.known_checks`).
     """
     env_hit, self_hit = _screens(kit, world, thetas, base_xy, targets)
     flagged = env_hit | self_hit
@@ -517,8 +388,8 @@ def verify(
     done = set() if owner is None else set(owner[good].tolist())
     rows = np.flatnonzero(flagged)
     env_rows = rows[env_hit[rows]]
-    checks = KnownChecks.of(
-        kit, world, thetas, base_xy, env_rows, partial(_target_of, targets), cell_keys
+    checks = recall.known_checks(
+        kit, world, thetas, base_xy, env_rows, partial(_target_of, targets)
     )
     env_targets = targets if targets is None or isinstance(targets, str) else targets[env_rows]
     arm_checks = kit.exact_arm.checks(
@@ -586,33 +457,30 @@ def seeded(
     max_iter: int,
     give_up: tuple[tuple[int, float], ...] = (),
     targets: np.ndarray | str | None = None,
-    memo: tuple[RefineMemo, list[Any]] | None = None,
+    recall: Recall = FROM_SCRATCH,
+    rows: RefineRows | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Refine ``seeds: (B, dof)`` towards ``T_base_tool`` targets ``(B, 3, 3)``, ``(B, 3)`` on
     bases at ``base_xy: (B, 2)``, and verify them; rows solve ``problem: (B,)`` ids.
 
     Returns the winning row of each problem ``(n_problems,)`` (-1 where none verified; the
     first verified row wins) and the refined configurations ``(B, dof)``. targets: the part
-    each row grasps (one for all, or per row). memo: a memo of refinements and the key of
-    each row (:mod:`pickstop.regions.reuse`).
+    each row grasps (one for all, or per row). recall: where refinements and checks may be
+    taken from, bound to one cell per row (:mod:`pickstop.regions.recall`); rows: what the
+    rows are there (a recall from scratch needs nothing).
     """
     win = np.full(n_problems, -1)
     if not len(seeds):
         return win, seeds
-    if memo is None:
-        res = refine_batch(
-            kit.solver, seeds, Rs_target, ps_target, max_iter=max_iter, give_up=give_up
-        )
-        thetas, success = res.thetas, res.success
-    else:
-        thetas, success = memo[0].refine(
-            kit.solver, memo[1], seeds, Rs_target, ps_target, max_iter, give_up
-        )
+    thetas, success = recall.refine(
+        kit.solver, rows, seeds, Rs_target, ps_target, max_iter, give_up
+    )
     ok = np.flatnonzero(success)
     if len(ok):
         sub = targets if targets is None or isinstance(targets, str) else targets[ok]
-        ck = None if memo is None else (memo[0], np.array([k[2] for k in memo[1]])[ok])
-        good = ok[verify(kit, world, thetas[ok], base_xy[ok], problem[ok], sub, cell_keys=ck)]
+        good = ok[
+            verify(kit, world, thetas[ok], base_xy[ok], problem[ok], sub, None, recall.take(ok))
+        ]
         _, first = np.unique(problem[good], return_index=True)
         win[problem[good[first]]] = good[first]
     return win, thetas
@@ -649,7 +517,8 @@ def grow(
         wave = _Wave.next(nb, found, fresh, thetas, grasp)
         if wave is None:
             break
-        _grown_before(kit, world, targets, cen, wave)
+        # parts a cell was grown with before, where the recall knows them
+        wave.solve(*targets[0].recall.grown_before(kit, world, targets, cen, wave.open_))
         # The neighbours' own grasps first; then, where a part is still open, every other
         # grasp from the same seeds: a witness for one grasp often reaches another here (the
         # wrist turns) where its own grasp runs into a joint limit.
@@ -720,53 +589,12 @@ class _Wave:
             np.zeros((n_open, P), int),
         )
 
-
-def _grown_before(
-    kit: RegionKit, world: ArmWorld, targets: list[Targets], cen: np.ndarray, wave: _Wave
-) -> None:
-    """For the ``wave``'s open cells, in place: each part of a cell grown before (at this
-    offset from the tray, with the tray elsewhere or other things around it) whose witness
-    then still reaches its grasp's target and verifies here now is solved with it, before any
-    seed is refined. A witness is one configuration to check where the seeds are many to
-    refine, and the seeds themselves differ wherever a neighbour's witness does."""
-    memo, keys = targets[0].memo, targets[0].cell_keys
-    if memo is None or keys is None or not memo.grown:
-        return
-    open_ = wave.open_
-    rows, seeds, grasps, Rs, ps, parts = [], [], [], [], [], []
-    for j, tg in enumerate(targets):
-        for i, k in enumerate(keys[open_].tolist()):
-            hit = memo.grown.get((tg.grasps.part_id, k))
-            if hit is not None:
-                rows.append(i * len(targets) + j)
-                seeds.append(hit[0])
-                grasps.append(hit[1])
-                Rs.append(tg.Rs_base_tool[hit[1]])
-                ps.append(tg.ps_base_tool[open_[i], hit[1]])
-                parts.append(tg.grasps.part_id)
-    if not rows:
-        return
-    th = np.array(seeds)
-    reach = np.flatnonzero(reaches(kit.solver, th, np.array(Rs), np.array(ps)))
-    if not len(reach):
-        return
-    o_r = np.array(rows)[reach] // len(targets)
-    good = reach[
-        verify(
-            kit,
-            world,
-            th[reach],
-            cen[open_[o_r]],
-            None,
-            np.array(parts, dtype=object)[reach],
-            cell_keys=(memo, keys[open_[o_r]]),
-        )
-    ]
-    o, p = np.divmod(np.array(rows)[good], len(targets))
-    memo.regrown += len(good)
-    wave.got[o, p] = True
-    wave.th_new[o, p] = th[good]
-    wave.g_new[o, p] = np.array(grasps)[good]
+    def solve(self, o: np.ndarray, p: np.ndarray, thetas: np.ndarray, grasps: np.ndarray) -> None:
+        """Parts ``p: (S,)`` of open cells ``o: (S,)`` (indices into ``open_``) are solved
+        by witnesses ``thetas: (S, dof)`` with grasps ``(S,)``."""
+        self.got[o, p] = True
+        self.th_new[o, p] = thetas
+        self.g_new[o, p] = grasps
 
 
 def _seed_from_neighbours(
@@ -794,17 +622,14 @@ def _seed_from_neighbours(
         p_t[m] = targets[p].ps_base_tool[cell[m], g[m]]
     problem = wave.o_loc[pair] * P + part
     part_ids = np.array([tg.grasps.part_id for tg in targets], dtype=object)
-    seeds = wave.seed_th[pair, part]
-    memo = _grow_memo(targets[0], part_ids, part, cell, g, seeds)
     win, ths = seeded(
-        kit, world, seeds, R_t, p_t, cen[cell], problem, len(wave.open_) * P, GROW_ITERATIONS,
-        GROW_GIVE_UP, part_ids[part], memo,
+        kit, world, wave.seed_th[pair, part], R_t, p_t, cen[cell], problem, len(wave.open_) * P,
+        GROW_ITERATIONS, GROW_GIVE_UP, part_ids[part], targets[0].recall.take(cell),
+        RefineRows("grow", part_ids[part], g),
     )  # fmt: skip
     solved = np.flatnonzero(win >= 0)
     o, p_ = np.divmod(solved, P)
-    wave.got[o, p_] = True
-    wave.th_new[o, p_] = ths[win[solved]]
-    wave.g_new[o, p_] = g[win[solved]]
+    wave.solve(o, p_, ths[win[solved]], g[win[solved]])
 
 
 def _seed_rows(
@@ -831,29 +656,6 @@ def _seed_rows(
     return pair[order], part[order], g[order]
 
 
-def _grow_memo(
-    tg: Targets,
-    part_ids: np.ndarray,
-    part: np.ndarray,
-    cell: np.ndarray,
-    g: np.ndarray,
-    seeds: np.ndarray,
-) -> tuple[RefineMemo, list[Any]] | None:
-    """The targets' memo of refinements and each row's key (None: no memo): the part, the
-    cell's key, the grasp and the seed."""
-    keys = tg.cell_keys
-    if tg.memo is None or keys is None:
-        return None
-    ck = keys[cell].tolist()
-    return (
-        tg.memo,
-        [
-            ("grow", part_ids[pp], c, gg, sd.tobytes())
-            for pp, c, gg, sd in zip(part.tolist(), ck, g.tolist(), seeds, strict=True)
-        ],
-    )
-
-
 def _join(
     targets: list[Targets],
     wave: _Wave,
@@ -862,17 +664,15 @@ def _join(
     grasp: np.ndarray,
 ) -> np.ndarray:
     """The ``wave``'s cells solved for every part join the region (``found``, ``thetas``,
-    ``grasp``, in place) and the targets' memo; returns their rows."""
+    ``grasp``, in place) and the targets' recall; returns their rows."""
     alive = wave.got.all(1)
     new = wave.open_[alive]
     found[new] = True
     thetas[new] = wave.th_new[alive]
     grasp[new] = wave.g_new[alive]
-    memo, keys = targets[0].memo, targets[0].cell_keys
-    if memo is not None and keys is not None and len(new):
-        memo.remember_grown(
-            [tg.grasps.part_id for tg in targets], keys[new], wave.th_new[alive], wave.g_new[alive]
-        )
+    targets[0].recall.remember_grown(
+        [tg.part_id for tg in targets], new, wave.th_new[alive], wave.g_new[alive]
+    )
     return new
 
 

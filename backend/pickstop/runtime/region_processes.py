@@ -5,7 +5,7 @@ which live as long as the pool. Forked children share the parent's reachability 
 pages are copied only if written, and they are only read) and start with its memos. Each tray
 (with its yaw) has a **home**: the process that computed its region last computes it again,
 so what its memos learned there (grasps, refinements, remembered cell answers across tray
-positions: :mod:`pickstop.regions.reuse`) serves the next layout. A tray new to the pool goes
+positions: :mod:`pickstop.speedups.region_memo`) serves the next layout. A tray new to the pool goes
 to the process with the least to do. Nothing is pickled but the scene going out and the
 regions coming back (a few hundred kB, about a millisecond), with the grasps the helper
 computed for them (the planner's checks of stops need them too).
@@ -35,19 +35,16 @@ from pickstop.caching import Cache
 from pickstop.errors import dump_error, load_error
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.pipeline import compute_tray_region
-from pickstop.regions.validity import own_key
 from pickstop.runtime.cancel import Cancelled, Token, current, scope
 from pickstop.scene.model import Scene
 
 log = logging.getLogger("pickstop.regions")
 
-POLL = 0.005  # [s] between looks at the asking thread's token while helpers compute
-MAX_HOMES = 4096  # trays (by definition but for where they stand) whose homes are kept
-_KIT: RegionKit | None = None  # set in each helper process, never in the parent
-
 Pair = tuple[str, float]  # (tray id, yaw [rad])
 Compute = Callable[[Scene, str, float], TrayRegion]
+POLL = 0.005  # [s] between looks at the asking thread's token while helpers compute
+MAX_HOMES = 4096  # trays (by definition but for where they stand) whose homes are kept
+_COMPUTE: Compute | None = None  # how a helper computes a region (set in each helper)
 
 
 @dataclass
@@ -58,12 +55,14 @@ class _Helper:
 
 class RegionProcesses:
     """``processes`` processes computing regions with ``kit``: the caller's own and
-    ``processes - 1`` helpers forked from it, each tray at home in one (see the module)."""
+    ``processes - 1`` helpers forked from it, each tray at home in one (see the module);
+    ``compute(scene, tray id, yaw)`` computes a region in a helper."""
 
-    def __init__(self, kit: RegionKit, processes: int) -> None:
+    def __init__(self, kit: RegionKit, processes: int, compute: Compute) -> None:
         if processes < 1:
             raise ValueError(f"processes must be at least 1, got {processes}")
         self.kit = kit
+        self.compute = compute
         self.processes = processes
         # home key -> process (0: this one)
         self.homes: Cache[str, int] = Cache("region_processes.homes", max_items=MAX_HOMES)
@@ -196,7 +195,7 @@ class RegionProcesses:
         mine, theirs = self._ctx.Pipe()
         proc = self._ctx.Process(
             target=_serve,
-            args=(self.kit, theirs, mine, self._stop),
+            args=(self.kit, self.compute, theirs, mine, self._stop),
             name=f"pickstop-regions-{h + 1}",
             daemon=True,
         )
@@ -230,11 +229,13 @@ def _home_key(scene: Scene, pair: Pair) -> str:
     return f"{tray.id}|{pair[1]!r}|{tray.model_dump_json(exclude={'pose': {'x', 'y'}})}"
 
 
-def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> None:
+def _serve(
+    kit: RegionKit, compute: Compute, conn: Connection, parents: Connection, stop: Any
+) -> None:
     """A helper's life: regions for the planner's requests until its end of the pipe closes."""
-    global _KIT
+    global _COMPUTE
     parents.close()  # so that the planner's end closing reads as the end here
-    _KIT = kit
+    _COMPUTE = compute
     code = 0
     try:
         while True:
@@ -259,7 +260,6 @@ def _serve(kit: RegionKit, conn: Connection, parents: Connection, stop: Any) -> 
 
 
 def _region(scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
-    kit = _KIT
-    assert kit is not None, "a region helper runs only in a RegionProcesses process"
-    tray = scene.tray(tray_id)
-    return compute_tray_region(kit, scene, tray, yaw, own_key(kit, scene, tray, yaw))
+    compute = _COMPUTE
+    assert compute is not None, "a region helper runs only in a RegionProcesses process"
+    return compute(scene, tray_id, yaw)

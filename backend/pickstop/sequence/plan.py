@@ -2,7 +2,7 @@
 
 A :class:`~pickstop.sequence.steps.PlanSteps` whose every step is the plain function of
 :mod:`pickstop.sequence.pure` behind a bounded cache keyed by what its answer depends on, over
-the region planner's regions (:class:`~pickstop.regions.planner.RegionPlanner`). A plan,
+the region planner's regions (:class:`~pickstop.speedups.region_planner.RegionPlanner`). A plan,
 preview, plan ahead or prefetched selection runs the request
 (:class:`~pickstop.sequence.request.PlanRequest`: the algorithm's steps in order) over it;
 :func:`~pickstop.sequence.request.plan_from_scratch` runs the same request over
@@ -27,7 +27,6 @@ from shapely.geometry import Polygon
 from pickstop.caching import Cache
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.offgrid import check_key
-from pickstop.regions.planner import RegionPlanner
 from pickstop.runtime.cancel import Cancelled, giving_way
 from pickstop.scene.model import Scene
 from pickstop.scene.positioning import ErrorDist, of_scene
@@ -40,6 +39,7 @@ from pickstop.sequence.request import PlanRequest, world_key
 from pickstop.sequence.route import Paths
 from pickstop.sequence.steps import Floor
 from pickstop.sequence.success import Kind, Rate
+from pickstop.speedups.region_planner import RegionPlanner
 
 PREFETCH_BANDS = 24  # sigma bands planned ahead in the background after a plan
 _digest = pure.digest

@@ -1,4 +1,4 @@
-"""Regions carried to previews (regions/carry.py)."""
+"""Regions carried to previews (speedups/carry.py)."""
 
 from __future__ import annotations
 
@@ -85,7 +85,7 @@ def test_the_regions_kept_for_previews_stay_within_their_bound(paper_doc):
     least recently goes first."""
     from types import SimpleNamespace
 
-    from pickstop.regions.carry import LastRegions
+    from pickstop.speedups.carry import LastRegions
 
     last = LastRegions(size=5, per_tray=4)
 

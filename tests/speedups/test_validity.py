@@ -1,4 +1,4 @@
-"""When a cached region still holds (regions/validity.py): precise invalidation, witness arms
+"""When a cached region still holds (speedups/validity.py): precise invalidation, witness arms
 against new objects."""
 
 from __future__ import annotations
@@ -35,9 +35,9 @@ def test_moving_a_tray_recomputes_only_what_it_affects(planner, paper_doc):
 
 
 def test_witnesses_clear_sees_an_object_on_a_witness_arm(planner, paper_doc):
-    from pickstop.regions.validity import witnesses_clear
     from pickstop.robot.kinematics import Chain, fk_soa
     from pickstop.scene.world import Solid
+    from pickstop.speedups.validity import witnesses_clear
 
     scene = parse_scene(paper_doc)
     region = planner.tray_region(scene, "tray_1")
@@ -63,8 +63,8 @@ def test_witness_boxes_hold_every_witness_the_screen_flags(planner, paper_doc, s
     """A box near some joint of a witness arm: every witness the sphere screen flags against
     it has a witness box that meets the solid's bounds (so witnesses_clear may skip the rest),
     and witnesses_clear says the same with the boxes as without."""
-    from pickstop.regions.validity import witness_boxes, witnesses_clear
     from pickstop.scene.world import Solid
+    from pickstop.speedups.validity import witness_boxes, witnesses_clear
 
     scene = parse_scene(paper_doc)
     region = planner.tray_region(scene, "tray_1")

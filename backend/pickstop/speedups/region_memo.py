@@ -868,7 +868,7 @@ class ReuseCache(Cache[str, RefineMemo]):
 
     def __init__(self) -> None:
         super().__init__(
-            "regions.reuse",
+            "speedups.region_memo",
             max_items=MAX_MEMOS,
             max_weight=MAX_BYTES,
             weigh=RefineMemo.approx_bytes,

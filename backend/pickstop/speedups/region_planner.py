@@ -1,11 +1,11 @@
 """The region planner: a region kit with its region caches and its worker processes.
 
 :meth:`RegionPlanner.regions` answers every task tray at every yaw of a scene: from the memo of
-the last layouts, from the per-tray cache while :mod:`pickstop.regions.validity` says a region
+the last layouts, from the per-tray cache while :mod:`pickstop.speedups.validity` says a region
 still holds, else computed by :mod:`pickstop.regions.pipeline` (with ``workers`` > 1, several
 at once, each tray at home in the planner's process or one of its forked helpers:
 :mod:`pickstop.runtime.region_processes`). The last region of each tray is kept for previews
-(:mod:`pickstop.regions.carry`).
+(:mod:`pickstop.speedups.carry`).
 """
 
 from __future__ import annotations
@@ -13,21 +13,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from pickstop.caching import Cache
-from pickstop.regions.carry import LastRegions
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.pipeline import compute_tray_region
-from pickstop.regions.validity import (
-    CacheEntry,
-    Snapshot,
-    own_key,
-    snapshot,
-    snapshots,
-    still_valid,
-)
-from pickstop.regions.warmup import warm_kernels
+from pickstop.regions.pipeline import compute_tray_region, own_key
 from pickstop.runtime.region_processes import RegionProcesses
 from pickstop.scene.model import Scene
+from pickstop.speedups.carry import LastRegions
+from pickstop.speedups.cell_recall import MemoRecall
+from pickstop.speedups.region_memo import ReuseCache
+from pickstop.speedups.validity import CacheEntry, Snapshot, snapshot, snapshots, still_valid
+from pickstop.speedups.warmup import warm_kernels
 
 LAYOUTS = 8  # the regions of this many layouts kept whole
 LAYOUTS_PER_TRAY = 4  # cached regions per own key (tray, yaw, ...): a few layouts around it
@@ -38,6 +33,7 @@ class RegionPlanner(RegionKit):
     """The regions of scenes for one robot and database, cached (see the module)."""
 
     cache: dict[str, list[CacheEntry]] = field(default_factory=dict)  # by own key
+    reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
     cache_size: int = 256  # own keys kept
     # processes computing regions: this one and workers - 1 helpers forked from it (they share
     # the database; each tray is computed where it was before, its memos there)
@@ -61,13 +57,16 @@ class RegionPlanner(RegionKit):
         if hit is not None:
             self._last.remember(scene, hit)
             return hit
-        region = self._compute(scene, tray_id, yaw)
+        region = self.compute_region(scene, tray_id, yaw)
         self._store(scene, region)
         return region
 
-    def _compute(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
+    def compute_region(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
+        """The region of one tray computed now (no region cache), through the planner's
+        memo of refinements and cell answers across tray positions (:attr:`reuse`)."""
         tray = scene.tray(tray_id)
-        return compute_tray_region(self, scene, tray, yaw, own_key(self, scene, tray, yaw))
+        key = own_key(self, scene, tray, yaw)
+        return compute_tray_region(self, scene, tray, yaw, key, MemoRecall(self.reuse))
 
     def regions(
         self, scene: Scene, workers: int | None = None
@@ -101,9 +100,9 @@ class RegionPlanner(RegionKit):
                 out[t, y] = kept
         todo = [p for p in pairs if p not in out]
         computed = (
-            self._pool(workers).regions(scene, todo, self._compute)
+            self._pool(workers).regions(scene, todo, self.compute_region)
             if workers > 1 and todo
-            else [self._compute(scene, t, y) for t, y in todo]
+            else [self.compute_region(scene, t, y) for t, y in todo]
         )
         for (t, y), region in zip(todo, computed, strict=True):
             self._store(scene, region, snaps[t])
@@ -116,7 +115,7 @@ class RegionPlanner(RegionKit):
         self, scene: Scene, tray_id: str, yaw: float, snap: Snapshot | None = None
     ) -> TrayRegion | None:
         """The cached region of the tray still valid in ``scene`` (``snap``: its
-        :func:`~pickstop.regions.validity.snapshot`, if made already), or None."""
+        :func:`~pickstop.speedups.validity.snapshot`, if made already), or None."""
         tray = scene.tray(tray_id)
         entries = self.cache.get(own_key(self, scene, tray, yaw), [])
         if not entries:
@@ -171,7 +170,7 @@ class RegionPlanner(RegionKit):
     def _pool(self, workers: int) -> RegionProcesses:
         if self._processes is None or self._processes.processes != workers:
             self.close()
-            self._processes = RegionProcesses(self, workers)
+            self._processes = RegionProcesses(self, workers, self.compute_region)
         return self._processes
 
     def close(self) -> None:

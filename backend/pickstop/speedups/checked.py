@@ -4,7 +4,8 @@ The links of checked configurations as boxes per joint group (:class:`CheckedLin
 :func:`group_boxes_of`, :class:`CheckedConfigs`), the cell answers of
 :func:`~pickstop.regions.solve.solve_part` with what each checked (:func:`cell_answers`), and the
 exact checks of one :func:`~pickstop.regions.solve.verify` call the memo remembers
-(:class:`KnownChecks`): what :mod:`pickstop.regions.reuse` tests against a change of the scene.
+(:class:`KnownChecks`): what :mod:`pickstop.speedups.region_memo` tests against a change of the
+scene.
 """
 
 from __future__ import annotations
@@ -12,34 +13,31 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 
 from pickstop.regions.arm_kernel import configs_touched, group_boxes
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import SAME, CellAnswers, Change, ChangeSet, ExactCheck, RefineMemo
 from pickstop.scene.world import AGREE_MARGIN
+from pickstop.speedups.region_memo import (
+    SAME,
+    CellAnswers,
+    Change,
+    ChangeSet,
+    ExactCheck,
+    RefineMemo,
+)
 
 
-class TrayView(Protocol):
-    """Where checks are made from, as the memo places them relative to the tray
-    (:class:`~pickstop.regions.solve.ArmWorld` is one)."""
+@dataclass(frozen=True)
+class TrayView:
+    """Where checks are made from, as the memo places them relative to the tray: the base
+    ``yaw`` [rad], the tray's position ``tray_xy`` (x, y) [m], and ``around``, the id of the
+    tray's surroundings in the memo."""
 
-    @property
-    def yaw(self) -> float:
-        """The base yaw [rad]."""
-        ...
-
-    @property
-    def tray_xy(self) -> tuple[float, float]:
-        """The tray's position (x, y) [m]."""
-        ...
-
-    @property
-    def around(self) -> int | None:
-        """The id of the tray's surroundings in the memo (None: nothing is remembered)."""
-        ...
+    yaw: float
+    tray_xy: tuple[float, float]
+    around: int
 
 
 @dataclass(frozen=True)
@@ -101,7 +99,7 @@ def group_boxes_of(
 
 @dataclass(frozen=True)
 class CheckedConfigs:
-    """What some remembered things checked (:meth:`~pickstop.regions.reuse.RefineMemo.held`):
+    """What some remembered things checked (:meth:`~pickstop.speedups.region_memo.RefineMemo.held`):
     C configurations ``thetas: (C, dof)`` on bases ``xy: (C, 2)`` (relative to the tray [m])
     at ``yaw``, each owned by the thing ``owner: (C,)`` (an id)."""
 
@@ -164,7 +162,7 @@ class CheckedConfigs:
 
 def cell_answers(
     kit: RegionKit,
-    world: TrayView,
+    view: TrayView,
     cen: np.ndarray,
     found: np.ndarray,
     thetas: np.ndarray,
@@ -176,14 +174,13 @@ def cell_answers(
     memo keeps them: the database rows ``screened`` and the joint values ``refined`` checked
     for it (``(cells, rows)`` and ``(cells, thetas)``) and the relative box that holds all
     their links."""
-    assert world.around is not None
     M, dof = len(cen), kit.solver.chain.dof
-    xy = cen - np.asarray(world.tray_xy)
+    xy = cen - np.asarray(view.tray_xy)
     s_cell, s_rows = screened
     r_cell, r_th = refined
     th = np.concatenate([kit.db.thetas(s_rows).reshape(-1, dof), r_th.reshape(-1, dof)])
     cell = np.concatenate([s_cell, r_cell]).astype(np.int64)
-    g_lo, g_hi = group_boxes_of(kit, th, xy[cell], world.yaw, cell, M)
+    g_lo, g_hi = group_boxes_of(kit, th, xy[cell], view.yaw, cell, M)
     lo, hi = g_lo.min(axis=1), g_hi.max(axis=1)
     rows_of = _per_cell(s_rows.astype(np.int32), s_cell, M)
     ref_of = _per_cell(r_th.reshape(-1, dof).astype(np.float32), r_cell, M)
@@ -216,7 +213,7 @@ class KnownChecks:
     targets' memo remembers (``known``: row -> collided), and the keeping of new ones."""
 
     kit: RegionKit
-    world: TrayView
+    view: TrayView
     thetas: np.ndarray
     base_xy: np.ndarray
     keys: dict[int, tuple[int, str, bytes]]
@@ -228,29 +225,29 @@ class KnownChecks:
     def of(
         cls,
         kit: RegionKit,
-        world: TrayView,
+        view: TrayView,
         thetas: np.ndarray,
         base_xy: np.ndarray,
         rows: np.ndarray,
         target_of: Callable[[int], str | None],
-        cell_keys: tuple[RefineMemo, np.ndarray] | None,
+        memo: RefineMemo,
+        ck: np.ndarray,
     ) -> KnownChecks:
         """Rows ``rows`` (the screen flagged them against the scene) of ``thetas``;
-        ``cell_keys``: the memo and each row's cell key (None: nothing is remembered)."""
-        out = cls(kit, world, thetas, base_xy, {}, {})
-        if cell_keys is None or world.around is None or not len(rows):
+        ``ck: (B,)`` each row's cell key in ``memo``."""
+        out = cls(kit, view, thetas, base_xy, {}, {})
+        if not len(rows):
             return out
-        memo, ck = cell_keys
         out.memo = memo
         out.keys = {j: (int(ck[j]), str(target_of(j)), thetas[j].tobytes()) for j in rows.tolist()}
         order = list(out.keys)
-        xy = base_xy[order] - np.asarray(world.tray_xy)
+        xy = base_xy[order] - np.asarray(view.tray_xy)
         dof = thetas.shape[1]
         got = memo.remembered_checks(
             [out.keys[j] for j in order],
-            world.around,
+            view.around,
             lambda rows, ids: CheckedConfigs(
-                kit, thetas[np.array(order)[rows]].reshape(-1, dof), xy[rows], world.yaw, ids
+                kit, thetas[np.array(order)[rows]].reshape(-1, dof), xy[rows], view.yaw, ids
             ),
         )
         out.known = {j: g for j, g in zip(order, got, strict=True) if g is not None}
@@ -264,12 +261,12 @@ class KnownChecks:
     def flush(self) -> None:
         """Keep the checks made since the last flush in the memo, their links' boxes
         computed at once."""
-        memo, around = self.memo, self.world.around
-        if not self.pending or memo is None or around is None:
+        memo, around = self.memo, self.view.around
+        if not self.pending or memo is None:
             return
         rows = np.array([j for j, _ in self.pending])
-        xy = self.base_xy[rows] - np.asarray(self.world.tray_xy)
-        links = CheckedLinks.of(self.kit, self.thetas[rows], xy, self.world.yaw, rows)
+        xy = self.base_xy[rows] - np.asarray(self.view.tray_xy)
+        links = CheckedLinks.of(self.kit, self.thetas[rows], xy, self.view.yaw, rows)
         n = len(rows)
         g_lo, g_hi = links.lo.reshape(n, -1, 3), links.hi.reshape(n, -1, 3)
         for i, (j, colliding) in enumerate(self.pending):

@@ -6,12 +6,12 @@ import numpy as np
 
 from pickstop.reach.batch_ik import refine_batch
 from pickstop.regions.arm import screen_arm
-from pickstop.regions.checked import CheckedConfigs, group_boxes_of
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.reuse import Change, ChangeSet
 from pickstop.robot.kinematics import fk_soa
 from pickstop.robot.selfcollision import screen as screen_self
 from pickstop.scene.world import BoxArrays, Solid
+from pickstop.speedups.checked import CheckedConfigs, group_boxes_of
+from pickstop.speedups.region_memo import Change, ChangeSet
 
 
 def warm_kernels(kit: RegionKit) -> None:

@@ -10,9 +10,10 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from pickstop.regions.pipeline import compute_tray_region
-from pickstop.regions.reuse import ReuseCache, TrayAnchor
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import SceneError
+from pickstop.speedups import region_memo
+from pickstop.speedups.region_memo import ReuseCache, TrayAnchor
 from tests.utils import assert_cells_verified, unlike_cells
 
 
@@ -29,18 +30,14 @@ def _moved(doc, tray_id, dx, dy):
 
 
 def _from_scratch(planner, scene, tray_id, grow=True):
-    """The region computed with no memo (``grow`` False: the cells the database solves
-    alone, no growth from their witnesses)."""
+    """The region computed from scratch (``grow`` False: the cells the database solves alone,
+    no growth from their witnesses)."""
     from unittest import mock
 
     from pickstop.regions import solve
 
-    kept, planner.reuse = planner.reuse, ReuseCache()
-    try:
-        with mock.patch.object(solve, "grow", solve.grow if grow else lambda *a: 0):
-            return compute_tray_region(planner, scene, scene.tray(tray_id), scene.base_yaw.yaws[0])
-    finally:
-        planner.reuse = kept
+    with mock.patch.object(solve, "grow", solve.grow if grow else lambda *a: 0):
+        return compute_tray_region(planner, scene, scene.tray(tray_id), scene.base_yaw.yaws[0])
 
 
 @settings(
@@ -69,7 +66,7 @@ def test_moved_tray_regions_match_from_scratch(planner, paper_doc, tray, di, dj,
     assume(scene is not None)
     for tid in scene.task_trays:
         before = sum(m.hits for m in planner.reuse.values())
-        reused = compute_tray_region(planner, scene, scene.tray(tid), scene.base_yaw.yaws[0])
+        reused = planner.compute_region(scene, tid, scene.base_yaw.yaws[0])
         if fraction == 0.0 and reused.reason is None:
             assert sum(m.hits for m in planner.reuse.values()) > before  # the memo was used
         scratch = _from_scratch(planner, scene, tid)
@@ -116,7 +113,7 @@ def test_a_preview_carries_only_the_same_tray(planner, paper_doc):
 
 def _answers(n, dof=2, seed=0):
     """n cell answers with distinct values in every column."""
-    from pickstop.regions.reuse import CellAnswers
+    from pickstop.speedups.region_memo import CellAnswers
 
     rng = np.random.default_rng(seed)
     lo = rng.uniform(-1, 0, (n, 3))
@@ -140,7 +137,7 @@ def test_an_answer_table_gives_back_the_last_answer_of_each_cell():
     """Answers kept column by column, in batches that grow the table past its first capacity
     and answer some cells again: each cell gives back exactly its last answer and the
     surroundings it was computed in; a cell never answered has no row."""
-    from pickstop.regions.reuse import AnswerTable
+    from pickstop.speedups.region_memo import AnswerTable
 
     table = AnswerTable()
     last: dict[int, tuple[object, int]] = {}
@@ -170,15 +167,15 @@ def _box(owner, lo, hi):
 
 
 def _around(solids, x=0.0, y=0.0):
-    from pickstop.regions.reuse import Surroundings
     from pickstop.scene.model import Pose, Tray
+    from pickstop.speedups.region_memo import Surroundings
 
     return Surroundings.of(solids, Tray(id="t", pose=Pose(x=x, y=y), inner_size=(0.2, 0.2)))
 
 
 def stale(old, new, lo, hi):
     """``(K,)`` where any change between surroundings ``old`` and ``new`` reaches the boxes."""
-    from pickstop.regions.reuse import changes
+    from pickstop.speedups.region_memo import changes
 
     out = np.zeros(len(lo), bool)
     for c in changes(old, new):
@@ -205,7 +202,7 @@ def test_another_tray_that_moved_is_one_change_where_it_was_and_one_where_it_is(
     """The floor and walls of a neighbouring tray, seen from a tray that moved, are a change
     where any of them was and one where any of them is (two boxes to test, not two per wall):
     each wall's old and new place is stale, a box clear of the neighbour is not."""
-    from pickstop.regions.reuse import changes
+    from pickstop.speedups.region_memo import changes
 
     walls = [
         ([0.5, -0.1, 0.72], [0.7, 0.1, 0.73]),  # floor
@@ -259,11 +256,11 @@ def test_remembered_answers_give_the_region_from_scratch(
     scene0 = parse_scene(paper_doc)
     res = scene0.base_grid.resolution
     yaw = scene0.base_yaw.yaws[0]
-    compute_tray_region(planner, scene0, scene0.tray(region_of), yaw)
+    planner.compute_region(scene0, region_of, yaw)
     scene = _moved(paper_doc, moved, di * res, dj * res)
     assert scene is not None
     before = sum(m.recalled for m in planner.reuse.values())
-    reused = compute_tray_region(planner, scene, scene.tray(region_of), yaw)
+    reused = planner.compute_region(scene, region_of, yaw)
     recalled = sum(m.recalled for m in planner.reuse.values()) - before
     assert recalled > 0.3 * reused.counts["served"]
     scratch = _from_scratch(planner, scene, region_of)
@@ -281,12 +278,12 @@ def test_a_cell_grown_before_keeps_its_witness_where_it_verifies(planner, paper_
     from scratch is kept, and each cell solved otherwise has a witness coal verifies."""
     scene0 = parse_scene(paper_doc)
     res, yaw = scene0.base_grid.resolution, scene0.base_yaw.yaws[0]
-    first = compute_tray_region(planner, scene0, scene0.tray("tray_4"), yaw)
+    first = planner.compute_region(scene0, "tray_4", yaw)
     assert first.counts["grown"] > 10
     scene = _moved(paper_doc, "tray_4", 2 * res, 0.0)
     assert scene is not None
     before = sum(m.regrown for m in planner.reuse.values())
-    region = compute_tray_region(planner, scene, scene.tray("tray_4"), yaw)
+    region = planner.compute_region(scene, "tray_4", yaw)
     regrown = sum(m.regrown for m in planner.reuse.values()) - before
     # each part of most of the cells grown before
     assert regrown > 0.5 * first.counts["grown"] * len(first.part_ids)
@@ -304,17 +301,16 @@ def test_answers_that_held_outlive_the_surroundings_they_were_computed_in(
     answers in the surroundings of each layout, so they are still taken when the memo has long
     dropped the surroundings they were first computed in; the region still holds every cell
     the database solves from scratch, each with a verified witness."""
-    from pickstop.regions import reuse
 
-    monkeypatch.setattr(reuse, "MAX_SURROUNDINGS", 2)
+    monkeypatch.setattr(region_memo, "MAX_SURROUNDINGS", 2)
     scene0 = parse_scene(paper_doc)
     res, yaw = scene0.base_grid.resolution, scene0.base_yaw.yaws[0]
-    compute_tray_region(planner, scene0, scene0.tray("tray_2"), yaw)
+    planner.compute_region(scene0, "tray_2", yaw)
     for k in range(1, 5):  # four layouts: twice as many as the memo keeps surroundings
         scene = _moved(paper_doc, "tray_3", k * res, 0.0)
         assert scene is not None
         before = sum(m.recalled for m in planner.reuse.values())
-        region = compute_tray_region(planner, scene, scene.tray("tray_2"), yaw)
+        region = planner.compute_region(scene, "tray_2", yaw)
         recalled = sum(m.recalled for m in planner.reuse.values()) - before
         assert recalled > 0.5 * region.counts["served"], k
     solved = _from_scratch(planner, scene, "tray_2", grow=False)
@@ -327,15 +323,15 @@ def test_answers_that_held_outlive_the_surroundings_they_were_computed_in(
 def test_the_memos_together_stay_within_their_budget(monkeypatch):
     """However many trays are planned, the memos together are kept within MAX_BYTES: the
     least recently used go first, the one in use stays."""
-    from pickstop.regions import reuse
-
-    monkeypatch.setattr(reuse, "MAX_BYTES", 10 * dict(reuse.BYTES_PER)["answers"])
+    monkeypatch.setattr(region_memo, "MAX_BYTES", 10 * dict(region_memo.BYTES_PER)["answers"])
     cache = ReuseCache()
     for k in range(5):
         m = cache.memo(f"tray {k}")
         m.remember("db", "p", np.arange(4), _answers(4), 0)
     last = cache.memo("tray 4")
-    assert sum(m.approx_bytes() for m in cache.values()) <= 10 * dict(reuse.BYTES_PER)["answers"]
+    assert (
+        sum(m.approx_bytes() for m in cache.values()) <= 10 * dict(region_memo.BYTES_PER)["answers"]
+    )
     assert list(cache)[-1] == "tray 4" and cache["tray 4"] is last and "tray 0" not in cache
 
 
@@ -343,7 +339,6 @@ def test_where_a_sample_shows_everything_changed_the_rest_is_not_tested():
     """Of many remembered things a change reaches, a sample is tested finely first; when
     nearly none of it still holds, the rest count as changed without being tested, and none
     is taken as it was."""
-    from pickstop.regions import reuse
 
     class Everything:  # checks that all see the change
         def __init__(self, ids):
@@ -352,10 +347,10 @@ def test_where_a_sample_shows_everything_changed_the_rest_is_not_tested():
         def touched_by(self, changes, reached):
             return np.unique(np.concatenate(reached))
 
-    memo = reuse.RefineMemo()
+    memo = region_memo.RefineMemo()
     old = memo.around(_around([_box("nb", [0.0, 0.0, 0.0], [1.0, 1.0, 1.0])]))
     now = memo.around(_around([_box("nb", [0.0, 0.0, 0.0], [1.0, 1.0, 1.0])], x=0.3))
-    n = 2 * reuse.SAMPLE_FROM
+    n = 2 * region_memo.SAMPLE_FROM
     asked = []
 
     def checked(ids):
@@ -365,14 +360,14 @@ def test_where_a_sample_shows_everything_changed_the_rest_is_not_tested():
     box = np.tile([[0.2, 0.2, 0.2]], (n, 1)), np.tile([[0.8, 0.8, 0.8]], (n, 1))
     held = memo.held([old] * n, *box, now, checked)
     assert not held.any()
-    assert asked == [len(range(0, n, reuse.SAMPLE_STEP))]
+    assert asked == [len(range(0, n, region_memo.SAMPLE_STEP))]
 
 
 def test_box_minus_covers_what_sticks_out_and_nothing_inside():
     """The slabs of a box outside another: none for the same box, the whole box for one
     apart, and for a shifted one pieces that hold every point of the box outside the cut and
     no point inside it."""
-    from pickstop.regions.reuse import box_minus
+    from pickstop.speedups.region_memo import box_minus
 
     lo, hi = np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.6, 0.7])
     assert box_minus(lo, hi, lo, hi) == []
@@ -399,8 +394,8 @@ def test_newcomers_are_what_stands_where_nothing_stood():
     the tray), a post that turned up is new whole; surroundings compared with themselves have
     nothing new."""
     from pickstop.frames import T_yaw
-    from pickstop.regions.reuse import RefineMemo
     from pickstop.scene.world import Solid
+    from pickstop.speedups.region_memo import RefineMemo
 
     table = _box("table", [-2.0, -0.5, 0.0], [2.0, 0.5, 0.72])
     nb = _box("nb", [0.5, -0.1, 0.72], [0.7, 0.1, 0.8])
@@ -425,11 +420,11 @@ def test_a_witness_in_the_way_of_a_new_obstacle_is_not_kept(planner, paper_doc, 
     """A crate put on the table beside a tray, where the arm reaches past: witnesses clear
     of it are kept, those it meets are not, and every witness of the new region is verified
     by coal; the region still holds every cell the database solves from scratch."""
-    from pickstop.regions import solve
+    from pickstop.speedups import cell_recall
 
     scene0 = parse_scene(paper_doc)
     yaw = scene0.base_yaw.yaws[0]
-    compute_tray_region(planner, scene0, scene0.tray("tray_4"), yaw)
+    planner.compute_region(scene0, "tray_4", yaw)
     doc = copy.deepcopy(paper_doc)
     tray = next(t for t in doc["trays"] if t["id"] == "tray_4")
     doc["obstacles"].append(
@@ -441,15 +436,15 @@ def test_a_witness_in_the_way_of_a_new_obstacle_is_not_kept(planner, paper_doc, 
     )
     scene = parse_scene(doc)
     kept = []
-    free_of = solve.free_of_newcomers
+    free_of = cell_recall.free_of_newcomers
 
     def recorded(*args):
         out = free_of(*args)
         kept.append(out)
         return out
 
-    monkeypatch.setattr(solve, "free_of_newcomers", recorded)
-    after = compute_tray_region(planner, scene, scene.tray("tray_4"), yaw)
+    monkeypatch.setattr(cell_recall, "free_of_newcomers", recorded)
+    after = planner.compute_region(scene, "tray_4", yaw)
     kept = np.concatenate(kept)
     assert kept.any() and not kept.all()
     assert_cells_verified(planner, scene, after, np.arange(len(after.cells)))

@@ -9,38 +9,17 @@ it stands now, within that envelope, over a free cell, or in the way of a witnes
 
 from __future__ import annotations
 
-import hashlib
-import json
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickstop.regions import solve
 from pickstop.regions.arm import screen_arm
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.footprint import blocked_by
 from pickstop.regions.kit import RegionKit
 from pickstop.robot.kinematics import fk_soa
-from pickstop.scene.model import Scene, Tray
+from pickstop.scene.model import Scene
 from pickstop.scene.world import BoxArrays, Groups, Solid, object_solids
-
-
-def own_key(kit: RegionKit, scene: Scene, tray: Tray, yaw: float) -> str:
-    """What the region of ``tray`` depends on apart from the other objects."""
-    blob = {
-        "tray": tray.model_dump(),
-        "yaw": yaw,
-        "grid": [scene.grid_extent.model_dump(), scene.base_grid.resolution],
-        "floor": scene.floor.model_dump(),
-        "floor_clearance": scene.floor_clearance,
-        "gripper": scene.gripper.model_dump(),
-        "hand": kit.hand.key,
-        "robot": kit.robot.robot_hash,
-        "db": kit.db.id,
-        "algo": solve.VERSION,
-    }
-    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
-
 
 #: Every other object of a scene: its definition, its solids and their owner names.
 Snapshot = dict[str, tuple[str, list[Solid], frozenset[str]]]
@@ -80,7 +59,7 @@ def witness_boxes(kit: RegionKit, region: TrayRegion) -> tuple[np.ndarray, np.nd
     """``(K * P, 3)`` lo and hi: the world box around the covering spheres of each witness
     arm of ``region`` (cell by cell, part by part), padded as the screens' boxes are: a solid
     whose bounds miss it is not flagged by the screen, so the witness is free of it."""
-    from pickstop.regions.checked import CheckedLinks
+    from pickstop.speedups.checked import CheckedLinks
 
     K, P, dof = region.thetas.shape
     xy = np.repeat(region.grid.centres(region.cells[:, 1], region.cells[:, 0]), P, axis=0)

@@ -1,5 +1,5 @@
-"""The region planner (regions/planner.py): verified witnesses through its facade, the regions
-of recent layouts it keeps, serial and parallel alike, forgetting them."""
+"""The region planner (speedups/region_planner.py): verified witnesses through its facade,
+the regions of recent layouts it keeps, serial and parallel alike, forgetting them."""
 
 from __future__ import annotations
 
@@ -8,8 +8,7 @@ import copy
 import numpy as np
 
 from pickstop.scene.load import parse_scene
-
-from .helpers import assert_verified
+from tests.regions.helpers import assert_verified
 
 
 def test_every_feasible_cell_has_exactly_verified_witnesses(planner, paper_doc, tiago):
@@ -26,7 +25,7 @@ def test_a_layout_edited_away_from_and_back_keeps_its_regions(planner, paper_doc
     """More layouts than a tray keeps regions for are tried around the scene as it is,
     going back to it after each: the regions of the scene as it is stay cached (used last),
     so they serve it again without a recompute once its whole layout is forgotten."""
-    from pickstop.regions.planner import LAYOUTS_PER_TRAY
+    from pickstop.speedups.region_planner import LAYOUTS_PER_TRAY
 
     scene = parse_scene(paper_doc)
     planner.forget()
@@ -40,12 +39,12 @@ def test_a_layout_edited_away_from_and_back_keeps_its_regions(planner, paper_doc
         assert planner.regions(scene, workers=1) == before
     planner._layouts.clear()  # the scene's layout forgotten: each region from the cache
     computed = []
-    real = planner._compute
-    planner._compute = lambda *a: computed.append(a) or real(*a)  # type: ignore[method-assign]
+    real = planner.compute_region
+    planner.compute_region = lambda *a: computed.append(a) or real(*a)  # type: ignore[method-assign]
     try:
         again = planner.regions(scene, workers=1)
     finally:
-        del planner._compute
+        del planner.compute_region
     assert computed == [] and all(again[p] is before[p] for p in before)
 
 
