@@ -35,10 +35,10 @@ from pickstop.pool import PlannerPool
 from pickstop.scene.load import load_scene
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence.mix import mix_document, plan_mix
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.settings import data_dir
 from pickstop.speedups.region_planner import RegionPlanner
+from pickstop.speedups.stop_planner import StopPlanner
 
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"
 

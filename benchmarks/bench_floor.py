@@ -31,9 +31,9 @@ from pickstop.robot.kinematics import BLOCK, Chain, fk_soa
 from pickstop.scene.load import parse_scene
 from pickstop.scene.world import BoxArrays
 from pickstop.sequence.cover import InfeasiblePlanError
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.settings import data_dir
+from pickstop.speedups.stop_planner import StopPlanner
 from pickstop.store.reach_build import build
 from pickstop.store.reach_catalog import list_databases
 

@@ -26,10 +26,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pickstop.pool import PlannerPool
 from pickstop.scene.load import parse_scene
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.sequence.request import world_key
 from pickstop.settings import data_dir
+from pickstop.speedups.stop_planner import StopPlanner
 
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"
 NAMES = ["paper_experiment", "five_trays", "factory_cell"]

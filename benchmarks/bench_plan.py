@@ -31,10 +31,10 @@ from pickstop.pool import PlannerPool
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import Scene
 from pickstop.sequence.cover import InfeasiblePlanError
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.sequence.request import world_key
 from pickstop.settings import data_dir
+from pickstop.speedups.stop_planner import StopPlanner
 
 SCENES = Path(__file__).parents[1] / "examples" / "scenes"
 NAMES = ["paper_experiment", "five_trays", "factory_cell"]

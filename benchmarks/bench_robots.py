@@ -91,10 +91,10 @@ def paper(ref: str, robot, row: dict, folder: Path) -> None:
     """Regions and plan of the paper-like scene with ``robot`` (its database of ``row``)."""
     from pickstop.scene.load import parse_scene
     from pickstop.sequence.cover import InfeasiblePlanError
-    from pickstop.sequence.plan import StopPlanner
     from pickstop.sequence.plan_model import PlanOptions
     from pickstop.settings import cache_dir
     from pickstop.speedups.region_planner import RegionPlanner
+    from pickstop.speedups.stop_planner import StopPlanner
     from pickstop.store.reach_catalog import open_database
 
     doc = json.loads((ROOT / "examples/scenes/paper_experiment.json").read_text())

@@ -80,6 +80,35 @@ def planner(region_db, tiago):
     return RegionPlanner(tiago, db, cache_dir=cache_dir(folder))
 
 
+EXAMPLE_SCENES = os.path.join(os.path.dirname(__file__), "..", "examples", "scenes")
+
+
+@pytest.fixture()
+def paper_doc():
+    """The paper-like example scene's document (a fresh copy per test)."""
+    with open(os.path.join(EXAMPLE_SCENES, "paper_experiment.json")) as f:
+        return json.load(f)
+
+
+@pytest.fixture(scope="module")
+def stop_planner(planner):
+    """A stop planner per module over the session's region planner."""
+    from pickstop.speedups.stop_planner import StopPlanner
+
+    return StopPlanner(planner)
+
+
+@pytest.fixture(scope="module")
+def paper_plan(stop_planner):
+    """The paper-like scene and its plan (300 samples a stop)."""
+    from pickstop.scene.load import parse_scene
+    from pickstop.sequence.plan_model import PlanOptions
+
+    with open(os.path.join(EXAMPLE_SCENES, "paper_experiment.json")) as f:
+        scene = parse_scene(json.load(f))
+    return scene, stop_planner.plan(scene, PlanOptions(samples=300))
+
+
 @pytest.fixture(scope="session", params=["tiago", "pr2"])
 def robot(request, tiago, pr2):
     return tiago if request.param == "tiago" else pr2

@@ -38,8 +38,8 @@ from pickstop.settings import cache_dir
 
 if TYPE_CHECKING:  # the database (SQLite catalog), the planners and their solvers load on use
     from pickstop.reach.database import ReachDatabase
-    from pickstop.sequence.plan import StopPlanner
     from pickstop.speedups.region_planner import RegionPlanner
+    from pickstop.speedups.stop_planner import StopPlanner
 
 DEFAULT_ROBOT = "tiago"  # the robot a service preloads
 
@@ -95,7 +95,7 @@ class PlannerSlot:
     def planner(self) -> StopPlanner:
         """The stop planner over :attr:`regions`, made on first use."""
         if self._stops is None:
-            from pickstop.sequence.plan import StopPlanner
+            from pickstop.speedups.stop_planner import StopPlanner
 
             self._stops = StopPlanner(self.regions)
         return self._stops

@@ -1,6 +1,5 @@
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
@@ -25,8 +24,3 @@ def api_settings(region_db):
 def client(api_settings):
     with TestClient(create_app(api_settings)) as c:
         yield c
-
-
-@pytest.fixture()
-def paper_doc():
-    return json.loads((EXAMPLES / "paper_experiment.json").read_text())

@@ -20,7 +20,7 @@ def scene_of(name: str):
 
 @pytest.fixture(scope="session")
 def fleet_stop_planner(planner):
-    from pickstop.sequence.plan import StopPlanner
+    from pickstop.speedups.stop_planner import StopPlanner
 
     return StopPlanner(planner)
 

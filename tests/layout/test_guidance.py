@@ -18,8 +18,8 @@ from pickstop.layout.guidance import eroded, guidance, meeting_offsets, partner_
 from pickstop.scene.load import parse_scene
 from pickstop.scene.supports import stand_areas
 from pickstop.sequence.intersections import inscribed_circle
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
+from pickstop.speedups.stop_planner import StopPlanner
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 PAPER = json.loads((EXAMPLES / "paper_experiment.json").read_text())

@@ -15,8 +15,8 @@ from pickstop.layout.verify import LocalEvaluator, scratch_planner
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import Order
 from pickstop.sequence.mix import mix_document, plan_mix
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
+from pickstop.speedups.stop_planner import StopPlanner
 from tests.utils import assert_stop_verified
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"

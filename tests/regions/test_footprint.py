@@ -78,7 +78,7 @@ def test_upper_body_of_tiago_is_its_torso_column_and_antennas(tiago):
 
 
 def test_routes_drive_around_an_overhang(planner, paper_doc):
-    from pickstop.sequence.plan import StopPlanner
+    from pickstop.speedups.stop_planner import StopPlanner
 
     doc = copy.deepcopy(paper_doc)
     floor = StopPlanner(planner).floor(parse_scene(doc))

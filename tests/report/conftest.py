@@ -19,7 +19,7 @@ def paper_scene():
 @pytest.fixture(scope="session")
 def paper_plan(planner, paper_scene):
     from pickstop.scene.load import parse_scene
-    from pickstop.sequence.plan import StopPlanner
     from pickstop.sequence.plan_model import PlanOptions
+    from pickstop.speedups.stop_planner import StopPlanner
 
     return StopPlanner(planner).plan(parse_scene(paper_scene), PlanOptions(samples=60))

@@ -205,8 +205,8 @@ def test_paper_scene_plan_witnesses_pass_exact_checks_with_the_hand(planned):
     links included) with the scene or the robot itself."""
     from pickstop.regions.arm import arm_links, is_hand_link
     from pickstop.sequence.cover import InfeasiblePlanError
-    from pickstop.sequence.plan import StopPlanner
     from pickstop.sequence.plan_model import PlanOptions
+    from pickstop.speedups.stop_planner import StopPlanner
 
     name, planner, scene = planned
     assert any(is_hand_link(planner.robot, lk.name) for lk in arm_links(planner.robot))

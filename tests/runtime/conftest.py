@@ -1,3 +1,3 @@
 """The service's fixtures (a service over the session's database) for the runtime's tests."""
 
-from tests.api.conftest import AUTH, KEY, api_settings, client, paper_doc  # noqa: F401
+from tests.api.conftest import AUTH, KEY, api_settings, client  # noqa: F401

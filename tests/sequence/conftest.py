@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from pickstop.scene.load import parse_scene
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
+from pickstop.speedups.stop_planner import StopPlanner
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +18,8 @@ from pickstop.sequence import expected
 from pickstop.sequence.cover import InfeasiblePlanError, select_stops
 from pickstop.sequence.failure import FailureCosts, failure_time
 from pickstop.sequence.plan_model import PlanOptions
-from tests.sequence.conftest import EXAMPLES
+
+EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 
 COSTS = FailureCosts(15.0, 2, 300.0)
 STOP = 8.0

@@ -15,8 +15,8 @@ from pickstop.scene.model import Order, SceneError
 from pickstop.scene.orders import parse_orders, scene_orders
 from pickstop.sequence import mix_model as mm
 from pickstop.sequence.mix import mix_document, mix_totals, order_scene, plan_mix
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
+from pickstop.speedups.stop_planner import StopPlanner
 from tests.utils import assert_stop_verified, count_regions
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"

@@ -18,8 +18,8 @@ from pickstop.scene.load import parse_scene
 from pickstop.sequence.estimate import Q, estimate, feasible_subcells, kernel
 from pickstop.sequence.intersections import inscribed_circle, polygon_parts
 from pickstop.sequence.placement import MIN_GAIN, best_point, clearance
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
+from pickstop.speedups.stop_planner import StopPlanner
 from tests.utils import assert_stop_verified, discs, region_of
 
 GRID = CellGrid(0.0, 0.0, 0.025, 48, 48)  # 1.2 m x 1.2 m

@@ -26,10 +26,10 @@ from pickstop.regions.pure import tray_region as pure_tray_region
 from pickstop.scene.load import parse_scene
 from pickstop.scene.model import SceneError
 from pickstop.sequence.cover import InfeasiblePlanError
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.sequence.pure import PureSteps
 from pickstop.sequence.request import PlanRequest, plan_from_scratch
+from pickstop.speedups.stop_planner import StopPlanner
 from tests.utils import assert_cells_verified, unlike_cells
 from tests.utils import same_document as _same
 

@@ -25,11 +25,11 @@ from pickstop.sequence.estimate import (
     feasible_subcells,
     kernel,
 )
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.sequence.refine import Refinement, boundary, probe_points
 from pickstop.sequence.request import world_key
 from pickstop.sequence.success import Rate
+from pickstop.speedups.stop_planner import StopPlanner
 from tests.utils import discs, region_of
 
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"

@@ -17,8 +17,8 @@ SCENE = Path(__file__).parents[2] / "examples" / "scenes" / "paper_experiment.js
 @pytest.fixture(scope="session")
 def plans(planner):
     from pickstop.scene.load import parse_scene
-    from pickstop.sequence.plan import StopPlanner
     from pickstop.sequence.plan_model import PlanOptions
+    from pickstop.speedups.stop_planner import StopPlanner
 
     doc = json.loads(SCENE.read_text())
     sp = StopPlanner(planner)

@@ -17,10 +17,10 @@ from typing import Protocol
 
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence.mix import MixPlans, plan_mix
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
 from pickstop.speedups.region_memo import RefineMemo, ReuseCache
 from pickstop.speedups.region_planner import RegionPlanner
+from pickstop.speedups.stop_planner import StopPlanner
 
 
 class FreshMemos(ReuseCache):

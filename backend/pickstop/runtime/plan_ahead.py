@@ -28,8 +28,8 @@ from pickstop.errors import PickStopError
 
 if TYPE_CHECKING:
     from pickstop.scene.model import Scene
-    from pickstop.sequence.plan import StopPlanner
     from pickstop.sequence.plan_model import PlanOptions
+    from pickstop.speedups.stop_planner import StopPlanner
 
 log = logging.getLogger("pickstop.api")
 

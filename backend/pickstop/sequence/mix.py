@@ -13,11 +13,11 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence import mix_model as mm
 from pickstop.sequence.cover import InfeasiblePlanError
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import Plan, PlanOptions
 from pickstop.sequence.request import scene_hash
 
@@ -63,8 +63,28 @@ def mix_trays(scene: Scene, orders: list[Order]) -> list[str]:
     return list(dict.fromkeys(t for o in orders for t in scene.order_trays(o)))
 
 
+class MixRegions(Protocol):
+    """What a mix asks of a region planner (:class:`~pickstop.speedups.region_planner.RegionPlanner`
+    is one): every task tray's regions at once, and the database's id."""
+
+    @property
+    def db(self) -> Any: ...
+
+    def regions(self, scene: Scene, workers: int | None = None) -> Any: ...
+
+
+class MixPlanner(Protocol):
+    """What a mix asks of a stop planner (:class:`~pickstop.speedups.stop_planner.StopPlanner`
+    is one): its region planner, and a scene's plan."""
+
+    @property
+    def regions(self) -> MixRegions: ...
+
+    def plan(self, scene: Scene, options: PlanOptions) -> Plan: ...
+
+
 def plan_mix(
-    sp: StopPlanner,
+    sp: MixPlanner,
     scene: Scene,
     orders: list[Order],
     options: PlanOptions | None = None,

@@ -1,7 +1,7 @@
 """The plan's steps from scratch: each answer a function of its inputs, nothing remembered.
 
 The functions here are the pipeline's steps (:mod:`pickstop.sequence.request` lists them);
-:class:`PureSteps` runs them as they are, and :class:`~pickstop.sequence.plan.StopPlanner`
+:class:`PureSteps` runs them as they are, and :class:`~pickstop.speedups.stop_planner.StopPlanner`
 runs the same functions behind its caches. :func:`~pickstop.sequence.request.plan_from_scratch`
 plans a scene over :class:`PureSteps`.
 """

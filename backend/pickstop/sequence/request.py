@@ -15,7 +15,7 @@
 Anything impossible raises :class:`InfeasiblePlanError` naming the trays and numbers involved.
 A request (:class:`PlanRequest`) runs these steps in order, top to bottom, and asks each
 answer of a :class:`~pickstop.sequence.steps.PlanSteps`:
-:class:`~pickstop.sequence.plan.StopPlanner` (cached, reused across edits) or, in
+:class:`~pickstop.speedups.stop_planner.StopPlanner` (cached, reused across edits) or, in
 :func:`plan_from_scratch`, :class:`~pickstop.sequence.pure.PureSteps` (the algorithm alone).
 """
 
@@ -59,7 +59,7 @@ def plan_from_scratch(
 ) -> pm.Plan:
     """The plan of ``scene`` by the algorithm alone (:class:`~pickstop.sequence.pure.PureSteps`:
     regions, candidates, floor, checks and estimates computed from their inputs, nothing kept
-    or reused); :class:`~pickstop.sequence.plan.StopPlanner` gives the same plan faster.
+    or reused); :class:`~pickstop.speedups.stop_planner.StopPlanner` gives the same plan faster.
     ``kit``: the robot and database's (only what is built from them is used, none of its
     memos)."""
     return PlanRequest(pure.PureSteps(kit), scene, options or pm.PlanOptions()).run()
@@ -112,7 +112,8 @@ class PlanRequest:
     ) -> None:
         """sp: the steps (:class:`~pickstop.sequence.steps.PlanSteps`: from scratch or
         cached). unlock: the planner's lock, held by the caller, to release while a stop
-        selection is solved (:meth:`~pickstop.sequence.plan.StopPlanner.prefetch_selections`)."""
+        selection is solved
+        (:meth:`~pickstop.speedups.stop_planner.StopPlanner.prefetch_selections`)."""
         self.sp, self.scene, self.opts = sp, scene, opts
         self.preview = preview
         self.unlock = unlock
@@ -203,7 +204,7 @@ class PlanRequest:
 
     def _place(self, cands: list[Intersection]) -> list[Intersection]:
         """Each candidate moved to where it succeeds most for the required trays it serves
-        (:meth:`~pickstop.sequence.plan.StopPlanner.placement`); the moved ones keep their
+        (:meth:`~pickstop.speedups.stop_planner.StopPlanner.placement`); the moved ones keep their
         circle in ``circle``."""
         out = list(cands)
         for c, cand in enumerate(cands):

@@ -3,7 +3,7 @@
 A planning request (:class:`pickstop.sequence.request.PlanRequest`) runs the pipeline's steps
 in order and asks these for each answer; it knows nothing of caches. Two implementations:
 :class:`pickstop.sequence.pure.PureSteps` computes every answer from its inputs (the
-algorithm), :class:`pickstop.sequence.plan.StopPlanner` the same answers remembered, reused
+algorithm), :class:`pickstop.speedups.stop_planner.StopPlanner` the same answers remembered, reused
 across edits and prepared in the background (the speed-ups).
 """
 

@@ -176,7 +176,7 @@ def test_a_previewed_layout_is_planned_ahead_while_the_editor_holds_still(
     verified."""
     import threading
 
-    from pickstop.sequence.plan import StopPlanner
+    from pickstop.speedups.stop_planner import StopPlanner
     from tests.utils import count_regions
 
     finished: list[bool] = []

@@ -6,15 +6,17 @@ import copy
 import json
 import math
 import re
+from pathlib import Path
 
 import pytest
 
 from pickstop.scene.load import parse_scene
 from pickstop.sequence.cover import InfeasiblePlanError
-from pickstop.sequence.plan import StopPlanner
 from pickstop.sequence.plan_model import PlanOptions
-from tests.sequence.conftest import EXAMPLES
+from pickstop.speedups.stop_planner import StopPlanner
 from tests.utils import assert_stop_verified, count_regions
+
+EXAMPLES = Path(__file__).parents[2] / "examples" / "scenes"
 
 
 def test_plan_serves_every_task_tray_once_from_verified_stops(paper_plan, planner):
@@ -143,7 +145,7 @@ def test_sigma_and_objective_changes_after_planning_ahead_match_a_fresh_planner(
     nothing gives."""
     import threading
 
-    import pickstop.sequence.plan as plan_module
+    import pickstop.speedups.stop_planner as plan_module
 
     scene = parse_scene(paper_doc)
     warm = StopPlanner(planner)
@@ -191,7 +193,7 @@ def test_a_background_selection_lets_go_of_the_lock_while_solving(stop_planner, 
 
     import numpy as np
 
-    import pickstop.sequence.plan as plan_module
+    import pickstop.speedups.stop_planner as plan_module
 
     lock = threading.Lock()
     seen = []
