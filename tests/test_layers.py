@@ -282,3 +282,29 @@ def test_the_core_takes_only_the_token_from_the_runtime():
 def test_the_reach_finder_finds_what_it_should(monkeypatch):
     monkeypatch.setitem(GRAPH, "pickstop.sequence.steps", {"pickstop.speedups.stop_planner"})
     assert "pickstop.speedups.stop_planner" in _reach("pickstop.sequence.request")
+
+
+#: The packages the speed-ups wrap: none of their modules imports a speed-up.
+BENEATH_SPEEDUPS = ("pickstop.robot", "pickstop.reach", "pickstop.scene", "pickstop.regions",
+                    "pickstop.sequence")  # fmt: skip
+
+
+def _imports_of_speedups_beneath() -> list[tuple[str, str]]:
+    return [
+        (m, t)
+        for m, targets in GRAPH.items()
+        if _under(m, BENEATH_SPEEDUPS)
+        for t in targets
+        if _under(t, ("pickstop.speedups",))
+    ]
+
+
+def test_the_pipelines_import_nothing_of_the_speedups():
+    assert _imports_of_speedups_beneath() == []
+
+
+def test_the_speedups_guard_finds_a_stray_import(monkeypatch):
+    monkeypatch.setitem(GRAPH, "pickstop.sequence.mix", {"pickstop.speedups.stop_planner"})
+    assert _imports_of_speedups_beneath() == [
+        ("pickstop.sequence.mix", "pickstop.speedups.stop_planner")
+    ]
