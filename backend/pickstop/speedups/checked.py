@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -72,29 +73,37 @@ def group_boxes_of(
     configuration ``thetas: (C, dof)`` on its base ``xy: (C, 2)`` at ``yaw`` that ``a`` owns
     (inf and -inf where it owns none), compiled
     (:func:`~pickstop.regions.arm_kernel.group_boxes`)."""
-    chain, groups = kit.solver.chain, kit.arm.joint_groups
-    J = len(groups.joints)
+    J = len(kit.arm.joint_groups.joints)
     lo, hi = np.full((A, J, 3), np.inf), np.full((A, J, 3), -np.inf)
     if len(thetas):
-        group_boxes(
-            np.ascontiguousarray(thetas, dtype=float).reshape(len(thetas), -1),
-            np.ascontiguousarray(xy, dtype=float).reshape(-1, 2),
-            np.ascontiguousarray(owner, dtype=np.int64),
-            math.cos(yaw),
-            math.sin(yaw),
-            chain.R_parent_joint,
-            chain.p_parent_joint,
-            chain.axis_index.astype(np.int64),
-            chain.axes,
-            chain.prismatic,
-            (groups.joints - 1).astype(np.int64),
-            groups.lo,
-            groups.hi,
-            AGREE_MARGIN,
-            lo,
-            hi,
-        )
+        group_boxes(*_placed(kit, thetas, xy, owner, yaw), AGREE_MARGIN, lo, hi)
     return lo, hi
+
+
+def _placed(
+    kit: RegionKit, thetas: np.ndarray, xy: np.ndarray, owner: np.ndarray, yaw: float
+) -> tuple[Any, ...]:
+    """The leading arguments of the kernels over C placed configurations
+    (:func:`~pickstop.regions.arm_kernel.group_boxes`,
+    :func:`~pickstop.regions.arm_kernel.configs_touched`): ``thetas: (C, dof)``, their bases
+    ``xy: (C, 2)`` [m], ``owner: (C,)``, the yaw's cosine and sine, the chain's joint placements,
+    axes and kinds, and each joint group's joint and sphere box."""
+    chain, groups = kit.solver.chain, kit.arm.joint_groups
+    return (
+        np.ascontiguousarray(thetas, dtype=float).reshape(len(thetas), -1),
+        np.ascontiguousarray(xy, dtype=float).reshape(-1, 2),
+        np.ascontiguousarray(owner, dtype=np.int64),
+        math.cos(yaw),
+        math.sin(yaw),
+        chain.R_parent_joint,
+        chain.p_parent_joint,
+        chain.axis_index.astype(np.int64),
+        chain.axes,
+        chain.prismatic,
+        (groups.joints - 1).astype(np.int64),
+        groups.lo,
+        groups.hi,
+    )
 
 
 @dataclass(frozen=True)
@@ -122,24 +131,12 @@ class CheckedConfigs:
         keep = reach[inv].any(1)
         if not keep.any():
             return ids[:0]
-        arm, chain = self.kit.arm, self.kit.solver.chain
+        arm = self.kit.arm
         groups = arm.joint_groups
         touched = np.zeros(len(ids), bool)
         cs = ChangeSet.of(changes)
         configs_touched(
-            np.ascontiguousarray(self.thetas[keep], dtype=float),
-            np.ascontiguousarray(self.xy[keep], dtype=float),
-            inv[keep].astype(np.int64),
-            math.cos(self.yaw),
-            math.sin(self.yaw),
-            chain.R_parent_joint,
-            chain.p_parent_joint,
-            chain.axis_index.astype(np.int64),
-            chain.axes,
-            chain.prismatic,
-            (groups.joints - 1).astype(np.int64),
-            groups.lo,
-            groups.hi,
+            *_placed(self.kit, self.thetas[keep], self.xy[keep], inv[keep], self.yaw),
             np.cumsum([0] + [len(k) for k in groups.links]).astype(np.int64),
             np.concatenate(groups.links).astype(np.int64),
             *arm.link_boxes,
