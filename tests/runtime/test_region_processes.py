@@ -108,7 +108,8 @@ def test_background_work_gives_way_in_the_helpers(fresh, paper_doc, monkeypatch,
             if t != mover:
                 two.tray_region(scene, t, yaw)
     inside = [False]  # this process computes its own share
-    real = two.compute_region
+    processes = two._processes
+    real = processes.compute
 
     def own(*a):
         inside[0] = True
@@ -117,7 +118,7 @@ def test_background_work_gives_way_in_the_helpers(fresh, paper_doc, monkeypatch,
         finally:
             inside[0] = False
 
-    monkeypatch.setattr(two, "compute_region", own)
+    monkeypatch.setattr(processes, "compute", own)
     asked: list[bool] = []
 
     def interrupt() -> bool:

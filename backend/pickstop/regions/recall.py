@@ -31,8 +31,9 @@ from pickstop.regions.kit import RegionKit
 Rounds = tuple[
     np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]
 ]
-#: A witness per solved (cell, part): cell rows ``(S,)``, part indices ``(S,)``, joint values
-#: ``(S, dof)``, grasp indices ``(S,)``.
+#: A witness per solved (open cell, part): open-cell indices ``(S,)`` (into the ``open_`` of
+#: :meth:`Recall.grown_before`), part indices ``(S,)``, joint values ``(S, dof)``, grasp
+#: indices ``(S,)``.
 Solved = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
@@ -92,8 +93,8 @@ class Recall(Protocol):
         ...
 
     def served(self, n: int, compute: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
-        """``(n,)`` whether the database serves each of the n cells; ``compute(idx)`` gives it
-        for cells ``idx`` (indices)."""
+        """``(n,)`` whether the database serves each of the recall's cells (``n``: their
+        count); ``compute(idx)`` gives it for cells ``idx`` (indices into them)."""
         ...
 
     def refine(
@@ -156,8 +157,8 @@ class Recall(Protocol):
     def remember_grown(
         self, parts: list[str], cells: np.ndarray, thetas: np.ndarray, grasps: np.ndarray
     ) -> None:
-        """Cells ``cells: (K,)`` grew into the region with witnesses ``thetas: (K, P, dof)``
-        and grasps ``(K, P)`` for ``parts: (P,)``."""
+        """Cells ``cells: (K,)`` (indices into the recall's cells) grew into the region with
+        witnesses ``thetas: (K, P, dof)`` and grasps ``(K, P)`` for ``parts: (P,)``."""
         ...
 
 

@@ -247,9 +247,7 @@ def _rounds(
     cen: np.ndarray,
     cands: Candidates,
     rounds: int,
-) -> tuple[
-    np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]
-]:
+) -> Rounds:
     """Screen, refine and verify candidates per cell in widening rounds; each cell's answer
     depends on its own candidates alone.
 
@@ -350,7 +348,7 @@ def _refine_and_verify(
     search.r_cells.append(cell[e[ok]])
     search.r_ths.append(thetas[ok])
     good = verify(
-        kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.part_id, None, recall.take(ok)
+        kit, world, thetas[ok], cen[cell[e[ok]]], cell[e[ok]], tg.part_id, recall=recall.take(ok)
     )
     acc, ths = e[ok[good]], thetas[ok[good]]
     # Several may succeed for a cell: keep its best-ranked (first) one.
@@ -466,8 +464,9 @@ def seeded(
     Returns the winning row of each problem ``(n_problems,)`` (-1 where none verified; the
     first verified row wins) and the refined configurations ``(B, dof)``. targets: the part
     each row grasps (one for all, or per row). recall: where refinements and checks may be
-    taken from, bound to one cell per row (:mod:`pickstop.regions.recall`); rows: what the
-    rows are there (a recall from scratch needs nothing).
+    taken from, bound to one cell per row (:mod:`pickstop.regions.recall`); rows: what each
+    row is, for a recall that remembers refinements to key them by (without it, they are
+    refined as from scratch).
     """
     win = np.full(n_problems, -1)
     if not len(seeds):
@@ -479,7 +478,7 @@ def seeded(
     if len(ok):
         sub = targets if targets is None or isinstance(targets, str) else targets[ok]
         good = ok[
-            verify(kit, world, thetas[ok], base_xy[ok], problem[ok], sub, None, recall.take(ok))
+            verify(kit, world, thetas[ok], base_xy[ok], problem[ok], sub, recall=recall.take(ok))
         ]
         _, first = np.unique(problem[good], return_index=True)
         win[problem[good[first]]] = good[first]
@@ -505,10 +504,12 @@ def grow(
     ``thetas: (M, P, dof)`` and ``grasp: (M, P)`` hold the solved cells. An open cell next to
     a solved one is refined, every part at once, from the solved neighbours' witnesses
     (4-neighbours first); it joins when every part verifies. Each wave retries only cells
-    next to cells the previous wave added.
+    next to cells the previous wave added. Every part's targets share the tray's one recall
+    (``targets[0].recall``).
     """
     if not found.any():
         return 0
+    recall = targets[0].recall
     nb = _neighbour_rows(ij)
     fresh = found.copy()
     added = 0
@@ -518,7 +519,7 @@ def grow(
         if wave is None:
             break
         # parts a cell was grown with before, where the recall knows them
-        wave.solve(*targets[0].recall.grown_before(kit, world, targets, cen, wave.open_))
+        wave.solve(*recall.grown_before(kit, world, targets, cen, wave.open_))
         # The neighbours' own grasps first; then, where a part is still open, every other
         # grasp from the same seeds: a witness for one grasp often reaches another here (the
         # wrist turns) where its own grasp runs into a joint limit.

@@ -56,7 +56,7 @@ class _Helper:
 class RegionProcesses:
     """``processes`` processes computing regions with ``kit``: the caller's own and
     ``processes - 1`` helpers forked from it, each tray at home in one (see the module);
-    ``compute(scene, tray id, yaw)`` computes a region in a helper."""
+    ``compute(scene, tray id, yaw)`` computes a region, here and in every helper."""
 
     def __init__(self, kit: RegionKit, processes: int, compute: Compute) -> None:
         if processes < 1:
@@ -71,9 +71,9 @@ class RegionProcesses:
         self._helpers: list[_Helper | None] = [None] * (processes - 1)
         self._rid = 0
 
-    def regions(self, scene: Scene, pairs: list[Pair], compute: Compute) -> list[TrayRegion]:
+    def regions(self, scene: Scene, pairs: list[Pair]) -> list[TrayRegion]:
         """The region of each ``(tray id, yaw)`` of ``scene``, in order: those at home here by
-        ``compute(scene, tray id, yaw)``, the others by their helpers meanwhile.
+        :attr:`compute`, the others by their helpers (with the same function) meanwhile.
 
         Raises :class:`~pickstop.runtime.cancel.Cancelled` (after every helper stopped) once
         this thread's token is cancelled."""
@@ -90,7 +90,7 @@ class RegionProcesses:
         try:
             for p, w in zip(pairs, share, strict=True):
                 if w == 0:
-                    out[p] = compute(scene, *p)
+                    out[p] = self.compute(scene, *p)
             for h, rid in list(sent.items()):
                 kind, payload = self._receive(h, rid)
                 del sent[h]  # answered
@@ -102,7 +102,7 @@ class RegionProcesses:
                     for p, w in zip(pairs, share, strict=True):
                         if w == h + 1:
                             self._home(_home_key(scene, p), 0)
-                            out[p] = compute(scene, *p)
+                            out[p] = self.compute(scene, *p)
                     continue
                 regions, grasps = payload
                 self.kit.learn_grasps(grasps)  # the stops' checks here need them too

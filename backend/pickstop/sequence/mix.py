@@ -13,8 +13,10 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
+from pickstop.reach.database import ReachDatabase
+from pickstop.regions.cells import TrayRegion
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence import mix_model as mm
 from pickstop.sequence.cover import InfeasiblePlanError
@@ -68,9 +70,11 @@ class MixRegions(Protocol):
     is one): every task tray's regions at once, and the database's id."""
 
     @property
-    def db(self) -> Any: ...
+    def db(self) -> ReachDatabase: ...
 
-    def regions(self, scene: Scene, workers: int | None = None) -> Any: ...
+    def regions(
+        self, scene: Scene, workers: int | None = None
+    ) -> dict[tuple[str, float], TrayRegion]: ...
 
 
 class MixPlanner(Protocol):

@@ -14,7 +14,8 @@ the same way, with the same reason.
   (:func:`cut_off`): being cut off depends on the obstacles, not on the candidate.
 
 Exact verification at a chosen stop's centre can still reject a kept candidate later; that
-belongs to the plan (``speedups/stop_planner.py``), not to the rule.
+belongs to the plan request (``sequence/request.py``, :func:`pickstop.sequence.pure.check`),
+not to the rule.
 """
 
 from __future__ import annotations

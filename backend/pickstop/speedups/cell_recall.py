@@ -25,7 +25,7 @@ from pickstop.regions.arm import ArmWorld, screen_arm
 from pickstop.regions.cells import CellGrid
 from pickstop.regions.kit import RegionKit
 from pickstop.regions.pipeline import BaseCells
-from pickstop.regions.recall import Aims, Checks, RefineRows, Rounds, Solved
+from pickstop.regions.recall import FROM_SCRATCH, Aims, Checks, RefineRows, Rounds, Solved
 from pickstop.robot.kinematics import fk_soa
 from pickstop.scene.grasps import GraspSet
 from pickstop.scene.model import Scene, Tray
@@ -99,8 +99,11 @@ class CellRecall:
         max_iter: int,
         give_up: tuple[tuple[int, float], ...],
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Through the memo, each row by its stage, part, cell key, grasp and seed's source."""
-        assert rows is not None and len(self.keys) == len(seeds)
+        """Through the memo, each row by its stage, part, cell key, grasp and seed's source;
+        rows that say nothing of themselves (``rows`` None) are refined as from scratch."""
+        if rows is None:
+            return FROM_SCRATCH.refine(solver, None, seeds, Rs_target, ps_target, max_iter, give_up)
+        assert len(self.keys) == len(seeds)
         parts = [rows.part] * len(seeds) if isinstance(rows.part, str) else rows.part.tolist()
         sources = [s.tobytes() for s in seeds] if rows.sources is None else rows.sources.tolist()
         keys = [
@@ -195,8 +198,8 @@ class CellRecall:
         o_r = rows[reach] // P
         good = reach[
             solve.verify(
-                kit, world, th[reach], cen[open_[o_r]], None, parts[reach], None,
-                self.take(open_[o_r]),
+                kit, world, th[reach], cen[open_[o_r]], None, parts[reach],
+                recall=self.take(open_[o_r]),
             )
         ]  # fmt: skip
         o, p = np.divmod(rows[good], P)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -80,9 +79,14 @@ def group_boxes_of(
     return lo, hi
 
 
+_A = np.ndarray
+#: The leading arguments of the kernels over placed configurations (see :func:`_placed`).
+Placed = tuple[_A, _A, _A, float, float, _A, _A, _A, _A, _A, _A, _A, _A]
+
+
 def _placed(
     kit: RegionKit, thetas: np.ndarray, xy: np.ndarray, owner: np.ndarray, yaw: float
-) -> tuple[Any, ...]:
+) -> Placed:
     """The leading arguments of the kernels over C placed configurations
     (:func:`~pickstop.regions.arm_kernel.group_boxes`,
     :func:`~pickstop.regions.arm_kernel.configs_touched`): ``thetas: (C, dof)``, their bases
@@ -207,7 +211,7 @@ def _per_cell(values: np.ndarray, cell: np.ndarray, M: int) -> list[np.ndarray]:
 @dataclass
 class KnownChecks:
     """The exact arm checks of one :func:`~pickstop.regions.solve.verify` call that the
-    targets' memo remembers (``known``: row -> collided), and the keeping of new ones."""
+    tray's memo remembers (``known``: row -> collided), and the keeping of new ones."""
 
     kit: RegionKit
     view: TrayView
@@ -215,7 +219,7 @@ class KnownChecks:
     base_xy: np.ndarray
     keys: dict[int, tuple[int, str, bytes]]
     known: dict[int, bool]
-    memo: RefineMemo | None = None
+    memo: RefineMemo
     pending: list[tuple[int, bool]] = field(default_factory=list)
 
     @classmethod
@@ -232,10 +236,9 @@ class KnownChecks:
     ) -> KnownChecks:
         """Rows ``rows`` (the screen flagged them against the scene) of ``thetas``;
         ``ck: (B,)`` each row's cell key in ``memo``."""
-        out = cls(kit, view, thetas, base_xy, {}, {})
+        out = cls(kit, view, thetas, base_xy, {}, {}, memo)
         if not len(rows):
             return out
-        out.memo = memo
         out.keys = {j: (int(ck[j]), str(target_of(j)), thetas[j].tobytes()) for j in rows.tolist()}
         order = list(out.keys)
         xy = base_xy[order] - np.asarray(view.tray_xy)
@@ -252,14 +255,14 @@ class KnownChecks:
 
     def remember(self, j: int, colliding: bool) -> None:
         """Row ``j`` was checked exactly (kept by :meth:`flush`)."""
-        if j in self.keys and self.memo is not None:
+        if j in self.keys:
             self.pending.append((j, colliding))
 
     def flush(self) -> None:
         """Keep the checks made since the last flush in the memo, their links' boxes
         computed at once."""
         memo, around = self.memo, self.view.around
-        if not self.pending or memo is None:
+        if not self.pending:
             return
         rows = np.array([j for j, _ in self.pending])
         xy = self.base_xy[rows] - np.asarray(self.view.tray_xy)

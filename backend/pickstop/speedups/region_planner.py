@@ -100,7 +100,7 @@ class RegionPlanner(RegionKit):
                 out[t, y] = kept
         todo = [p for p in pairs if p not in out]
         computed = (
-            self._pool(workers).regions(scene, todo, self.compute_region)
+            self._pool(workers).regions(scene, todo)
             if workers > 1 and todo
             else [self.compute_region(scene, t, y) for t, y in todo]
         )
