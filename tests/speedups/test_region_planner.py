@@ -78,3 +78,23 @@ def test_forget_drops_every_kept_region(planner, paper_doc):
         assert fresh[k] is not first[k]
         np.testing.assert_array_equal(fresh[k].cells, first[k].cells)
         np.testing.assert_array_equal(fresh[k].thetas, first[k].thetas)
+
+
+def test_a_planner_that_reuses_nothing_across_layouts_computes_as_from_scratch(planner, paper_doc):
+    """``across_layouts=False`` (the layout search's verification): no memo is kept, and each
+    region is the pipeline's from scratch, bit for bit."""
+    from pickstop.regions import pure
+    from pickstop.speedups.region_planner import RegionPlanner
+
+    fresh = RegionPlanner(planner.robot, planner.db, cache_dir=planner.cache_dir,
+                          across_layouts=False)  # fmt: skip
+    scene = parse_scene(paper_doc)
+    yaw = scene.base_yaw.yaws[0]
+    for tray in ("tray_1", "tray_4"):
+        got = fresh.tray_region(scene, tray)
+        ref = pure.tray_region(planner.scratch(), scene, tray, yaw)
+        assert got.key == ref.key and got.counts == ref.counts
+        for a, b in ((got.cells, ref.cells), (got.thetas, ref.thetas)):
+            assert np.array_equal(a, b)
+    assert len(fresh.reuse) == 0
+    fresh.close()

@@ -18,22 +18,15 @@ from typing import Protocol
 from pickstop.scene.model import Order, Scene
 from pickstop.sequence.mix import MixPlans, plan_mix
 from pickstop.sequence.plan_model import PlanOptions
-from pickstop.speedups.region_memo import RefineMemo, ReuseCache
 from pickstop.speedups.region_planner import RegionPlanner
 from pickstop.speedups.stop_planner import StopPlanner
 
 
-class FreshMemos(ReuseCache):
-    """A reuse cache that remembers nothing: every region computed as from scratch."""
-
-    def memo(self, key: str) -> RefineMemo:
-        return RefineMemo()
-
-
 def scratch_planner(rp: RegionPlanner) -> StopPlanner:
     """A stop planner over a region planner of its own for ``rp``'s robot and database whose
-    regions are computed from scratch (:class:`FreshMemos`); close its ``regions`` after use."""
-    kit = RegionPlanner(rp.robot, rp.db, cache_dir=rp.cache_dir, reuse=FreshMemos(),
+    regions are computed from scratch (nothing reused across layouts); close its ``regions``
+    after use."""
+    kit = RegionPlanner(rp.robot, rp.db, cache_dir=rp.cache_dir, across_layouts=False,
                         workers=rp.workers)  # fmt: skip
     return StopPlanner(kit)
 

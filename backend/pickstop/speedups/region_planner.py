@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pickstop.caching import Cache
 from pickstop.regions.cells import TrayRegion
 from pickstop.regions.kit import RegionKit
-from pickstop.regions.pipeline import compute_tray_region, own_key
+from pickstop.regions.pipeline import compute_tray_region, from_scratch, own_key
 from pickstop.runtime.region_processes import RegionProcesses
 from pickstop.scene.model import Scene
 from pickstop.speedups.carry import LastRegions
@@ -34,6 +34,8 @@ class RegionPlanner(RegionKit):
 
     cache: dict[str, list[CacheEntry]] = field(default_factory=dict)  # by own key
     reuse: ReuseCache = field(default_factory=ReuseCache)  # refinements across tray positions
+    # False: every region computed from scratch (regions are still cached whole)
+    across_layouts: bool = True
     cache_size: int = 256  # own keys kept
     # processes computing regions: this one and workers - 1 helpers forked from it (they share
     # the database; each tray is computed where it was before, its memos there)
@@ -63,10 +65,12 @@ class RegionPlanner(RegionKit):
 
     def compute_region(self, scene: Scene, tray_id: str, yaw: float) -> TrayRegion:
         """The region of one tray computed now (no region cache), through the planner's
-        memo of refinements and cell answers across tray positions (:attr:`reuse`)."""
+        memo of refinements and cell answers across tray positions (:attr:`reuse`), or from
+        scratch without :attr:`across_layouts`."""
         tray = scene.tray(tray_id)
         key = own_key(self, scene, tray, yaw)
-        return compute_tray_region(self, scene, tray, yaw, key, MemoRecall(self.reuse))
+        recall_of = MemoRecall(self.reuse) if self.across_layouts else from_scratch
+        return compute_tray_region(self, scene, tray, yaw, key, recall_of)
 
     def regions(
         self, scene: Scene, workers: int | None = None
