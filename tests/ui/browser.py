@@ -144,10 +144,36 @@ def stops(plan: Any) -> list[tuple[float, float, float, tuple[str, ...]]]:
     return [(s.x, s.y, s.yaw, tuple(s.trays)) for s in plan.stops]
 
 
+def hold_camera(client: Any, aim: Callable[[], Any], tries: int = 4) -> None:
+    """Point ``client``'s camera with ``aim`` (which sets it and returns the pose it set:
+    ``position``, ``look_at``) and wait until the camera the browser reports has stayed
+    there for 0.5 s. A report the browser sent before it received the new pose can land
+    after it and put the old camera back into the server's state (then the tests would
+    project with a camera the page no longer shows): the pose is set again."""
+
+    def there(pose: Any) -> bool:
+        cam = client.camera
+        return bool(np.allclose(cam.position, pose.position, atol=1e-3)
+                    and np.allclose(cam.look_at, pose.look_at, atol=1e-3))  # fmt: skip
+
+    for _ in range(tries):
+        pose = aim()
+        end, since = time.monotonic() + 3.0, None
+        while time.monotonic() < end:
+            if not there(pose):
+                since = None
+            elif since is None:
+                since = time.monotonic()
+            elif time.monotonic() - since >= 0.5:
+                return
+            time.sleep(0.05)
+    raise AssertionError("the browser's camera did not stay where it was pointed")
+
+
 def reset_camera(app: Any) -> None:
     """Back to the planner's first view of the scene (a test that moved the camera)."""
-    app.show_view(next(iter(app.server.get_clients().values())), "iso")
-    time.sleep(0.5)
+    client = next(iter(app.server.get_clients().values()))
+    hold_camera(client, lambda: app.show_view(client, "iso"))
 
 
 def ray_at(cam: Any, px: Any, size: tuple[int, int] = SIZE) -> tuple[np.ndarray, np.ndarray]:
@@ -161,11 +187,20 @@ def ray_at(cam: Any, px: Any, size: tuple[int, int] = SIZE) -> tuple[np.ndarray,
     return np.asarray(cam.position, float), d / np.linalg.norm(d)
 
 
-def item_point(app: Any, kind: str, oid: str) -> tuple[float, float]:
+def item_point(app: Any, kind: str, oid: str, timeout: float = 3.0) -> tuple[float, float]:
     """A pixel on the top of tray or obstacle ``oid`` where a click picks it: the top face's
     points tried from its centre outwards, each kept only if the rays through it and through
     the pixels 8 px around it meet this item first, and it lies clear of the gizmo's centre
-    and of the panel."""
+    and of the panel. Looked for again until ``timeout`` [s] while the camera, the scene or
+    the gizmo may still be settling."""
+    end = time.monotonic() + timeout
+    while (px := _item_point(app, kind, oid)) is None:
+        assert time.monotonic() < end, f"no clear point to click on {oid}"
+        time.sleep(0.2)
+    return px
+
+
+def _item_point(app: Any, kind: str, oid: str) -> tuple[float, float] | None:
     from pickstop_ui.picking import item_box, pick
 
     boxes = [x for x in map(item_box, app.scene.drawn_items()) if x is not None]
@@ -184,7 +219,7 @@ def item_point(app: Any, kind: str, oid: str) -> tuple[float, float]:
         clear = gizmo is None or math.dist(px, gizmo) > 60
         if hits and clear and 0 < px[0] < 820 and 0 < px[1] < SIZE[1]:
             return px
-    raise AssertionError(f"no clear point to click on {oid}")
+    return None
 
 
 def click_item(pg: Any, app: Any, kind: str, oid: str) -> None:

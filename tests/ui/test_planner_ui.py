@@ -13,6 +13,7 @@ import math
 import shutil
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -215,13 +216,19 @@ def close_oblique_view(planner_app):
     cx, cy, span = 0.5 * (x0 + x1), 0.5 * (y0 + y1), max(x1 - x0, y1 - y0)
     client = next(iter(planner_app.server.get_clients().values()))
     x = cx + 0.12 * span
-    with client.atomic():
-        client.camera.fov = math.radians(75.0)
-        client.camera.position = (x, cy - 0.45 * span, 0.6 * span)
-        client.camera.look_at = (x, cy + 0.1 * span, 0.0)
+    pose = SimpleNamespace(position=(x, cy - 0.45 * span, 0.6 * span),
+                           look_at=(x, cy + 0.1 * span, 0.0))  # fmt: skip
+
+    def aim() -> SimpleNamespace:
+        with client.atomic():
+            client.camera.fov = math.radians(75.0)
+            client.camera.position = pose.position
+            client.camera.look_at = pose.look_at
+        return pose
+
+    browser.hold_camera(client, aim)
     yield
-    planner_app.show_view(client, "iso")
-    time.sleep(0.5)
+    browser.reset_camera(planner_app)
 
 
 def test_sigma_slider_changes_circles_and_numbers(ui_page, planner_app, close_oblique_view):
