@@ -7,7 +7,7 @@ names none): not in that charset, not JSON, nested too deep, a 5,000-digit integ
 each come back as a 422 whose ``field`` is ``body`` (or the value's path) and whose detail
 says where. Nesting is bounded by the decoder's recursion limit (about 1,000 levels); anything
 recursing over a document later answers the same 422 (see problems.py). YAML is decoded in a
-child process under a time limit (:mod:`pickstop.api.yaml_child`), never on the API's
+warm child process under a time limit (:mod:`pickstop.runtime.yaml_decoders`), never on the API's
 interpreter.
 """
 
@@ -17,14 +17,12 @@ import codecs
 import json
 import math
 import re
-import subprocess
-import sys
-import threading
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
 from pickstop.api.problems import Problem
+from pickstop.runtime import yaml_decoders
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -91,31 +89,25 @@ def decode(raw: bytes, charset: str = "utf-8") -> Any:
     return doc
 
 
-#: Time [s] a YAML body may take to decode in its child process, and how many decode at once.
+#: Time [s] a YAML body may take to decode in its child process.
 YAML_SECONDS = 5.0
-_YAML_SLOTS = threading.BoundedSemaphore(2)
 
 
 def decode_yaml(raw: bytes, charset: str = "utf-8") -> Any:
     """The YAML document in ``raw`` as JSON values (no aliases, no types JSON lacks), or a 422
-    :class:`Problem` saying where it breaks. Decoded in a child process
-    (:mod:`pickstop.api.yaml_child`) under :data:`YAML_SECONDS`, at most two at once, so that
-    no document holds this interpreter nor outlives its request."""
+    :class:`Problem` saying where it breaks. Decoded in a warm child process
+    (:mod:`pickstop.runtime.yaml_decoders`) under :data:`YAML_SECONDS`, at most two at once,
+    so that no document holds this interpreter nor outlives its request."""
     text = _text(raw, "YAML", charset)
-    with _YAML_SLOTS:
-        try:
-            done = subprocess.run(
-                [sys.executable, "-m", "pickstop.api.yaml_child"],
-                input=text.encode("utf-8", "surrogatepass"),
-                capture_output=True,
-                timeout=YAML_SECONDS,
-                check=False,
-            )
-        except subprocess.TimeoutExpired:
-            raise invalid("body", f"the YAML took more than {YAML_SECONDS:g} s to decode "
-                          "(nested too deeply, or too complex)") from None  # fmt: skip
     try:
-        out = json.loads(done.stdout)
+        answer = yaml_decoders.DECODERS.decode(text.encode("utf-8", "surrogatepass"), YAML_SECONDS)
+    except yaml_decoders.DecodeTimeout:
+        raise invalid("body", f"the YAML took more than {YAML_SECONDS:g} s to decode "
+                      "(nested too deeply, or too complex)") from None  # fmt: skip
+    except yaml_decoders.ChildLost:
+        answer = b""
+    try:
+        out = json.loads(answer)
     except ValueError:
         raise invalid("body", "the YAML could not be decoded (nested too deeply, or too "
                       "complex)") from None  # fmt: skip

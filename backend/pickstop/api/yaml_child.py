@@ -1,10 +1,13 @@
-"""One YAML document decoded to JSON, in a short-lived child process (``python -m``).
+"""YAML documents decoded to JSON, in a child process (``python -m``).
 
 YAML parsers are slow in Python and can be driven into super-linear time or a crash by a
 small document (deep nesting recurses in libyaml's composer); the API therefore never parses
-YAML on its own interpreter. :func:`pickstop.api.body.decode_yaml` runs this module with the
-body as UTF-8 on stdin, under a time limit, and reads one JSON object on stdout:
-``{"doc": ...}`` or ``{"error": "..."}``. Only what JSON can say is accepted: null, booleans,
+YAML on its own interpreter. With ``--serve`` the child decodes documents one after another
+(:mod:`pickstop.runtime.yaml_decoders` keeps it warm and kills it when one outlasts its
+time): each message on stdin is an 8-byte big-endian length and the document as UTF-8, each
+answer on stdout the same framing around one JSON object, ``{"doc": ...}`` or
+``{"error": "..."}``. Without it, the child decodes the whole of stdin and writes one answer
+unframed. Only what JSON can say is accepted: null, booleans,
 numbers, strings, lists and string-keyed mappings; dates stay strings, and explicit tags of
 other types (``!!binary``, ``!!set``, ``!!timestamp``, ``!!omap``...), aliases and integers
 of more than 4,300 digits are refused with the line and column.
@@ -17,6 +20,7 @@ from __future__ import annotations
 
 import json
 import os
+import struct
 import sys
 from typing import Any
 
@@ -149,21 +153,46 @@ def message(e: yaml.YAMLError) -> str:
     return f"not valid YAML{at}: {getattr(e, 'problem', None) or e}"
 
 
+def answer(text: str) -> tuple[dict[str, Any], bool]:
+    """The answer to one document, and whether this process can go on decoding (not after
+    it ran out of memory)."""
+    try:
+        return {"doc": load(text)}, True
+    except yaml.YAMLError as e:
+        return {"error": message(e)}, True
+    except RecursionError:
+        return {"error": "nested too deeply (arrays or objects inside each other)"}, True
+    except MemoryError:
+        return {"error": "the document takes too much memory to decode"}, False
+
+
+def serve(inp: Any, out: Any) -> None:
+    """Answer framed documents from ``inp`` on ``out`` until ``inp`` ends (the API closed it
+    or stopped) or a document used up the memory."""
+    head = struct.Struct(">Q")
+    while len(raw := inp.read(head.size)) == head.size:
+        (size,) = head.unpack(raw)
+        text = inp.read(size).decode("utf-8")
+        doc, more = answer(text)
+        del text
+        data = json.dumps(doc).encode("utf-8")
+        del doc
+        out.write(head.pack(len(data)) + data)
+        out.flush()
+        if not more:
+            return
+
+
 def main() -> None:
     import resource
 
     resource.setrlimit(resource.RLIMIT_AS, (MEMORY, MEMORY))
     os.nice(10)  # the API process answers first
-    text = sys.stdin.buffer.read().decode("utf-8")
-    try:
-        out: dict[str, Any] = {"doc": load(text)}
-    except yaml.YAMLError as e:
-        out = {"error": message(e)}
-    except RecursionError:
-        out = {"error": "nested too deeply (arrays or objects inside each other)"}
-    except MemoryError:
-        out = {"error": "the document takes too much memory to decode"}
-    sys.stdout.write(json.dumps(out))
+    if "--serve" in sys.argv[1:]:
+        serve(sys.stdin.buffer, sys.stdout.buffer)
+        return
+    doc, _ = answer(sys.stdin.buffer.read().decode("utf-8"))
+    sys.stdout.write(json.dumps(doc))
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ process it starts.
 - :mod:`~pickstop.runtime.region_processes`: region helpers forked from a planner.
 - :mod:`~pickstop.runtime.servers`: API servers forked on one port (``serve --workers``).
 - :mod:`~pickstop.runtime.build_process`: a database build in a process group of its own.
+- :mod:`~pickstop.runtime.yaml_decoders`: warm children that decode YAML request bodies.
 
 ``docs/architecture.md`` draws the process tree and where each token is cancelled.
 """
