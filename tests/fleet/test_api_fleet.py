@@ -28,8 +28,20 @@ AUTH = {"Authorization": f"Bearer {KEY}"}
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture()
+@pytest.fixture(scope="module")
+def mosquitto():
+    """One Mosquitto for this module's service and vehicles (each test's vehicle has a serial
+    number of its own)."""
+    from pickstop.fleet.broker import LocalMosquitto
+
+    with LocalMosquitto() as m:
+        yield m
+
+
+@pytest.fixture(scope="module")
 def fleet_client(region_db, mosquitto):
+    """One service for the module (its planner warm after the first plan); each test stores
+    plans of its own."""
     folder, _ = region_db
     settings = Settings(data_dir=folder, api_keys=[hash_key(KEY)], mqtt_broker=mosquitto.broker.url)
     with TestClient(create_app(settings)) as c:
