@@ -113,19 +113,19 @@ class YamlDecoders:
                 self._reset()
             free = self._free
         with free:
-            for attempt in (0, 1):
-                child = self._take()
-                fresh = child.served == 0
-                try:
-                    out = child.ask(data, seconds)
-                except ChildLost:
-                    child.kill()
-                    if fresh or attempt == 1:
-                        raise
-                    continue
-                self._give(child)
-                return out
-        raise AssertionError("unreachable")
+            return self._ask(self._take(), data, seconds, retry=True)
+
+    def _ask(self, child: _Child, data: bytes, seconds: float, retry: bool) -> bytes:
+        warm = child.served > 0
+        try:
+            out = child.ask(data, seconds)
+        except ChildLost:
+            child.kill()
+            if warm and retry:  # it stopped while idle: a fresh one answers
+                return self._ask(_Child(), data, seconds, retry=False)
+            raise
+        self._give(child)
+        return out
 
     def _take(self) -> _Child:
         with self._lock:
