@@ -223,7 +223,8 @@ def test_what_the_ui_shares_with_the_core_is_pure(module):
 
 
 # The algorithm from scratch (docs/architecture.md section 6) and the modules it must not
-# reach: the speed-ups' planners and caches across requests, processes and the service.
+# reach: the cache primitive, the speed-ups' planners and caches across requests, processes
+# and the service.
 PURE = [
     "pickstop.sequence.pure",
     "pickstop.regions.pure",
@@ -233,6 +234,7 @@ PURE = [
     "pickstop.sequence.request",
 ]
 NOT_FROM_SCRATCH = (
+    "pickstop.caching",
     "pickstop.api",
     "pickstop.runtime",
     "pickstop.store.records",
@@ -269,6 +271,15 @@ def _under(module: str, prefixes: tuple[str, ...]) -> bool:
 def test_the_algorithm_from_scratch_reaches_no_planner_process_or_service(module):
     reached = {m for m in _reach(module) if _under(m, NOT_FROM_SCRATCH)}
     assert reached <= set(RUNTIME_IN_CORE), f"{module} reaches {sorted(reached)}"
+
+
+def test_the_algorithms_packages_keep_nothing_themselves():
+    """No module of regions/ or sequence/ makes a cache: what their helpers keep between
+    calls is asked of a ``Keep`` the speed-ups hand in (``regions/keep.py``)."""
+    makers = sorted(m for m, targets in GRAPH.items()
+                    if _under(m, ("pickstop.regions", "pickstop.sequence"))
+                    and "pickstop.caching" in targets)  # fmt: skip
+    assert makers == []
 
 
 def test_the_core_takes_only_the_token_from_the_runtime():

@@ -266,3 +266,21 @@ def test_the_loaded_planners_are_read_while_the_pool_is_busy(region_db):
     p.drop_database(db.id)
     assert p.slots == []
     p.close()
+
+
+def test_config_files_parse_a_text_once_and_a_changed_text_again(tmp_path):
+    from pickstop.errors import RobotConfigError
+    from pickstop.pool import ConfigFiles
+    from pickstop.robot.config import PRESET_DIR
+
+    path = tmp_path / "bot.yaml"
+    text = (PRESET_DIR / "tiago.yaml").read_text()
+    path.write_text(text)
+    configs = ConfigFiles(size=2)
+    first, _ = configs.load(path)
+    assert configs.load(path)[0] is first  # the same text: not parsed again
+    path.write_text(text.replace("name: tiago", "name: tiago_copy", 1))
+    again, _ = configs.load(path)
+    assert again is not first and again.name == "tiago_copy"
+    with pytest.raises(RobotConfigError):
+        configs.load(tmp_path / "nope.yaml")

@@ -31,7 +31,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pickstop.robot.config import ConfigFiles, RobotConfig
+from pickstop.caching import Cache
+from pickstop.robot.config import (
+    RobotConfig,
+    RobotConfigError,
+    config_from_text,
+    load_config,
+    resolve_robot,
+    robot_config_file,
+)
 from pickstop.robot.model import RobotModel, load_robot
 from pickstop.scene.model import Scene
 from pickstop.settings import cache_dir
@@ -50,14 +58,38 @@ def scene_robot(
     """The robot config a scene names (a preset, or a config file relative to
     ``scene_root``) and the folder its paths start from; ``configs``: where parsed config
     files are kept (None: parsed now)."""
-    configs = configs or ConfigFiles(size=0)
     ref = scene.robot
     if ref.config is None:
-        return configs.resolve(ref.ref)
+        return resolve_robot(ref.ref) if configs is None else configs.resolve(ref.ref)
     path = Path(ref.config)
     if not path.is_absolute() and scene_root is not None:
         path = scene_root / path
-    return configs.load(path)
+    return load_config(path) if configs is None else configs.load(path)
+
+
+class ConfigFiles:
+    """Robot config files, parsed once per text: a request names its robot every time, and
+    parsing a YAML config takes milliseconds. The file is read every time; a text read
+    before at the same path is not parsed again (a config is frozen, so the one parsed before
+    is the same). The last ``size`` texts are kept."""
+
+    def __init__(self, size: int = 32) -> None:
+        self._parsed: Cache[tuple[str, str], tuple[RobotConfig, Path]] = Cache(
+            "robot_configs", max_items=size
+        )
+
+    def load(self, path: str | Path) -> tuple[RobotConfig, Path]:
+        """:func:`load_config`, remembered."""
+        path = Path(path)
+        if not path.is_file():
+            raise RobotConfigError(f"{path}: robot config file not found")
+        text = path.read_text(encoding="utf-8")
+        key = (str(path.resolve()), hashlib.sha256(text.encode()).hexdigest())
+        return self._parsed.get_or_make(key, lambda: config_from_text(path, text))
+
+    def resolve(self, robot: str) -> tuple[RobotConfig, Path]:
+        """:func:`resolve_robot`, remembered."""
+        return self.load(robot_config_file(robot))
 
 
 def scene_robot_source(scene: Scene, scene_root: Path | None) -> str:

@@ -135,22 +135,6 @@ def test_angles_q_round_trip(robot):
     assert np.allclose(robot.q_to_angles(robot.angles_to_q(th)), th)
 
 
-def test_config_files_parse_a_text_once_and_a_changed_text_again(tmp_path):
-    from pickstop.robot.config import PRESET_DIR, ConfigFiles
-
-    path = tmp_path / "bot.yaml"
-    text = (PRESET_DIR / "tiago.yaml").read_text()
-    path.write_text(text)
-    configs = ConfigFiles(size=2)
-    first, _ = configs.load(path)
-    assert configs.load(path)[0] is first  # the same text: not parsed again
-    path.write_text(text.replace("name: tiago", "name: tiago_copy", 1))
-    again, _ = configs.load(path)
-    assert again is not first and again.name == "tiago_copy"
-    with pytest.raises(RobotConfigError):
-        configs.load(tmp_path / "nope.yaml")
-
-
 def test_travel_names_an_arm_joint(tmp_path):
     text = TIAGO_CONFIG.format(urdf=TIAGO_URDF) + "travel: {head_1_joint: 0.0}\n"
     with pytest.raises(RobotConfigError) as e:

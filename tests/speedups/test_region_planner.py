@@ -98,3 +98,29 @@ def test_a_planner_that_reuses_nothing_across_layouts_computes_as_from_scratch(p
             assert np.array_equal(a, b)
     assert len(fresh.reuse) == 0
     fresh.close()
+
+
+def test_the_planner_keeps_what_its_kit_derives_and_a_scratch_kit_keeps_nothing(planner, paper_doc):
+    """The planner hands its kit bounded caches (``KEPT``) and hangs the footprint's on the
+    robot; a scratch kit asks a ``KeepNothing`` and checks the arm with its own, and its
+    regions are the planner's, bit for bit."""
+    from pickstop.caching import Cache
+    from pickstop.regions import pure
+    from pickstop.regions.keep import KeepNothing
+    from pickstop.speedups.region_planner import KEPT
+
+    scene = parse_scene(paper_doc)
+    yaw = scene.base_yaw.yaws[0]
+    got = planner.compute_region(scene, "tray_3", yaw)
+    kept = [planner.grasp_memo, planner._hand_spaces, planner._bounds, planner._own_verdicts,
+            planner.exact_arm._bounds_memo]  # fmt: skip
+    assert [c.name for c in kept] == list(KEPT) and all(isinstance(c, Cache) for c in kept)
+    assert len(planner.grasp_memo) > 0 and len(planner.robot.derived.blocked_pieces) > 0
+    scratch = planner.scratch()
+    mine = [scratch.grasp_memo, scratch._hand_spaces, scratch._bounds, scratch._own_verdicts,
+            scratch.exact_arm._bounds_memo]  # fmt: skip
+    assert all(isinstance(k, KeepNothing) for k in mine)
+    assert scratch.exact_arm is not planner.exact_arm
+    ref = pure.tray_region(scratch, scene, "tray_3", yaw)
+    assert list(scratch.grasp_memo) == [] and got.key == ref.key
+    assert np.array_equal(got.cells, ref.cells) and np.array_equal(got.thetas, ref.thetas)

@@ -19,10 +19,10 @@ import numpy as np
 import pinocchio as pin
 
 from pickstop import frames
-from pickstop.caching import Cache
 from pickstop.frames import rot2
 from pickstop.regions.arm_kernel import contacts_many, link_contacts, screen_links
 from pickstop.regions.envelope import Envelope
+from pickstop.regions.keep import Keep, KeepNothing
 from pickstop.robot.fk_kernel import joint_frames
 from pickstop.robot.floor import FLOOR_CLEARANCE, ExactFloor, FloorSpheres, below_floor
 from pickstop.robot.kinematics import Chain
@@ -31,7 +31,6 @@ from pickstop.robot.model import RobotModel
 from pickstop.scene.world import TOUCH, BoxArrays, Solid, _coal, collide
 
 SPHERE_EXCESS = 0.01  # [m] how far a covering sphere may stick out of its link
-BOUNDS_MEMO = 32  # solid lists whose bounding boxes ExactArm keeps
 
 
 def arm_geometry_ids(robot: RobotModel) -> list[int]:
@@ -240,9 +239,16 @@ def screen_arm(
 class ExactArm:
     """Exact arm-versus-solids checks with coal (one per thread)."""
 
-    def __init__(self, robot: RobotModel, spheres: ArmSpheres | None = None) -> None:
+    def __init__(
+        self,
+        robot: RobotModel,
+        spheres: ArmSpheres | None = None,
+        bounds: Keep[tuple[Solid, ...], tuple[np.ndarray, ...]] | None = None,
+    ) -> None:
         """spheres: the arm's covering spheres; with them, :meth:`colliding` hands coal only
-        the geometries of links whose spheres meet a solid (given the solids' boxes)."""
+        the geometries of links whose spheres meet a solid (given the solids' boxes).
+        bounds: where the bounding boxes of the solid lists checked against are kept (by the
+        lists' identity; :class:`~pickstop.regions.keep.KeepNothing` if not given)."""
         self.robot = robot
         self.data = robot.model.createData()
         self.ids = arm_geometry_ids(robot)
@@ -276,9 +282,7 @@ class ExactArm:
             self._axis_index = self._chain.axis_index.astype(np.int64)
         self._Rj = np.zeros((robot.dof, 3, 3))
         self._pj = np.zeros((robot.dof, 3))
-        self._bounds_memo: Cache[tuple[Solid, ...], tuple[np.ndarray, ...]] = Cache(
-            "arm.solid_bounds", max_items=BOUNDS_MEMO
-        )
+        self._bounds_memo = bounds if bounds is not None else KeepNothing()
         pl = self.floor.placements  # contiguous, for the compiled placements of :meth:`checks`
         self._R_local = np.ascontiguousarray(pl.R_local)
         self._p_local = np.ascontiguousarray(pl.p_local)
@@ -402,7 +406,7 @@ class ExactArm:
 
     def _bounds(self, solids: list[Solid]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """World bounding boxes ``lo, hi: (S, 3)`` [m] and owners ``(S,)`` of ``solids``, kept
-        for the last few lists (the same solids are checked against many configurations)."""
+        in the arm's ``bounds`` (the same solids are checked against many configurations)."""
 
         def make() -> tuple[np.ndarray, ...]:
             bounds = [s.aabb() for s in solids]

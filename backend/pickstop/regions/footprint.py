@@ -17,8 +17,8 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
-from pickstop.caching import Cache
 from pickstop.frames import rot2
+from pickstop.regions.keep import Keep, KeepNothing
 from pickstop.robot.model import RobotModel
 from pickstop.scene.model import Scene
 from pickstop.scene.world import Solid, scene_solids
@@ -39,7 +39,7 @@ class UpperBody:
 
 def upper_body(robot: RobotModel) -> UpperBody:
     """The robot's base-fixed links above its footprint (made once per loaded robot and kept
-    in its ``memo``)."""
+    in its ``derived`` data)."""
     hit = robot.derived.upper_body
     if isinstance(hit, UpperBody):
         return hit
@@ -135,10 +135,6 @@ def blocked_by(
     return out
 
 
-BLOCKED_MEMO = 64  # blocked regions kept per robot (solids x yaw x which body)
-PIECES_MEMO = 4096  # blocked pieces kept per robot (solid x yaw x which body)
-
-
 @dataclass(frozen=True)
 class Blocked:
     """Where the base at one yaw may not stand for some solids: convex pieces of base
@@ -196,12 +192,12 @@ def _blocked_region(
     upper: bool,
     keep: bool = True,
 ) -> Blocked:
-    """Where the base at ``yaw`` may not stand for ``solids`` (:class:`Blocked`), made once
-    per solids, yaw and body parts and kept in the robot's ``memo`` (a point's test is then a
-    lookup), from pieces kept per solid (a layout that moves one tray makes that tray's
-    pieces alone anew)."""
+    """Where the base at ``yaw`` may not stand for ``solids`` (:class:`Blocked`), kept per
+    solids, yaw and body parts where the speed-ups keep them (:func:`_kept`; a point's test
+    is then a lookup), from pieces kept per solid (a layout that moves one tray makes that
+    tray's pieces alone anew)."""
     key = (_solids_key(solids), float(yaw), footprint, upper)
-    memo = _memo(robot, "blocked_regions", BLOCKED_MEMO)
+    memo = _kept(robot, "blocked_regions")
     hit = memo.get(key)
     if hit is not None:
         return hit  # type: ignore[no-any-return]
@@ -232,17 +228,19 @@ def _blocked_region(
 
 def _piece(robot: RobotModel, solid: Solid, yaw: float, body: str) -> BaseGeometry | None:
     """The base positions at ``yaw`` where the ``body`` ("footprint": a circle, or a convex
-    polygon; or "upper") touches ``solid`` (None: nowhere), kept in the robot's ``memo``.
+    polygon; or "upper") touches ``solid`` (None: nowhere), kept where the speed-ups keep
+    them (:func:`_kept`).
 
     A circle's are the solid's floor outline buffered by its radius (grown by the sagitta, so
     that the polygon covers the true rounded buffer); a convex polygon's, the Minkowski
     difference, the hull of the vertex differences (exact); the upper body's, those of each
     of its boxes that overlaps the solid in height (:func:`_upper_blocked`)."""
     key = (_solids_key([solid]), float(yaw), body)
-    memo = _memo(robot, "blocked_pieces", PIECES_MEMO)
-    if key in memo:
-        memo.touch(key)
-        return memo[key]  # type: ignore[no-any-return]
+    kept = _kept(robot, "blocked_pieces")
+    return kept.get_or_make(key, lambda: _made_piece(robot, solid, yaw, body))
+
+
+def _made_piece(robot: RobotModel, solid: Solid, yaw: float, body: str) -> BaseGeometry | None:
     fp = robot.footprint
     out: BaseGeometry | None
     if body == "upper":
@@ -254,16 +252,14 @@ def _piece(robot: RobotModel, solid: Solid, yaw: float, body: str) -> BaseGeomet
         rot = np.asarray(fp.polygon) @ rot2(yaw).T
         diff = (floor_outline(solid)[:-1, None, :] - rot[None, :, :]).reshape(-1, 2)
         out = shapely.MultiPoint(diff).convex_hull
-    return memo.put(key, out)  # type: ignore[no-any-return]
+    return out
 
 
-def _memo(robot: RobotModel, name: str, size: int) -> Cache[Any, Any]:
-    """The robot's cache ``name`` (a field of its ``derived``), made on first use."""
-    cache = getattr(robot.derived, name)
-    if cache is None:
-        cache = Cache(f"robot.{name}", max_items=size)
-        setattr(robot.derived, name, cache)
-    return cache  # type: ignore[no-any-return]
+def _kept(robot: RobotModel, name: str) -> Keep[Any, Any]:
+    """Where the blocked regions or pieces of ``robot`` are kept: the :class:`Keep` the
+    speed-ups hung on its ``derived`` data under ``name``, else nowhere."""
+    keep = getattr(robot.derived, name)
+    return keep if keep is not None else KeepNothing()
 
 
 def _solids_key(solids: list[Solid]) -> str:

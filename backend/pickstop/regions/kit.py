@@ -2,10 +2,12 @@
 
 One robot and one reachability database, and what is derived from them: the batched IK
 solver, the sphere covers of the arm and of the robot against itself, the exact (coal) checks
-and the open hand's shape. Beside them the memos of what a computation derives from a scene
-(grasps, open-hand spaces); each is keyed by everything it depends on, so none needs
-invalidating. Region caches and the memo of refinements across tray positions live in
-:mod:`pickstop.speedups.region_planner`.
+and the open hand's shape. What a computation derives from a scene (grasps, open-hand
+spaces, object bounds, each part's grasps judged against its own tray) is asked of a
+:class:`~pickstop.regions.keep.Keep` keyed by everything it depends on: the kit keeps
+nothing (:meth:`RegionKit.keep`); the region planner of :mod:`pickstop.speedups.region_planner`
+keeps them in bounded caches, beside its region caches and the memo of refinements across
+tray positions. Within one scene the kit makes its solids, bounds and grasps once.
 """
 
 from __future__ import annotations
@@ -14,13 +16,14 @@ import dataclasses
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from pickstop.caching import Cache
 from pickstop.reach.batch_ik import BatchSolver
 from pickstop.reach.database import ReachDatabase
 from pickstop.regions.arm import SPHERE_EXCESS, ArmSpheres, ExactArm
+from pickstop.regions.keep import Keep, KeepNothing
 from pickstop.robot.exact import ExactSelfCollision
 from pickstop.robot.hand import HandShape, hand_shape
 from pickstop.robot.model import RobotModel
@@ -51,11 +54,9 @@ from pickstop.scene.world import (
 Bounds = list[tuple[np.ndarray, np.ndarray, bool]]
 # what a kit builds from its robot and database alone, shared by a scratch kit
 _BUILT = frozenset(
-    ["robot", "db", "solver", "arm", "self_spheres", "exact_self", "exact_arm", "hand",
-     "reach_xy", "cache_dir"]
+    ["robot", "db", "solver", "arm", "self_spheres", "exact_self", "hand", "reach_xy",
+     "cache_dir"]
 )  # fmt: skip
-MEMO_SIZE = 4096  # open-hand spaces and object bounds kept, each
-OWN_VERDICTS = 512  # parts whose grasps judged against their own tray are kept (~0.1 MB each)
 
 
 @dataclass
@@ -83,23 +84,17 @@ class RegionKit:
     exact_arm: ExactArm = field(init=False)
     hand: HandShape = field(init=False)
     reach_xy: float = field(init=False)  # [m] the database's horizontal reach
-    grasp_memo: Cache[str, GraspSet] = field(
-        default_factory=lambda: Cache("kit.grasps", max_items=MEMO_SIZE)
-    )
     cache_dir: Path | None = None  # per-robot derived data (disabled pairs, screen)
-    _hand_spaces: Cache[str, tuple[np.ndarray, np.ndarray]] = field(
-        default_factory=lambda: Cache("kit.hand_spaces", max_items=MEMO_SIZE),
-        init=False, repr=False,
-    )  # fmt: skip
-    _bounds: Cache[str, Bounds] = field(
-        default_factory=lambda: Cache("kit.object_bounds", max_items=MEMO_SIZE),
-        init=False, repr=False,
-    )  # fmt: skip
+    # what the kit keeps between computations (:meth:`keep`), by the keys it asks with
+    grasp_memo: Keep[str, GraspSet] = field(default_factory=KeepNothing, init=False, repr=False)
+    _hand_spaces: Keep[str, tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=KeepNothing, init=False, repr=False
+    )
+    _bounds: Keep[str, Bounds] = field(default_factory=KeepNothing, init=False, repr=False)
     # each part's grasps judged against its own tray alone, wherever the tray stands
-    _own_verdicts: Cache[str, OwnVerdicts] = field(
-        default_factory=lambda: Cache("kit.own_verdicts", max_items=OWN_VERDICTS),
-        init=False, repr=False,
-    )  # fmt: skip
+    _own_verdicts: Keep[str, OwnVerdicts] = field(
+        default_factory=KeepNothing, init=False, repr=False
+    )
     # what a plan asks about its scene many times, made once for the last scene asked about
     _scene_memo: _SceneMemo | None = field(default=None, init=False, repr=False)
 
@@ -117,13 +112,23 @@ class RegionKit:
         )
         disabled, self.self_spheres = self_collision(self.robot, self.cache_dir)
         self.exact_self = ExactSelfCollision(self.robot, disabled)
-        self.exact_arm = ExactArm(self.robot, self.arm)
+        self.exact_arm = ExactArm(self.robot, self.arm, bounds=self.keep("arm.solid_bounds"))
         self.reach_xy = self.db.reach_xy
+        self.grasp_memo = self.keep("kit.grasps")
+        self._hand_spaces = self.keep("kit.hand_spaces")
+        self._bounds = self.keep("kit.object_bounds")
+        self._own_verdicts = self.keep("kit.own_verdicts")
+
+    def keep(self, name: str) -> Keep[Any, Any]:
+        """Where the kit keeps what it derives under ``name`` between computations: nothing
+        (every answer is made anew). The region planner keeps each in a bounded cache."""
+        return KeepNothing()
 
     def scratch(self) -> RegionKit:
         """A kit of the same robot and database sharing what is built from them alone (the
-        solver, the sphere covers, the exact checks, the hand), every memo of scenes empty and
-        none of a subclass's caches: what it computes depends on its arguments alone."""
+        solver, the sphere covers, the self-collision checks, the hand), with exact arm
+        checks of its own, keeping nothing and none of a subclass's caches: what it computes
+        depends on its arguments alone."""
         out = object.__new__(RegionKit)
         for f in dataclasses.fields(RegionKit):
             if f.name in _BUILT:
@@ -133,6 +138,7 @@ class RegionKit:
             else:
                 value = f.default
             setattr(out, f.name, value)
+        out.exact_arm = ExactArm(self.robot, self.arm)
         return out
 
     def checkpoint(self) -> None:

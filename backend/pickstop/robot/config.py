@@ -7,7 +7,6 @@ See ``docs/conventions.md`` for frames and units.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from pathlib import Path
@@ -24,7 +23,6 @@ from pydantic import (
     model_validator,
 )
 
-from pickstop.caching import Cache
 from pickstop.errors import RobotConfigError
 
 PRESET_DIR = Path(__file__).parent / "presets"
@@ -278,31 +276,6 @@ def load_config(path: str | Path) -> tuple[RobotConfig, Path]:
     if not path.is_file():
         raise RobotConfigError(f"{path}: robot config file not found")
     return config_from_text(path, path.read_text(encoding="utf-8"))
-
-
-class ConfigFiles:
-    """Robot config files, parsed once per text: a request names its robot every time, and
-    parsing a YAML config takes milliseconds. The file is read every time; a text read
-    before at the same path is not parsed again (a config is frozen, so the one parsed before
-    is the same). The last ``size`` texts are kept."""
-
-    def __init__(self, size: int = 32) -> None:
-        self._parsed: Cache[tuple[str, str], tuple[RobotConfig, Path]] = Cache(
-            "robot_configs", max_items=size
-        )
-
-    def load(self, path: str | Path) -> tuple[RobotConfig, Path]:
-        """:func:`load_config`, remembered."""
-        path = Path(path)
-        if not path.is_file():
-            raise RobotConfigError(f"{path}: robot config file not found")
-        text = path.read_text(encoding="utf-8")
-        key = (str(path.resolve()), hashlib.sha256(text.encode()).hexdigest())
-        return self._parsed.get_or_make(key, lambda: config_from_text(path, text))
-
-    def resolve(self, robot: str) -> tuple[RobotConfig, Path]:
-        """:func:`resolve_robot`, remembered."""
-        return self.load(robot_config_file(robot))
 
 
 def config_from_text(path: Path, text: str) -> tuple[RobotConfig, Path]:

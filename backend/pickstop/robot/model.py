@@ -64,8 +64,8 @@ class Derived:
     travel: Any = None  # robot/travel.py travel_of(): Travel
     upper_body: Any = None  # regions/footprint.py upper_body(): UpperBody
     # regions/footprint.py: where the base may not stand, per (solids, yaw, body parts) and
-    # per solid piece
-    blocked_regions: Any = None  # a pickstop.caching.Cache, made on first use
+    # per solid piece; a Keep the speed-ups hang here (speedups/region_planner.py), else none
+    blocked_regions: Any = None
     blocked_pieces: Any = None
 
 

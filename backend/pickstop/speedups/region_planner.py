@@ -11,6 +11,7 @@ at once, each tray at home in the planner's process or one of its forked helpers
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from pickstop.caching import Cache
 from pickstop.regions.cells import TrayRegion
@@ -26,6 +27,19 @@ from pickstop.speedups.warmup import warm_kernels
 
 LAYOUTS = 8  # the regions of this many layouts kept whole
 LAYOUTS_PER_TRAY = 4  # cached regions per own key (tray, yaw, ...): a few layouts around it
+#: What the kit derives and the planner keeps (:meth:`RegionPlanner.keep`), by name: entries.
+KEPT = {
+    "kit.grasps": 4096,  # grasps by tray, part, hand and what reaches into the hands' space
+    "kit.hand_spaces": 4096,  # open-hand spaces by tray (wherever it stands) and part
+    "kit.object_bounds": 4096,  # bounds of each object's solids by its definition
+    "kit.own_verdicts": 512,  # a part's grasps judged against its own tray (~0.1 MB each)
+    "arm.solid_bounds": 32,  # bounding boxes of the solid lists the exact arm checks against
+}
+#: The footprint's blocked regions and pieces, kept on the robot's derived data: entries.
+ROBOT_KEPT = {
+    "blocked_regions": 64,  # per solids, yaw and which body
+    "blocked_pieces": 4096,  # per solid, yaw and which body
+}
 
 
 @dataclass
@@ -48,9 +62,17 @@ class RegionPlanner(RegionKit):
     _processes: RegionProcesses | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
+        derived = self.robot.derived
+        for name, size in ROBOT_KEPT.items():
+            if getattr(derived, name) is None:
+                setattr(derived, name, Cache(f"robot.{name}", max_items=size))
         super().__post_init__()
         warm_kernels(self)
         self._last = LastRegions(4 * self.cache_size)
+
+    def keep(self, name: str) -> Cache[Any, Any]:
+        """What the kit derives under ``name``, kept in a bounded cache (:data:`KEPT`)."""
+        return Cache(name, max_items=KEPT[name])
 
     def tray_region(self, scene: Scene, tray_id: str, yaw: float | None = None) -> TrayRegion:
         """The region of one tray, reused from the cache while nothing it looked at changed."""
