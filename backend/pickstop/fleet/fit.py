@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
-from scipy import stats
 
 from pickstop.errors import InputError
 from pickstop.fleet.arrivals import Arrival
@@ -95,10 +94,14 @@ def _axis_angle(a: float) -> float:
 
 
 def _t(n: int) -> float:
+    from scipy import stats  # on use: it adds half a second to every command's start
+
     return float(stats.t.ppf(0.975, n - 1))
 
 
 def _var_interval(s2: float, n: int) -> Interval:
+    from scipy import stats
+
     lo = (n - 1) * s2 / float(stats.chi2.ppf(0.975, n - 1))
     hi = (n - 1) * s2 / float(stats.chi2.ppf(0.025, n - 1))
     return (lo, hi)
