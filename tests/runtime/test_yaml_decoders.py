@@ -147,3 +147,17 @@ def test_a_timeout_is_a_422_and_the_next_body_decodes(monkeypatch):
     assert e.value.status == 422 and "took more than" in e.value.detail
     monkeypatch.setattr(body, "YAML_SECONDS", 5.0)
     assert body.decode_yaml(b"name: x\n") == {"name": "x"}
+
+
+def test_a_child_lost_without_an_answer_is_a_422(monkeypatch):
+    from pickstop.api import body
+    from pickstop.api.problems import Problem
+    from pickstop.runtime import yaml_decoders
+
+    def lost(data, seconds):
+        raise ChildLost
+
+    monkeypatch.setattr(yaml_decoders.DECODERS, "decode", lost)
+    with pytest.raises(Problem) as e:
+        body.decode_yaml(b"name: x\n")
+    assert e.value.status == 422 and "could not be decoded" in e.value.detail

@@ -101,14 +101,11 @@ def decode_yaml(raw: bytes, charset: str = "utf-8") -> Any:
     text = _text(raw, "YAML", charset)
     try:
         answer = yaml_decoders.DECODERS.decode(text.encode("utf-8", "surrogatepass"), YAML_SECONDS)
+        out = json.loads(answer)
     except yaml_decoders.DecodeTimeout:
         raise invalid("body", f"the YAML took more than {YAML_SECONDS:g} s to decode "
                       "(nested too deeply, or too complex)") from None  # fmt: skip
-    except yaml_decoders.ChildLost:
-        answer = b""
-    try:
-        out = json.loads(answer)
-    except ValueError:
+    except (yaml_decoders.ChildLost, ValueError):  # the child stopped without an answer
         raise invalid("body", "the YAML could not be decoded (nested too deeply, or too "
                       "complex)") from None  # fmt: skip
     if "error" in out:

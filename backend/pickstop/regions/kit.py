@@ -128,7 +128,9 @@ class RegionKit:
         """A kit of the same robot and database sharing what is built from them alone (the
         solver, the sphere covers, the self-collision checks, the hand), with exact arm
         checks of its own, keeping nothing and none of a subclass's caches: what it computes
-        depends on its arguments alone."""
+        depends on its arguments alone. (The footprint's blocked regions go with the robot:
+        where a region planner of it hung its caches there, this kit reads them too; they are
+        pure functions of their keys, so the answers are the same.)"""
         out = object.__new__(RegionKit)
         for f in dataclasses.fields(RegionKit):
             if f.name in _BUILT:
